@@ -1,0 +1,203 @@
+"""The Result of any back end, and the run folder it is written to.
+
+One dataclass for every back end (collocation, flat B-splines, controllers, parametric
+search). The report reads only the run folder, so everything a figure or table needs
+goes into it: ``result.json`` (scalars and metadata), ``trajectory.csv`` (or
+``trajectory_<phase>.csv`` when there are several phases) and optional extra tables
+``tables/<name>.csv`` (closed-loop runs, swarm history, mesh history, ...).
+
+Writing is atomic: the folder is assembled beside its destination and renamed into
+place, so an interrupted run never leaves a folder that looks complete.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+STATUSES = ("optimal", "infeasible", "max_iter", "error", "mesh_not_converged",
+            "feasible", "stable", "unstable", "not_run")
+
+
+@dataclass
+class PhaseTrajectory:
+    """Time histories of one phase, each array indexed like ``time``."""
+
+    name: str
+    time: np.ndarray
+    states: dict[str, np.ndarray] = field(default_factory=dict)
+    controls: dict[str, np.ndarray] = field(default_factory=dict)
+    costates: dict[str, np.ndarray] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)  # hamiltonian, switching functions...
+
+    def columns(self) -> dict[str, np.ndarray]:
+        cols = {"t": np.asarray(self.time, float)}
+        cols.update(self.states)
+        cols.update(self.controls)
+        cols.update({f"lambda_{k}": v for k, v in self.costates.items()})
+        cols.update(self.extra)
+        return cols
+
+
+@dataclass
+class Result:
+    """What a run produced. ``status`` is one of :data:`STATUSES`.
+
+    ``wall_time_s`` has ``total`` and the stage breakdown (parse, symbolic, build, solve,
+    post). ``nlp`` has ``variables``, ``constraints``, ``nonzeros`` when an NLP was solved.
+    ``expect`` is a list of checks, each ``{name, value, reference, rtol, atol, error,
+    passed}``. ``problem`` describes the problem for the report (names, units, LaTeX).
+    ``extra`` holds back-end specific scalars; ``tables`` extra named tables (column ->
+    array), written to ``tables/<name>.csv``.
+    """
+
+    name: str
+    status: str
+    message: str = ""
+    objective: float | None = None
+    tf: float | dict[str, float] | None = None
+    iterations: int | None = None
+    wall_time_s: dict[str, float] = field(default_factory=dict)
+    nlp: dict[str, int] = field(default_factory=dict)
+    method: dict[str, Any] = field(default_factory=dict)
+    parameters: dict[str, float] = field(default_factory=dict)
+    phases: list[PhaseTrajectory] = field(default_factory=list)
+    expect: list[dict[str, Any]] = field(default_factory=list)
+    certificate: dict[str, Any] | None = None
+    problem: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+    tables: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+
+    # ---- Python API -------------------------------------------------------------
+    @property
+    def ok(self) -> bool:
+        """Solved and every expect check passed (the CLI's exit code 0)."""
+        good = self.status in ("optimal", "stable", "feasible")
+        return good and all(c.get("passed", False) for c in self.expect)
+
+    def phase(self, name: str | None = None) -> PhaseTrajectory:
+        if name is None:
+            return self.phases[0]
+        for p in self.phases:
+            if p.name == name:
+                return p
+        raise KeyError(f"no phase {name!r}; phases: {[p.name for p in self.phases]}")
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        """``result['x']``: a column of the first phase; ``result['descent.x']`` of a named one."""
+        phase_name, _, col = key.rpartition(".")
+        cols = self.phase(phase_name or None).columns()
+        if col not in cols:
+            raise KeyError(f"no column {col!r}; columns: {list(cols)}")
+        return cols[col]
+
+    # ---- run folder ---------------------------------------------------------------
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        data.pop("phases")
+        data.pop("tables")
+        data["phases"] = [{"name": p.name, "file": _trajectory_file(p.name, len(self.phases)),
+                           "nodes": int(len(p.time))} for p in self.phases]
+        data["tables"] = sorted(self.tables)
+        return _jsonable(data)
+
+    def write(self, run_dir: str | os.PathLike, extra_files: dict[str, str] | None = None) -> Path:
+        """Write the run folder atomically; ``extra_files`` maps file name -> text."""
+        run_dir = Path(run_dir)
+        run_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", dir=run_dir.parent))
+        try:
+            for p in self.phases:
+                _write_csv(tmp / _trajectory_file(p.name, len(self.phases)), p.columns())
+            for name, table in self.tables.items():
+                (tmp / "tables").mkdir(exist_ok=True)
+                _write_csv(tmp / "tables" / f"{name}.csv", table)
+            for fname, text in (extra_files or {}).items():
+                (tmp / fname).write_text(text)
+            (tmp / "result.json").write_text(json.dumps(self.to_json(), indent=2))
+            _replace_dir(tmp, run_dir)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return run_dir
+
+    @classmethod
+    def read(cls, run_dir: str | os.PathLike) -> "Result":
+        run_dir = Path(run_dir)
+        data = json.loads((run_dir / "result.json").read_text())
+        phases_meta = data.pop("phases", [])
+        table_names = data.pop("tables", [])
+        names = {k for k in cls.__dataclass_fields__}
+        res = cls(**{k: v for k, v in data.items() if k in names})
+        state_names = res.problem.get("phases", {})
+        for meta in phases_meta:
+            cols = read_csv(run_dir / meta["file"])
+            info = state_names.get(meta["name"], {}) if isinstance(state_names, dict) else {}
+            sn, cn = info.get("states", []), info.get("controls", [])
+            res.phases.append(PhaseTrajectory(
+                meta["name"], cols.pop("t"),
+                states={k: cols.pop(k) for k in sn if k in cols},
+                controls={k: cols.pop(k) for k in cn if k in cols},
+                costates={k[len("lambda_"):]: cols.pop(k) for k in list(cols) if k.startswith("lambda_")},
+                extra=cols))
+        for name in table_names:
+            res.tables[name] = read_csv(run_dir / "tables" / f"{name}.csv")
+        return res
+
+
+def _trajectory_file(phase: str, n_phases: int) -> str:
+    return "trajectory.csv" if n_phases == 1 else f"trajectory_{phase}.csv"
+
+
+def _replace_dir(new: Path, dest: Path) -> None:
+    if dest.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{dest.name}.old.", dir=dest.parent))
+        os.replace(dest, old / "x")
+        os.replace(new, dest)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(new, dest)
+
+
+def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
+    arrays = {k: np.atleast_1d(np.asarray(v, float)) for k, v in columns.items()}
+    n = max((len(a) for a in arrays.values()), default=0)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(list(arrays))
+        for i in range(n):
+            w.writerow([repr(float(a[i])) if i < len(a) else "" for a in arrays.values()])
+
+
+def read_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read a run-folder CSV into column arrays (empty cells become NaN)."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    return {h: np.array([float(r[j]) if j < len(r) and r[j] != "" else math.nan for r in body])
+            for j, h in enumerate(header)}
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        f = float(obj)
+        return f if math.isfinite(f) else str(f)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    return obj
