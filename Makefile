@@ -1,0 +1,25 @@
+# The README's two commands are `make demo` and `make test`; each sets up what is missing first.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+export PYOMO_CONFIG_DIR := $(CURDIR)/$(VENV)/share/pyomo
+export MPLBACKEND := Agg
+
+.PHONY: setup demo test bench bench-peers reproduce clean
+
+setup:
+	@./scripts/setup.sh
+
+demo: setup
+	$(VENV)/bin/ocdsl run configs/double_integrator.yaml --out runs/demo
+
+test: setup
+	$(PY) -m pytest -q -m "not slow" -n 2 --timeout 600
+
+bench: setup
+	$(PY) -m ocdsl.bench
+
+reproduce: setup
+	$(PY) -m pytest -q -m slow --timeout 3600
+
+clean:
+	rm -rf runs .pytest_cache
