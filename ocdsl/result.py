@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-STATUSES = ("optimal", "infeasible", "max_iter", "error", "mesh_not_converged",
+STATUSES = ("optimal", "acceptable", "infeasible", "max_iter", "error", "mesh_not_converged",
             "feasible", "stable", "unstable", "not_run")
 
 

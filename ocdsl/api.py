@@ -1,0 +1,120 @@
+"""The Python API: load a problem file, solve it, get a Result with NumPy arrays by name.
+
+    >>> import ocdsl
+    >>> res = ocdsl.load("configs/brachistochrone.yaml").solve()
+    >>> res.tf, res["x"][:3]
+"""
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+
+from .result import PhaseTrajectory, Result
+from .spec import compile as spec_compile
+from .spec.errors import SpecError
+from .spec.loader import load_yaml
+
+
+@dataclass
+class Timer:
+    stages: dict[str, float] = field(default_factory=dict)
+    start: float = field(default_factory=time.perf_counter)
+
+    def add(self, stage: str, seconds: float) -> None:
+        self.stages[stage] = self.stages.get(stage, 0.0) + seconds
+
+    def measure(self, stage: str):
+        timer = self
+
+        class _Ctx:
+            def __enter__(self):
+                self.t = time.perf_counter()
+
+            def __exit__(self, *exc):
+                timer.add(stage, time.perf_counter() - self.t)
+                return False
+
+        return _Ctx()
+
+    def breakdown(self) -> dict[str, float]:
+        out = {k: round(v, 6) for k, v in self.stages.items()}
+        out["total"] = round(time.perf_counter() - self.start, 6)
+        return out
+
+
+def compile_file(path: str | Path, parameters: dict[str, float] | None = None,
+                 timer: Timer | None = None) -> spec_compile.LoadedFile:
+    """Parse and compile a problem file; raises SpecError with every problem found."""
+    timer = timer or Timer()
+    with timer.measure("parse"):
+        located = load_yaml(path)
+        spec = spec_compile.validate(located)
+    with timer.measure("symbolic"):
+        return spec_compile._Compiler(Path(path), located, spec, dict(parameters or {})).compile()
+
+
+class Loaded:
+    """A compiled problem file, ready to solve (``ocdsl.load(path)``)."""
+
+    def __init__(self, path: str | Path, parameters: dict[str, float] | None = None):
+        self.path = Path(path)
+        self.timer = Timer()
+        self.file = compile_file(path, parameters, self.timer)
+
+    @property
+    def problem(self):
+        return self.file.problem
+
+    def solve(self, out: str | Path | None = None, *, seed: int | None = None,
+              warm_start: str | Path | None = None, verbose: bool = False, progress: bool = False) -> Result:
+        from .run import execute
+
+        result = execute(self.file, self.timer, seed=seed, warm_start=warm_start, verbose=verbose,
+                         progress=progress)
+        if out is not None:
+            write_run(result, out, self.path)
+        return result
+
+
+def load(path: str | Path, parameters: dict[str, float] | None = None) -> Loaded:
+    return Loaded(path, parameters)
+
+
+def write_run(result: Result, out: str | Path, source: Path | None) -> Path:
+    extra = {}
+    if source is not None and source.exists():
+        extra["problem.yaml"] = source.read_text()
+    return result.write(out, extra_files=extra)
+
+
+def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str, float] | None = None,
+             seed: int | None = None, warm_start: str | Path | None = None, quiet: bool = True,
+             verbose: bool = False) -> Result:
+    """Parse, build, solve and write the run folder. Never raises for a failed solve.
+
+    A bad problem file still raises :class:`SpecError` (nothing is written): it is the
+    caller's input that is wrong, not the run.
+    """
+    timer = Timer()
+    file = compile_file(path, parameters, timer)
+    from .run import execute
+
+    try:
+        result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=not quiet)
+    except SpecError:
+        raise
+    except Exception as e:  # a crash in a back end still leaves a diagnosed run folder
+        result = Result(name=file.spec.name, status="error",
+                        message=f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=6)}",
+                        wall_time_s=timer.breakdown(), method=dict(file.spec.method),
+                        parameters=file.parameters,
+                        problem=file.problem.description if file.problem else {})
+    if out_dir is not None:
+        write_run(result, out_dir, Path(path))
+    return result

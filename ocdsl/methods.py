@@ -1,0 +1,52 @@
+"""Registry of non-pseudospectral methods (`method: {transcription: NAME, ...}`).
+
+Each back end registers a pydantic spec class and a runner; the spec layer validates a
+file's `method:` block with the spec of the named method.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+_SPECS: dict[str, Any] = {}
+
+
+def register_method(name: str, spec_class) -> None:
+    _SPECS[name] = spec_class
+
+
+def method_spec(name: str, data: dict) -> Any:
+    _load()
+    if name not in _SPECS:
+        import difflib
+
+        known = ["LG", "LGR", "LGL", "LGR-start"] + sorted(_SPECS)
+        close = difflib.get_close_matches(str(name), known, n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise ValueError(f"unknown transcription '{name}'{hint}; known: {', '.join(known)}")
+    return _SPECS[name].model_validate(data)
+
+
+def _load() -> None:
+    """Import the optional back ends' spec modules (each registers itself)."""
+    import importlib
+
+    for mod in ("ocdsl.spec.parametric", "ocdsl.transcribe.flat_bspline_spec"):
+        try:
+            importlib.import_module(mod)
+        except ImportError:
+            pass
+
+
+_RUNNERS: dict[str, Any] = {}
+
+
+def register_runner(name: str, fn) -> None:
+    """``fn(file, timer, *, seed, warm_start, verbose, progress) -> Result``."""
+    _RUNNERS[name] = fn
+
+
+def runner(name: str):
+    _load()
+    if name not in _RUNNERS:
+        raise ValueError(f"method '{name}' has no runner")
+    return _RUNNERS[name]

@@ -1,0 +1,166 @@
+"""Execute a compiled problem file with the back end its ``method:`` names."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+
+from .result import PhaseTrajectory, Result
+from .spec.compile import LoadedFile
+from .spec.schema import PseudospectralMethod
+
+
+def execute(file: LoadedFile, timer, *, seed: int | None = None, warm_start: str | Path | None = None,
+            verbose: bool = False, progress: bool = False) -> Result:
+    method = file.method
+    if isinstance(method, PseudospectralMethod):
+        return solve_pseudospectral(file, timer, seed=seed, warm_start=warm_start, verbose=verbose,
+                                    progress=progress)
+    from .methods import runner
+
+    return runner(method.transcription)(file, timer, seed=seed, warm_start=warm_start, verbose=verbose,
+                                        progress=progress)
+
+
+def _better(info, best, sense: str) -> bool:
+    good = ("optimal", "acceptable")
+    if best is None:
+        return True
+    if info.status in good and best.status not in good:
+        return True
+    if info.status not in good or best.status not in good or info.objective is None:
+        return False
+    return info.objective < best.objective if sense == "minimize" else info.objective > best.objective
+
+
+def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None, verbose=False,
+                         progress=False, meshes=None) -> Result:
+    from .solve import ipopt
+    from .transcribe.guess import make_guess
+    from .transcribe.mesh import Mesh
+    from .transcribe.pseudospectral import build
+
+    ipopt.check_available()
+    problem, method = file.problem, file.method
+    meshes = meshes or {ph.name: Mesh.uniform(method.transcription, method.segments, method.degree)
+                        for ph in problem.phases}
+    previous = {}
+    if warm_start is not None:
+        prev = Result.read(warm_start)
+        previous = {p.name: p for p in prev.phases}
+    starts = method.starts
+    best = best_tr = None
+    records = []
+    for i in range(starts):
+        s = seed if starts == 1 else (method.seed if seed is None else seed) + i
+        with timer.measure("build"):
+            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=s) for ph in problem.phases}
+            tr = build(problem, meshes, guesses)
+        with timer.measure("solve"):
+            bar = ipopt.Progress(progress, f"[{i + 1}/{starts}]" if starts > 1 else "")
+            info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar)
+        records.append({"start": i, "seed": s, "status": info.status, "objective": info.objective,
+                        "iterations": info.iterations, "solve_time_s": round(info.solve_time, 4)})
+        if _better(info, best, problem.objective.sense):
+            best, best_tr = info, tr
+            if i < starts - 1:
+                best_values = _snapshot(tr)
+        elif best_tr is not None and i < starts - 1:
+            pass
+    if starts > 1:
+        _restore(best_tr, best_values) if best_tr is not None and 'best_values' in locals() else None
+    with timer.measure("post"):
+        result = _result(file, best_tr, best, timer, meshes)
+        result.extra["starts"] = records
+    result.wall_time_s = timer.breakdown()
+    return result
+
+
+def _snapshot(tr) -> dict:
+    import pyomo.environ as pyo
+
+    vals = {v: v.value for v in tr.model.component_data_objects(pyo.Var)}
+    duals = dict(tr.model.dual.items())
+    return {"vars": vals, "duals": duals}
+
+
+def _restore(tr, snap) -> None:
+    for v, val in snap["vars"].items():
+        v.set_value(val, skip_validation=True)
+    tr.model.dual.clear()
+    tr.model.dual.update(snap["duals"])
+
+
+def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
+    import pyomo.environ as pyo
+
+    from .solve.costates import costates
+    from .transcribe.solution import extract
+
+    problem = file.problem
+    phases = extract(tr)
+    if info.status in ("optimal", "acceptable"):
+        for traj, lam in zip(phases, costates(tr)):
+            traj.costates = lam
+    values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
+    tf = {ph.name: float(pyo.value(pb.block.tf)) for ph, pb in zip(problem.phases, tr.phases)}
+    result = Result(
+        name=file.spec.name, status=info.status, message=info.message, objective=info.objective,
+        tf=tf["main"] if len(tf) == 1 and "main" in tf else tf,
+        iterations=info.iterations, nlp=info.nlp,
+        method={**file.method.model_dump(), "meshes": {k: m.describe() for k, m in meshes.items()}},
+        parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
+        phases=phases, problem=problem.description)
+    result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
+    result.expect = check_expectations(file, values, info.objective)
+    _certify(file, result)
+    return result
+
+
+def _certify(file: LoadedFile, result: Result) -> None:
+    """Attach the optimality certificate when the module is available and the solve converged."""
+    if result.status not in ("optimal", "acceptable"):
+        return
+    try:
+        from .solve.certificate import certify_result
+    except ImportError:
+        return
+    try:
+        result.certificate = certify_result(file.problem, result)
+    except Exception as e:  # the certificate must never lose a solved run
+        result.certificate = {"error": f"{type(e).__name__}: {e}", "passed": False}
+
+
+def check_expectations(file: LoadedFile, values: dict[sp.Symbol, float], objective: float | None) -> list[dict]:
+    checks = []
+    for key, item in file.spec.expect.items():
+        expr = file.expect.get(key)
+        subs = dict(values)
+        subs[sp.Symbol("objective", real=True)] = objective if objective is not None else math.nan
+        try:
+            value = float(expr.xreplace({k: sp.Float(v) for k, v in subs.items()}))
+        except (TypeError, ValueError):
+            value = math.nan
+        checks.append(expect_check(key, value, item.value, item.rtol, item.atol, item.compare))
+    return checks
+
+
+def expect_check(name: str, value: float, reference: float, rtol: float | None, atol: float | None,
+                 compare: str = "equal") -> dict[str, Any]:
+    """One expect check; with neither tolerance given, rtol = 1e-6."""
+    if rtol is None and atol is None:
+        rtol = 1e-6
+    err = abs(value - reference)
+    rel = err / abs(reference) if reference != 0 else math.inf
+    slack = max(rtol * abs(reference) if rtol is not None else 0.0, atol or 0.0)
+    if compare == "at_most":
+        passed = value <= reference + slack
+    elif compare == "at_least":
+        passed = value >= reference - slack
+    else:
+        passed = err <= slack
+    passed = bool(passed and math.isfinite(value))
+    return {"name": name, "value": value, "reference": reference, "rtol": rtol, "atol": atol,
+            "compare": compare, "error": err, "relative_error": rel, "passed": passed}

@@ -1,0 +1,137 @@
+"""Ipopt through Pyomo's cyipopt interface: availability check, options, progress, status."""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+STATUS_MAP = {
+    # Ipopt's status messages (cyipopt) -> ocdsl statuses
+    "Algorithm terminated successfully at a locally optimal point, satisfying the convergence tolerances (can be specified by options).": "optimal",
+    "Algorithm stopped at a point that was converged, not to \"desired\" tolerances, but to \"acceptable\" tolerances (see the acceptable-... options).": "acceptable",
+    "Maximum number of iterations exceeded (can be specified by an option).": "max_iter",
+    "Maximum CPU time exceeded.": "max_iter",
+    "Maximum wallclock time exceeded.": "max_iter",
+    "Problem may be infeasible.": "infeasible",
+    "Algorithm converged to a point of local infeasibility. Problem may be infeasible.": "infeasible",
+}
+
+DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8}
+
+
+class SolverUnavailable(RuntimeError):
+    """Ipopt or PyNumero's ASL library is missing; the message says how to fix it."""
+
+
+def check_available() -> None:
+    """Fail early with a fix, instead of Pyomo's opaque AttributeError on AmplInterface."""
+    try:
+        import cyipopt  # noqa: F401
+    except ImportError as e:
+        raise SolverUnavailable(f"cyipopt is not importable ({e}); install the project with `make setup` "
+                                "(it installs the cyipopt-wheels package, which bundles Ipopt)") from None
+    from pyomo.contrib.pynumero.asl import AmplInterface
+
+    if not AmplInterface.available():
+        where = os.environ.get("PYOMO_CONFIG_DIR", "<not set>")
+        raise SolverUnavailable(
+            "PyNumero's ASL library (libpynumero_ASL) was not found, so Pyomo cannot hand the NLP to "
+            f"Ipopt. PYOMO_CONFIG_DIR={where}. Fix: run `make setup` (builds it into "
+            ".venv/share/pyomo), or set PYOMO_CONFIG_DIR to the folder that holds lib/libpynumero_ASL.so.")
+
+
+@dataclass
+class SolveInfo:
+    status: str
+    message: str
+    iterations: int
+    objective: float | None
+    solve_time: float
+    nlp: dict[str, int] = field(default_factory=dict)
+    history: list[tuple[int, float, float, float]] = field(default_factory=list)  # iter, obj, inf_pr, inf_du
+    log: str = ""
+
+
+class Progress:
+    """A one-line live display written straight to the terminal's file descriptor.
+
+    Pyomo captures stdout/stderr during the solve, so the line goes to a duplicate of
+    the original stderr descriptor taken before the solve starts.
+    """
+
+    def __init__(self, enabled: bool, label: str = ""):
+        self.enabled = enabled and sys.stderr.isatty()
+        self.label = label
+        self.fd = os.dup(sys.stderr.fileno()) if self.enabled else None
+        self.last = 0.0
+
+    def update(self, it: int, obj: float, inf_pr: float, inf_du: float) -> None:
+        now = time.perf_counter()
+        if self.fd is None or now - self.last < 0.1:
+            return
+        self.last = now
+        line = f"\r{self.label} iter {it:4d}  objective {obj: .8e}  infeasibility {inf_pr:.2e}  dual {inf_du:.2e} "
+        os.write(self.fd, line.encode())
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.write(self.fd, b"\r\x1b[K")
+            os.close(self.fd)
+            self.fd = None
+
+
+def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
+          progress: Progress | None = None, on_iteration: Callable | None = None) -> SolveInfo:
+    """Solve a Pyomo model with Ipopt; never raises for a failed solve (status 'error')."""
+    import logging
+
+    import pyomo.environ as pyo
+
+    check_available()
+    # Ipopt may end a hair outside a bound (bound_relax_factor); Pyomo warns per variable on load
+    logging.getLogger("pyomo.core").setLevel(logging.ERROR)
+    opts = {**DEFAULT_OPTIONS, **(options or {})}
+    if not verbose:
+        opts.setdefault("print_level", 0)
+    opts.setdefault("sb", "yes")
+    history: list[tuple[int, float, float, float]] = []
+
+    def callback(*args):
+        # 12- or 13-argument form: (nlp?, alg_mod, iter, obj, inf_pr, inf_du, mu, d_norm, ...)
+        vals = args[-11:]
+        it, obj, inf_pr, inf_du = int(vals[1]), float(vals[2]), float(vals[3]), float(vals[4])
+        history.append((it, obj, inf_pr, inf_du))
+        if progress:
+            progress.update(it, obj, inf_pr, inf_du)
+        if on_iteration:
+            on_iteration(it, obj, inf_pr, inf_du)
+        return True
+
+    solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
+    t = time.perf_counter()
+    try:
+        results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
+    except Exception as e:  # evaluation errors, bad options...
+        if progress:
+            progress.close()
+        return SolveInfo("error", f"{type(e).__name__}: {e}", len(history) and history[-1][0],
+                         None, time.perf_counter() - t, history=history)
+    elapsed = time.perf_counter() - t
+    if progress:
+        progress.close()
+    msg = results.solver.message
+    msg = msg.decode() if isinstance(msg, bytes) else str(msg)
+    status = STATUS_MAP.get(msg, "error")
+    nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
+                "nonzeros": int(nlp.nnz_jacobian()),
+                "equality_constraints": int(nlp.n_eq_constraints()),
+                "inequality_constraints": int(nlp.n_ineq_constraints())}
+    obj = None
+    try:
+        obj = float(pyo.value(next(model.component_data_objects(pyo.Objective, active=True))))
+    except Exception:
+        pass
+    iterations = history[-1][0] if history else 0
+    return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)

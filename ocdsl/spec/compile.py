@@ -1,0 +1,523 @@
+"""Problem file -> validated spec -> symbolic :class:`~ocdsl.symbolic.problem.Problem`.
+
+Every mistake becomes an :class:`~ocdsl.spec.errors.Issue` with file, line and text;
+all issues found are raised together as one :class:`SpecError`.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pydantic
+import sympy as sp
+
+from ..symbolic.model import TIME, Model, sym
+from ..symbolic.problem import (INF, BoundaryValue, Constraint, FreeParameter, Objective, Phase,
+                                Problem)
+from ..symbolic.registry import build_model
+from .errors import ExprError, Issue, SpecError
+from .expr import RESERVED, Scope, parse_expression, parse_relation
+from .loader import Located, load_yaml
+from .schema import ModelSpec, ParameterSpec, ProblemFile, PseudospectralMethod, TimeSpec
+
+PSEUDOSPECTRAL = ("LG", "LGR", "LGL", "LGR-start")
+NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+@dataclass
+class LoadedFile:
+    """A parsed and compiled problem file."""
+
+    path: Path
+    located: Located
+    spec: ProblemFile
+    problem: Problem | None
+    method: Any                                   # validated method spec
+    expect: dict[str, sp.Expr] = field(default_factory=dict)
+    parameters: dict[str, float] = field(default_factory=dict)   # constants in force
+
+
+def load(path: str | Path, parameters: dict[str, float] | None = None) -> LoadedFile:
+    """Read, validate and compile ``path``; ``parameters`` override constants by name."""
+    located = load_yaml(path)
+    spec = validate(located)
+    return _Compiler(Path(path), located, spec, parameters or {}).compile()
+
+
+def validate(located: Located) -> ProblemFile:
+    try:
+        return ProblemFile.model_validate(located.data)
+    except pydantic.ValidationError as e:
+        raise SpecError([_issue_from_pydantic(located, err) for err in e.errors()]) from None
+
+
+def _issue_from_pydantic(located: Located, err: dict) -> Issue:
+    loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS))
+    msg = err["msg"].removeprefix("Value error, ")
+    if err["type"] == "extra_forbidden":
+        parent = located.data
+        for p in loc[:-1]:
+            parent = parent.get(p, {}) if isinstance(parent, dict) else {}
+        msg = f"unknown key '{loc[-1]}'"
+        if isinstance(parent, dict):
+            import difflib
+            known = _known_keys(loc[:-1])
+            close = difflib.get_close_matches(str(loc[-1]), known, n=1)
+            if close:
+                msg += f" (did you mean '{close[0]}'?)"
+    elif err["type"] == "missing":
+        msg = f"missing required key '{loc[-1]}'"
+    where = ".".join(str(p) for p in loc) or "top level"
+    return located.issue(loc, f"{where}: {msg}", _source_line(located, loc))
+
+
+_UNION_TAGS = {"float", "int", "str", "ParameterSpec", "list[float]", "list[int]",
+               "function-after[_segments(), union[int,list[float]]]", "literal['free']"}
+
+
+def _known_keys(loc: tuple) -> list[str]:
+    from . import schema
+
+    model: Any = schema.ProblemFile
+    for p in loc:
+        if isinstance(p, int):
+            continue
+        f = getattr(model, "model_fields", {}).get(p)
+        if f is None:
+            return []
+        ann = f.annotation
+        for cand in getattr(ann, "__args__", ()) + (ann,):
+            if isinstance(cand, type) and issubclass(cand, pydantic.BaseModel):
+                model = cand
+                break
+    return list(getattr(model, "model_fields", {}))
+
+
+def _source_line(located: Located, loc: tuple) -> str:
+    line = located.line(loc)
+    try:
+        return Path(located.file).read_text().splitlines()[line - 1].strip() if line else ""
+    except (OSError, IndexError):
+        return ""
+
+
+class _Compiler:
+    def __init__(self, path: Path, located: Located, spec: ProblemFile, overrides: dict[str, float]):
+        self.path, self.located, self.spec = path, located, spec
+        self.overrides = dict(overrides)
+        self.issues: list[Issue] = []
+        self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
+        self.free: dict[sp.Symbol, FreeParameter] = {}
+        self.integral_count = 0
+
+    # -- error helpers ------------------------------------------------------------
+    def issue(self, loc: tuple, message: str, text: str | None = None) -> None:
+        if text is None:
+            text = _source_line(self.located, loc)
+        self.issues.append(self.located.issue(loc, message, text))
+
+    def guarded(self, loc: tuple, fn, *args):
+        """Run fn; turn ExprError/ValueError into an issue at ``loc`` and return None."""
+        try:
+            return fn(*args)
+        except ExprError as e:
+            self.issue(loc, e.message, e.text or None)
+        except (ValueError, KeyError) as e:
+            self.issue(loc, str(e).strip("'\""))
+        return None
+
+    # -- top level ----------------------------------------------------------------
+    def compile(self) -> LoadedFile:
+        spec = self.spec
+        method = self.guarded(("method",), _validate_method, spec.method)
+        problem = None
+        if spec.problem is not None or spec.phases is not None:
+            problem = self.build_problem()
+        expect = {}
+        if problem is not None:
+            for key in spec.expect:
+                e = self.guarded(("expect", key), self.parse_expect, key, problem)
+                if e is not None:
+                    expect[key] = e
+        unused = set(self.overrides) - self.used_overrides if hasattr(self, "used_overrides") else set()
+        if unused:
+            self.issue((), f"parameters given on the command line or by a study are not in the file: {sorted(unused)}", "")
+        if self.issues:
+            raise SpecError(self.issues)
+        return LoadedFile(self.path, self.located, spec, problem, method, expect,
+                          getattr(self, "constants_in_force", {}))
+
+    def build_problem(self) -> Problem:
+        spec = self.spec
+        self.used_overrides: set[str] = set()
+        self.constants_in_force: dict[str, float] = {}
+        top_params = self.parameters(spec.parameters, ("parameters",))
+        base_model = self.model(spec.model, ("model",)) if spec.model else None
+        phases: list[Phase] = []
+        if spec.problem is not None:
+            p = spec.problem
+            phases.append(self.phase("main", base_model, p.time, p.constraints, p.guess, ("problem",), top_params))
+        else:
+            for name, ph in spec.phases.items():
+                if not NAME_RE.match(name) or name in RESERVED:
+                    self.issue(("phases", name), f"'{name}' is not a valid phase name")
+                    continue
+                mdl = self.model(ph.model, ("phases", name, "model")) if ph.model else base_model
+                phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params))
+        phases = [p for p in phases if p is not None]
+        if self.issues:
+            raise SpecError(self.issues)
+        boundary: list[Constraint] = []
+        for ph, (phase_spec_loc, texts) in zip(phases, self._phase_constraint_texts()):
+            boundary += self.constraints(ph, phases, texts, phase_spec_loc)
+        multi = len(phases) > 1
+        for i, text in enumerate(spec.links):
+            boundary += self.relations(None, phases, text, ("links", i), link=True)
+        if spec.problem is not None:
+            obj = self.guarded(("problem", "objective"), self.objective, spec.problem.objective, phases[0], phases)
+        else:
+            obj = self.guarded(("objective",), self.objective, spec.objective, None, phases)
+            for ph in phases:
+                extra = spec.phases[ph.name].objective
+                if extra and obj is not None:
+                    part = self.guarded(("phases", ph.name, "objective"), self.expression, extra, ph, phases)
+                    if part is not None:
+                        obj.expr = obj.expr + (part if obj.sense == "minimize" else -part)
+        if self.issues:
+            raise SpecError(self.issues)
+        desc = self.describe(phases, obj, multi)
+        return Problem(spec.name, phases, obj, boundary, self.free, self.boundary_values, desc)
+
+    def _phase_constraint_texts(self):
+        spec = self.spec
+        if spec.problem is not None:
+            yield ("problem", "constraints"), spec.problem.constraints
+        else:
+            for name, ph in spec.phases.items():
+                yield ("phases", name, "constraints"), ph.constraints
+
+    # -- parameters and models -----------------------------------------------------------
+    def parameters(self, params: dict[str, Any], loc: tuple) -> dict[sp.Symbol, float | None]:
+        out: dict[sp.Symbol, float | None] = {}
+        for name, p in params.items():
+            if not NAME_RE.match(name) or name in RESERVED:
+                self.issue(loc + (name,), f"'{name}' is not a valid parameter name (reserved or not an identifier)")
+                continue
+            s = sym(name)
+            if isinstance(p, ParameterSpec) and p.free:
+                lo, hi = p.bounds or (None, None)
+                guess = p.value if p.value is not None else _midpoint(lo, hi)
+                self.free[s] = FreeParameter(s, -INF if lo is None else lo, INF if hi is None else hi, guess)
+                out[s] = None
+            else:
+                value = p.value if isinstance(p, ParameterSpec) else p
+                if name in self.overrides:
+                    value = float(self.overrides[name])
+                    self.used_overrides.add(name)
+                if not math.isfinite(value):
+                    self.issue(loc + (name,), f"parameter '{name}' is not a finite number")
+                out[s] = value
+                self.constants_in_force[name] = value
+        return out
+
+    def model(self, mspec: ModelSpec, loc: tuple) -> Model | None:
+        if mspec.use:
+            try:
+                model = build_model(mspec.use, mspec.options)
+            except (KeyError, ValueError) as e:
+                self.issue(loc + ("use",), str(e).strip("'\""))
+                return None
+            given = self.parameters(mspec.parameters, loc + ("parameters",))
+            known = {s.name: s for s in model.parameters}
+            params = dict(model.parameters)
+            for s, v in given.items():
+                if s.name not in known:
+                    self.issue(loc + ("parameters", s.name), f"model '{mspec.use}' has no parameter '{s.name}'; "
+                               f"it has: {', '.join(sorted(known)) or 'none'}")
+                    continue
+                params[known[s.name]] = v
+            for s, v in model.parameters.items():
+                if s.name in self.overrides and s not in given:
+                    params[s] = float(self.overrides[s.name])
+                    self.used_overrides.add(s.name)
+                if params[s] is not None and s not in self.free:
+                    self.constants_in_force.setdefault(s.name, params[s])
+            units = {**model.units, **mspec.units}
+            return Model(model.name, model.states, model.controls, model.dynamics, params,
+                         model.expressions, units, model.description,
+                         tuple(mspec.positions) or model.positions)
+        return self.inline_model(mspec, loc)
+
+    def inline_model(self, m: ModelSpec, loc: tuple) -> Model | None:
+        names: dict[str, sp.Basic] = {"t": TIME}
+        ok = True
+        declared: dict[str, tuple] = {}
+        for group, items in (("states", m.states), ("controls", m.controls), ("parameters", list(m.parameters))):
+            for i, name in enumerate(items):
+                where = loc + (group, i if group != "parameters" else name)
+                if not isinstance(name, str) or not NAME_RE.match(name) or name in RESERVED:
+                    self.issue(where, f"'{name}' is not a valid {group[:-1]} name (reserved or not an identifier)")
+                    ok = False
+                elif name in declared:
+                    self.issue(where, f"'{name}' is declared twice (also in {declared[name][0]})")
+                    ok = False
+                else:
+                    declared[name] = (group,)
+                    names[name] = sym(name)
+        params = self.parameters(m.parameters, loc + ("parameters",))
+        for name in self.spec.parameters:
+            names.setdefault(name, sym(name))
+        expressions: dict[sp.Symbol, sp.Expr] = {}
+        scope = Scope(names)
+        for name, text in m.expressions.items():
+            if not NAME_RE.match(name) or name in names or name in RESERVED:
+                self.issue(loc + ("expressions", name), f"'{name}' cannot name an expression (reserved, declared or not an identifier)")
+                ok = False
+                continue
+            e = self.guarded(loc + ("expressions", name), parse_expression, text, scope)
+            if e is None:
+                ok = False
+                continue
+            s = sym(name)
+            expressions[s] = e
+            names[name] = s      # later expressions and the dynamics may use it
+        dynamics: dict[sp.Symbol, sp.Expr] = {}
+        for name, text in m.dynamics.items():
+            if name not in m.states:
+                self.issue(loc + ("dynamics", name), f"dynamics given for '{name}', which is not a state"
+                           + _did_you_mean(name, m.states))
+                ok = False
+                continue
+            e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope)
+            if e is None:
+                ok = False
+                continue
+            dynamics[names[name]] = e
+        for i, s in enumerate(m.states):
+            if s not in m.dynamics:
+                self.issue(loc + ("states", i), f"state '{s}' has no dynamics (add `{s}: ...` under dynamics)")
+                ok = False
+        if not ok:
+            return None
+        return Model(self.spec.name, tuple(names[s] for s in m.states), tuple(names[c] for c in m.controls),
+                     dynamics, params, expressions, dict(m.units), "", tuple(m.positions))
+
+    # -- phases ---------------------------------------------------------------------
+    def phase(self, name, model, time: TimeSpec, constraints, guess, loc, top_params) -> Phase | None:
+        if model is None:
+            return None
+        multi = self.spec.phases is not None
+        prefix = f"{name}." if multi else ""
+        constants = {s: v for s, v in model.parameters.items() if v is not None and s not in self.free}
+        constants.update({s: v for s, v in top_params.items() if v is not None})
+        for s, v in model.parameters.items():
+            if v is None and s not in self.free:
+                self.issue(loc, f"model parameter '{s}' has no value; give it under model: parameters:")
+        t0s, tfs = sym(prefix + "t0"), sym(prefix + "tf")
+        tf = None if time.tf == "free" else float(time.tf)
+        if tf is not None and tf <= time.t0:
+            self.issue(loc + ("time", "tf"), f"tf = {tf} must be greater than t0 = {time.t0}")
+        guess_items = dict(guess.model_extra or {})
+        known = {s.name for s in model.states + model.controls} | {p.name for p in self.free}
+        for k in guess_items:
+            if k not in known:
+                self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + _did_you_mean(k, known))
+        guess_dict = {"values": guess_items, "tf": guess.tf, "from": guess.from_, "random": guess.random,
+                      "seed": guess.seed}
+        return Phase(name, model, constants, float(time.t0), tf, t0s, tfs, guess=guess_dict)
+
+    def scope(self, ph: Phase | None, phases: list[Phase], link: bool = False) -> Scope:
+        names: dict[str, sp.Basic] = {}
+        if ph is not None:
+            names["t"] = TIME
+            for s in ph.states + ph.controls + tuple(ph.model.parameters) + tuple(ph.model.expressions):
+                names[s.name] = s
+            names["t0"], names["tf"] = ph.t0_symbol, ph.tf_symbol
+        for s in self.free:
+            names[s.name] = s
+        for pname in self.spec.parameters:
+            names.setdefault(pname, sym(pname))
+        phase_names = {p.name: {"t0": p.t0_symbol, "tf": p.tf_symbol, "phase": p} for p in phases} \
+            if self.spec.phases is not None else {}
+
+        def boundary(phase_name, var, which):
+            target = ph
+            if phase_name is not None:
+                target = phase_names[phase_name]["phase"]
+            elif target is None:
+                raise ExprError(f"name the phase of {var}({which}), e.g. {phases[0].name}.{var}({which})")
+            if var not in {s.name for s in target.states}:
+                raise ExprError(f"'{var}' is not a state of phase '{target.name}'" +
+                                _did_you_mean(var, [s.name for s in target.states]))
+            label = f"{target.name}.{var}({which})" if self.spec.phases is not None else f"{var}({which})"
+            s = sym(label)
+            self.boundary_values[s] = BoundaryValue(target.name, target.model.symbol(var), which)
+            return s
+
+        def integral(integrand):
+            target = ph
+            if target is None:
+                raise ExprError("integral(...) belongs to a phase; write it in the phase's objective or constraints")
+            if integrand.has(*[s for p in phases for s in (p.t0_symbol, p.tf_symbol)]) or \
+                    any(s in self.boundary_values for s in integrand.free_symbols):
+                raise ExprError("an integrand may use states, controls, t and parameters, not boundary values")
+            self.integral_count += 1
+            s = sym(f"integral{self.integral_count}_{target.name}")
+            target.integrals[s] = target.substitute(integrand)
+            return s
+
+        return Scope(names, boundary, integral, {k: {"t0": v["t0"], "tf": v["tf"]} for k, v in phase_names.items()})
+
+    def expression(self, text, ph, phases) -> sp.Expr:
+        e = parse_expression(text, self.scope(ph, phases))
+        return ph.substitute(e) if ph is not None else e
+
+    def objective(self, text: str, ph, phases) -> Objective:
+        m = re.match(r"^\s*(minimize|maximize)\s+(.+)$", str(text), re.S)
+        if not m:
+            raise ExprError("the objective is written `minimize EXPR` or `maximize EXPR`", str(text))
+        expr = self.expression(m.group(2), ph, phases)
+        if ph is not None:
+            bare = expr.free_symbols & set(ph.states + ph.controls + (TIME,))
+            if bare:
+                names = ", ".join(sorted(s.name for s in bare))
+                raise ExprError(f"the objective uses {names} without a time: write e.g. {sorted(bare, key=str)[0]}(tf), "
+                                f"or integral(...) for a running cost", str(text))
+        return Objective(m.group(1), expr, str(text))
+
+    def constraints(self, ph: Phase, phases, texts, loc) -> list[Constraint]:
+        out: list[Constraint] = []
+        for i, text in enumerate(texts):
+            out += self.relations(ph, phases, text, loc + (i,))
+        return out
+
+    def relations(self, ph: Phase | None, phases, text: str, loc: tuple, link: bool = False) -> list[Constraint]:
+        rels = self.guarded(loc, parse_relation, text, self.scope(ph, phases, link))
+        if rels is None:
+            return []
+        line = self.located.line(loc)
+        sub = ph.substitute if ph is not None else (lambda e: e)
+        parts: dict[sp.Expr, list[float]] = {}
+        for r in rels:
+            lhs, rhs = sub(r.lhs), sub(r.rhs)
+            op = r.op
+            if _is_number(rhs):
+                expr, value = lhs, rhs
+            elif _is_number(lhs):
+                expr, value, op = rhs, lhs, {"<=": ">=", ">=": "<=", "==": "=="}[op]
+            else:
+                expr, value = sp.expand(lhs - rhs) if False else lhs - rhs, sp.Integer(0)
+            if _is_number(expr):
+                self.issue(loc, "this relation has no variables in it", text)
+                return []
+            v = float(value)
+            lo, hi = parts.setdefault(expr, [-INF, INF])
+            if op == "==":
+                if not math.isfinite(v):
+                    self.issue(loc, "an equality with an infinite value", text)
+                    return []
+                parts[expr] = [max(lo, v), min(hi, v)]
+            elif op == "<=":
+                parts[expr][1] = min(hi, v)
+            else:
+                parts[expr][0] = max(lo, v)
+        out = []
+        for expr, (lo, hi) in parts.items():
+            if lo > hi:
+                self.issue(loc, f"empty range: lower bound {lo} above upper bound {hi}", text)
+                continue
+            c = self.classify(ph, expr, lo, hi, text, line, loc)
+            if c is not None:
+                out.append(c)
+        return out
+
+    def classify(self, ph, expr, lo, hi, text, line, loc) -> Constraint | None:
+        """Box bounds go to the phase; path constraints to the phase; the rest are boundary constraints."""
+        syms_ = expr.free_symbols
+        if ph is not None:
+            bare = syms_ & (set(ph.states + ph.controls) | {TIME})
+            if bare:
+                if syms_ & set(self.boundary_values) or syms_ & {ph.t0_symbol, ph.tf_symbol}:
+                    self.issue(loc, "a constraint cannot mix path values (bare states/controls/t) with "
+                               "boundary values or t0/tf", text)
+                    return None
+                if expr in ph.state_bounds or expr in ph.control_bounds or expr in set(ph.states + ph.controls):
+                    table = ph.state_bounds if expr in ph.states else ph.control_bounds
+                    old = table.get(expr, (-INF, INF))
+                    table[expr] = (max(old[0], lo), min(old[1], hi))
+                    return None
+                ph.path.append(Constraint(expr, lo, hi, text, line))
+                return None
+            if expr == ph.tf_symbol or expr == ph.t0_symbol:
+                which = "tf" if expr == ph.tf_symbol else "t0"
+                fixed = ph.tf if which == "tf" else (None if ph.t0 is None else ph.t0)
+                if fixed is not None and not (lo <= fixed <= hi):
+                    self.issue(loc, f"{which} is fixed at {fixed} by `time:`, outside this range", text)
+                    return None
+                setattr(ph, f"{which}_bounds", (lo, hi))
+                return None
+        return Constraint(expr, lo, hi, text, line)
+
+    def parse_expect(self, key: str, problem: Problem) -> sp.Expr:
+        if key == "objective":
+            return sym("objective")
+        multi = self.spec.phases is not None
+        ph = None if multi else problem.phases[0]
+        return self.expression(key, ph, problem.phases)
+
+    # -- description for the report ------------------------------------------------------
+    def describe(self, phases: list[Phase], obj: Objective, multi: bool) -> dict:
+        desc: dict[str, Any] = {"name": self.spec.name, "description": self.spec.description, "phases": {},
+                                "parameters": {}, "units": {}, "positions": [], "links": list(self.spec.links)}
+        for ph in phases:
+            f = ph.model
+            dyn = {s.name: sp.latex(f.dynamics[s]) for s in f.states}
+            bounds = {s.name: [_num(b[0]), _num(b[1])] for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
+            texts = self.spec.problem.constraints if not multi else self.spec.phases[ph.name].constraints
+            desc["phases"][ph.name] = {
+                "states": [s.name for s in f.states], "controls": [c.name for c in f.controls],
+                "dynamics_latex": dyn,
+                "expressions_latex": {s.name: sp.latex(e) for s, e in f.expressions.items()},
+                "bounds": bounds, "constraints": list(texts),
+                "t0": ph.t0 if ph.t0 is not None else "free", "tf": ph.tf if ph.tf is not None else "free"}
+            desc["units"].update(f.units)
+            desc["positions"] = list(f.positions) or desc["positions"]
+            for s, v in ph.constants.items():
+                desc["parameters"][s.name] = {"value": v, "free": False}
+        for s, fp in self.free.items():
+            desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
+        desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(obj.expr)}
+        return desc
+
+
+def _validate_method(method: dict) -> Any:
+    kind = method.get("transcription", "LGR")
+    if kind in PSEUDOSPECTRAL:
+        return PseudospectralMethod.model_validate(method)
+    from ..methods import method_spec  # other back ends register their method specs
+
+    return method_spec(kind, method)
+
+
+def _is_number(e: sp.Expr) -> bool:
+    return bool(getattr(e, "is_number", False)) and (e.is_finite or e in (sp.oo, -sp.oo))
+
+
+def _num(x: float):
+    return x if math.isfinite(x) else None
+
+
+def _midpoint(lo, hi) -> float:
+    if lo is not None and hi is not None:
+        return 0.5 * (lo + hi)
+    return lo if lo is not None else (hi if hi is not None else 0.0)
+
+
+def _did_you_mean(name, choices) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(str(name), [str(c) for c in choices], n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""

@@ -1,0 +1,33 @@
+"""Problem-file errors: each names the file, the line and the offending text."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Issue:
+    file: str
+    line: int | None
+    message: str
+    text: str = ""
+
+    def __str__(self) -> str:
+        where = f"{self.file}:{self.line}" if self.line else self.file
+        shown = f"\n    {self.text}" if self.text else ""
+        return f"{where}: {self.message}{shown}"
+
+
+class SpecError(ValueError):
+    """One or more problems in a problem file (all collected, then raised together)."""
+
+    def __init__(self, issues: list[Issue]):
+        self.issues = list(issues)
+        super().__init__("\n".join(str(i) for i in self.issues))
+
+
+class ExprError(ValueError):
+    """A bad expression; the loader adds file and line."""
+
+    def __init__(self, message: str, text: str = ""):
+        self.message, self.text = message, text
+        super().__init__(f"{message}: {text}" if text else message)

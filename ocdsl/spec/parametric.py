@@ -1,0 +1,158 @@
+"""``method: {transcription: parametric, ...}``: controls as series, global search (PSO).
+
+Example (seed 1, 10 N)::
+
+    method:
+      transcription: parametric
+      controls:
+        delta: {series: fourier, order: 5, bounds: [-1.0, 1.0], a0: [-3.2, 3.2]}
+        phi:   {series: fourier, order: 8, bounds: [-0.5, 0.5], a0: [2.6, 3.7]}
+      parameters:
+        N_rev: {integer: true, bounds: [3, 8]}
+      tolerances: {r: 1.0e-3, theta: 1.0e-3, z: 1.0e-3, rdot: 1.0e-3, thetadot: 1.0e-3, zdot: 1.0e-3}
+      integrator: {rtol: 1.0e-8, atol: 1.0e-10, sundman_k: 1.5}
+      optimizer:
+        name: pso
+        particles: 64
+        iterations: 500
+        inertia: [0.9, 0.4]
+        c1: 2.0
+        c2: 2.0
+        velocity_limit: 0.2
+        discrete: jin
+        stall_iterations: 150
+        seed: 1
+
+``tolerances`` are the zeta_i of the paper's normalised penalty, keyed by the state whose
+final value a terminal equality constraint fixes (``default`` for the others); the fitness
+is tf + sum max((|error_i| - zeta_i)/zeta_i, 0) (digest eqs. 32-35).
+"""
+from __future__ import annotations
+
+from typing import Literal, Optional, Union
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class SeriesSpec(_Strict):
+    """One control written as a series over [0, tf] (tau = t/tf for polynomials)."""
+
+    series: Literal["fourier", "polynomial", "constant"] = "fourier"
+    order: int = Field(0, description="Fourier order N (a0, a1..aN, b1..bN) or polynomial degree")
+    bounds: tuple[float, float] = Field((-1.0, 1.0), description="search box of the coefficients")
+    a0: Optional[tuple[float, float]] = Field(None, description="search box of the constant term (default: bounds)")
+
+    @field_validator("order")
+    @classmethod
+    def _order(cls, v):
+        if v < 0:
+            raise ValueError(f"series order must be >= 0, got {v}")
+        if v > 200:
+            raise ValueError(f"series order {v} is unreasonably large (max 200)")
+        return v
+
+    @model_validator(mode="after")
+    def _check(self):
+        for name, b in (("bounds", self.bounds), ("a0", self.a0)):
+            if b is not None and not b[0] < b[1]:
+                raise ValueError(f"{name} must be [lower, upper] with lower < upper, got {list(b)}")
+        return self
+
+
+class SearchParameter(_Strict):
+    """A decision parameter of the search (continuous, or integer with ``integer: true``)."""
+
+    integer: bool = False
+    bounds: Optional[tuple[float, float]] = None
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.bounds is None:
+            kind = "an integer parameter" if self.integer else "a search parameter"
+            raise ValueError(f"{kind} needs bounds: [lower, upper]")
+        if not self.bounds[0] <= self.bounds[1]:
+            raise ValueError(f"bounds reversed: {list(self.bounds)}")
+        if self.integer and any(float(b) != int(b) for b in self.bounds):
+            raise ValueError(f"integer parameter bounds must be integers, got {list(self.bounds)}")
+        return self
+
+
+class PSOSpec(_Strict):
+    """Particle swarm settings (defaults are the digest's suggestions, §7 item 13)."""
+
+    name: Literal["pso"] = "pso"
+    particles: int = Field(64, ge=2, le=100_000)
+    iterations: int = Field(500, ge=1, le=10_000_000)
+    inertia: tuple[float, float] = Field((0.9, 0.4), description="linear schedule [start, end]")
+    c1: float = Field(2.0, ge=0.0, le=4.0, description="cognitive coefficient")
+    c2: float = Field(2.0, ge=0.0, le=4.0, description="social coefficient")
+    velocity_limit: float = Field(0.2, gt=0.0, le=1.0, description="max |v| as a fraction of each box width")
+    discrete: Literal["jin", "round"] = Field("jin", description="integer coordinates: lattice moves (jin) or rounding at evaluation")
+    stall_iterations: int = Field(0, ge=0, description="stop after this many iterations without improvement (0: never)")
+    tolerance: float = Field(0.0, ge=0.0, description="improvement below this counts as none")
+    target: Optional[float] = Field(None, description="stop when the best fitness is at or below this")
+    seed: int = 0
+    chunks: int = Field(0, ge=0, description="batches per iteration given to the executor (0: one per worker)")
+
+    @field_validator("inertia")
+    @classmethod
+    def _inertia(cls, v):
+        for w in v:
+            if not 0.0 <= w <= 1.2:
+                raise ValueError(f"inertia weights must lie in [0, 1.2], got {list(v)}")
+        return v
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.c1 + self.c2 <= 0:
+            raise ValueError("c1 + c2 must be positive")
+        return self
+
+
+class IntegratorSpec(_Strict):
+    rtol: float = Field(1e-8, gt=0.0, le=1e-2)
+    atol: float = Field(1e-10, gt=0.0, le=1e-2)
+    sundman_k: Optional[float] = Field(None, description="Sundman exponent (model must offer the option)")
+    sundman_c: float = Field(1.0, gt=0.0)
+    max_steps: int = Field(200_000, ge=10)
+
+
+class ParametricSpec(_Strict):
+    transcription: Literal["parametric"] = "parametric"
+    controls: dict[str, SeriesSpec]
+    parameters: dict[str, SearchParameter] = Field(default_factory=dict)
+    tolerances: dict[str, float] = Field(default_factory=dict, description="zeta per terminal state ('default' for the rest)")
+    penalty: Literal["normalized"] = "normalized"
+    failure_fitness: float = Field(1e6, description="fitness of a run whose integration failed")
+    integrator: IntegratorSpec = Field(default_factory=IntegratorSpec)
+    optimizer: PSOSpec = Field(default_factory=PSOSpec)
+    angle_convention: Literal["0_2pi", "atan2"] = "0_2pi"
+    output_points: int = Field(2000, ge=10)
+    threads: bool = Field(True, description="in-process evaluation over all cores (Numba threads)")
+
+    @field_validator("tolerances")
+    @classmethod
+    def _zeta(cls, v):
+        for k, z in v.items():
+            if not (z > 0):
+                raise ValueError(f"tolerance zeta for {k!r} must be > 0, got {z}")
+        return v
+
+    @field_validator("controls")
+    @classmethod
+    def _controls(cls, v):
+        if not v:
+            raise ValueError("at least one control must be given as a series")
+        return v
+
+
+try:  # register with the lead's method registry when it is there
+    from ocdsl.methods import register_method
+
+    register_method("parametric", ParametricSpec)
+except ImportError:  # pragma: no cover
+    pass

@@ -1,0 +1,182 @@
+"""The problem-file schema (pydantic v2). Unknown keys are errors everywhere.
+
+Expressions and relations stay strings here; :mod:`ocdsl.symbolic.build` parses them
+with the safe parser of :mod:`ocdsl.spec.expr`. The JSON Schema printed by
+``ocdsl schema`` is generated from these classes.
+"""
+from __future__ import annotations
+
+from typing import Any, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Expr = Union[str, int, float]
+Number = Union[int, float]
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ParameterSpec(Strict):
+    """A parameter: a constant (``value``) or a free scalar optimised with the trajectory."""
+
+    value: float | None = Field(None, description="constant value, or the initial guess when free")
+    free: bool = Field(False, description="optimise this parameter")
+    bounds: tuple[float | None, float | None] | None = Field(None, description="[lower, upper] when free")
+    unit: str | None = None
+    integer: bool = Field(False, description="integer decision variable (parametric methods only)")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if not self.free and self.value is None:
+            raise ValueError("a constant parameter needs a value (or set free: true)")
+        if self.bounds and None not in self.bounds and self.bounds[0] > self.bounds[1]:
+            raise ValueError(f"bounds reversed: {list(self.bounds)}")
+        return self
+
+
+class ModelSpec(Strict):
+    """Either ``use:`` a registered model, or declare states, controls and dynamics inline."""
+
+    use: str | None = Field(None, description="name of a registered SymPy model (see `ocdsl models`)")
+    options: dict[str, Any] = Field(default_factory=dict, description="options of the registered model")
+    states: list[str] = Field(default_factory=list)
+    controls: list[str] = Field(default_factory=list)
+    parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict)
+    expressions: dict[str, Expr] = Field(default_factory=dict, description="named intermediate quantities")
+    dynamics: dict[str, Expr] = Field(default_factory=dict, description="state: right-hand side")
+    units: dict[str, str] = Field(default_factory=dict)
+    positions: list[str] = Field(default_factory=list, description="states forming a position vector")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.use is None:
+            if not self.states:
+                raise ValueError("declare `states:` (or `use:` a registered model)")
+            if not self.dynamics:
+                raise ValueError("declare `dynamics:` for every state (or `use:` a registered model)")
+        elif self.states or self.dynamics or self.controls:
+            raise ValueError("`use:` a registered model or declare states/controls/dynamics, not both")
+        return self
+
+
+class TimeSpec(Strict):
+    t0: float = Field(0.0, description="initial time")
+    tf: Union[float, Literal["free"]] = Field(..., description="final time, or `free` (bounds as a constraint `lo <= tf <= hi`)")
+
+
+GuessValue = Union[float, list[float], dict[str, list[float]]]
+
+
+class GuessSpec(Strict):
+    """Initial guess: per variable a constant, ``[start, end]`` (linear) or ``{t: [...], values: [...]}``."""
+
+    model_config = ConfigDict(extra="allow")
+    tf: float | None = None
+    from_: str | None = Field(None, alias="from", description="a previous run folder to start from")
+    random: bool = Field(False, description="seeded random controls inside their bounds")
+    seed: int | None = None
+
+
+class PhaseSpec(Strict):
+    model: ModelSpec | None = Field(None, description="defaults to the file's top-level model")
+    time: TimeSpec
+    constraints: list[str] = Field(default_factory=list)
+    guess: GuessSpec = Field(default_factory=GuessSpec)
+    objective: str | None = Field(None, description="phase contribution, e.g. integral(u**2)")
+
+
+class ProblemSpec(Strict):
+    time: TimeSpec
+    constraints: list[str] = Field(default_factory=list)
+    objective: str = Field(..., description="`minimize EXPR` or `maximize EXPR`")
+    guess: GuessSpec = Field(default_factory=GuessSpec)
+
+
+class MeshSpec(Strict):
+    tolerance: float = Field(1e-6, gt=0)
+    max_iterations: int = Field(10, ge=1)
+    min_degree: int = Field(3, ge=1)
+    max_degree: int = Field(12, ge=2)
+
+
+class PseudospectralMethod(Strict):
+    transcription: Literal["LG", "LGR", "LGL", "LGR-start"] = "LGR"
+    segments: Union[int, list[float]] = Field(10, description="count of equal segments, or breakpoints in [0, 1]")
+    degree: Union[int, list[int]] = Field(4, description="collocation points per segment (one or per segment)")
+    mesh: MeshSpec | None = Field(None, description="adaptive mesh refinement")
+    starts: int = Field(1, ge=1, description="several starts from seeded random guesses; best kept")
+    seed: int = Field(0, description="seed of random guesses")
+
+    @field_validator("segments")
+    @classmethod
+    def _segments(cls, v):
+        if isinstance(v, int):
+            if v < 1:
+                raise ValueError("segments must be at least 1")
+        else:
+            if len(v) < 2 or v[0] != 0 or v[-1] != 1 or any(b <= a for a, b in zip(v, v[1:])):
+                raise ValueError("breakpoints must increase from 0 to 1, e.g. [0, 0.5, 1]")
+        return v
+
+    @field_validator("degree")
+    @classmethod
+    def _degree(cls, v):
+        vals = [v] if isinstance(v, int) else v
+        if any(d < 1 or d > 60 for d in vals):
+            raise ValueError("degree must be between 1 and 60")
+        return v
+
+
+class SolverSpec(Strict):
+    name: Literal["ipopt"] = "ipopt"
+    options: dict[str, Union[str, int, float]] = Field(default_factory=dict, description="Ipopt options")
+
+
+class ExpectItem(Strict):
+    value: float
+    rtol: float | None = Field(None, ge=0)
+    atol: float | None = Field(None, ge=0)
+    compare: Literal["equal", "at_most", "at_least"] = "equal"
+
+
+class ReportSpec(Strict):
+    formats: list[Literal["html", "pdf"]] = Field(default_factory=lambda: ["html", "pdf"])
+    enabled: bool = False
+
+
+class ProblemFile(Strict):
+    """A whole problem file: one study."""
+
+    name: str
+    description: str = ""
+    model: ModelSpec | None = None
+    problem: ProblemSpec | None = None
+    phases: dict[str, PhaseSpec] | None = None
+    links: list[str] = Field(default_factory=list, description="relations between phases")
+    objective: str | None = Field(None, description="objective of a multi-phase problem")
+    parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict, description="problem-level parameters (free or constant)")
+    method: dict[str, Any] = Field(default_factory=lambda: {"transcription": "LGR"})
+    solver: SolverSpec = Field(default_factory=SolverSpec)
+    report: ReportSpec = Field(default_factory=ReportSpec)
+    expect: dict[str, ExpectItem] = Field(default_factory=dict)
+    study: dict[str, Any] | None = None
+    controller: Any = None
+    pareto: dict[str, Any] | None = None
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.problem is None and self.phases is None and self.controller is None:
+            raise ValueError("declare `problem:` (or `phases:` for a multi-phase problem)")
+        if self.problem is not None and self.phases is not None:
+            raise ValueError("use `problem:` or `phases:`, not both")
+        if self.phases is not None and not self.objective:
+            raise ValueError("a multi-phase problem needs a top-level `objective:`")
+        if self.model is None and self.phases is None:
+            raise ValueError("declare `model:`")
+        if self.phases is not None:
+            for name, ph in self.phases.items():
+                if ph.model is None and self.model is None:
+                    raise ValueError(f"phase {name!r} has no model and there is no top-level model")
+        return self

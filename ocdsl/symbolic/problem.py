@@ -1,0 +1,122 @@
+"""The symbolic optimal-control Problem every back end consumes.
+
+A Problem has one or more Phases. Each phase has a model (states, controls,
+dynamics), its time interval, box bounds (which back ends turn into variable bounds),
+path constraints (in states, controls, ``t`` and free parameters), integrals, and a
+guess. Boundary values ``x(t0)``/``x(tf)`` of every phase, the phases' ``t0``/``tf``,
+integrals and free parameters are scalar symbols; boundary constraints, links and the
+objective are expressions in them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import sympy as sp
+
+from .model import TIME, Model
+
+INF = float("inf")
+
+
+@dataclass(frozen=True)
+class BoundaryValue:
+    """What a boundary symbol stands for: ``var`` of ``phase`` at ``which`` (t0 or tf)."""
+
+    phase: str
+    var: sp.Symbol
+    which: Literal["t0", "tf"]
+
+
+@dataclass
+class Constraint:
+    """``lower <= expr <= upper`` (equal bounds for an equality), with where it came from."""
+
+    expr: sp.Expr
+    lower: float
+    upper: float
+    text: str = ""
+    line: int | None = None
+
+    @property
+    def is_equality(self) -> bool:
+        return self.lower == self.upper
+
+
+@dataclass
+class FreeParameter:
+    symbol: sp.Symbol
+    lower: float = -INF
+    upper: float = INF
+    guess: float = 0.0
+
+
+@dataclass
+class Phase:
+    """One phase. ``model.rhs(constants)`` gives the dynamics with constants substituted."""
+
+    name: str
+    model: Model
+    constants: dict[sp.Symbol, float]
+    t0: float | None                       # None: free
+    tf: float | None                       # None: free
+    t0_symbol: sp.Symbol
+    tf_symbol: sp.Symbol
+    t0_bounds: tuple[float, float] = (-INF, INF)
+    tf_bounds: tuple[float, float] = (-INF, INF)
+    state_bounds: dict[sp.Symbol, tuple[float, float]] = field(default_factory=dict)
+    control_bounds: dict[sp.Symbol, tuple[float, float]] = field(default_factory=dict)
+    path: list[Constraint] = field(default_factory=list)
+    integrals: dict[sp.Symbol, sp.Expr] = field(default_factory=dict)  # symbol -> integrand
+    guess: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def states(self) -> tuple[sp.Symbol, ...]:
+        return self.model.states
+
+    @property
+    def controls(self) -> tuple[sp.Symbol, ...]:
+        return self.model.controls
+
+    def rhs(self) -> sp.Matrix:
+        """Dynamics with constant parameters substituted (free parameters stay symbols)."""
+        return self.model.rhs(self.constants)
+
+    def substitute(self, expr: sp.Expr) -> sp.Expr:
+        """Named expressions expanded and constants substituted, as in :meth:`rhs`."""
+        return self.model.expand(expr).xreplace({k: sp.Float(v) for k, v in self.constants.items()})
+
+    def bounds_of(self, s: sp.Symbol) -> tuple[float, float]:
+        return self.state_bounds.get(s) or self.control_bounds.get(s) or (-INF, INF)
+
+    @property
+    def time_symbol(self) -> sp.Symbol:
+        return TIME
+
+
+@dataclass
+class Objective:
+    sense: Literal["minimize", "maximize"]
+    expr: sp.Expr          # in boundary symbols, phase t0/tf, integrals, free parameters
+    text: str = ""
+
+
+@dataclass
+class Problem:
+    name: str
+    phases: list[Phase]
+    objective: Objective
+    boundary: list[Constraint] = field(default_factory=list)   # includes links
+    free_parameters: dict[sp.Symbol, FreeParameter] = field(default_factory=dict)
+    boundary_values: dict[sp.Symbol, BoundaryValue] = field(default_factory=dict)
+    description: dict[str, Any] = field(default_factory=dict)  # what the report typesets
+
+    def phase(self, name: str) -> Phase:
+        for p in self.phases:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    @property
+    def integrals(self) -> dict[sp.Symbol, tuple[str, sp.Expr]]:
+        return {s: (p.name, e) for p in self.phases for s, e in p.integrals.items()}

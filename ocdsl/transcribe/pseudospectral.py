@@ -1,0 +1,220 @@
+"""LG / LGR / LGL pseudospectral collocation of a symbolic Problem into a Pyomo model.
+
+The NLP has no derivative variables: in each segment the collocation equations are
+written with the differentiation matrix, ``D @ X = (h_k/2)(tf - t0) F(X, U, t, p)``.
+Box bounds on states, controls, t0/tf and free parameters become variable bounds and
+boundary values fixed by an equality become fixed variables, because the size of the
+KKT system sets Ipopt's time (../shared/design/transcription-notes.md).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pyomo.environ as pyo
+import sympy as sp
+
+from ..symbolic.model import TIME
+from ..symbolic.problem import Phase, Problem
+from .guess import PhaseGuess
+from .mesh import Layout, Mesh
+from .pyomo_expr import pyomo_function
+
+
+@dataclass
+class PhaseBlock:
+    """The Pyomo pieces of one phase, kept to read the solution back."""
+
+    phase: Phase
+    layout: Layout
+    block: Any
+    defects: dict = field(default_factory=dict)     # (segment, i, j) -> constraint data
+    ends: dict = field(default_factory=dict)        # LG (segment, j) -> end constraint data
+    integral_exprs: dict = field(default_factory=dict)
+
+
+@dataclass
+class Transcription:
+    problem: Problem
+    model: Any
+    phases: list[PhaseBlock]
+    scalars: dict[sp.Symbol, Any]        # boundary values, t0/tf, integrals, free params -> Pyomo
+
+
+def _bound(v: float):
+    return None if not math.isfinite(v) else float(v)
+
+
+def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess]) -> Transcription:
+    """Build the Pyomo model of ``problem`` on ``meshes`` (one per phase) from ``guesses``."""
+    m = pyo.ConcreteModel(name=problem.name)
+    m.dual = pyo.Suffix(direction=pyo.Suffix.IMPORT)
+    scalars: dict[sp.Symbol, Any] = {}
+    for s, fp in problem.free_parameters.items():
+        v = pyo.Var(bounds=(_bound(fp.lower), _bound(fp.upper)), initialize=fp.guess)
+        m.add_component(f"p_{s.name}", v)
+        scalars[s] = v
+    blocks = []
+    for ph in problem.phases:
+        pb = _build_phase(m, ph, meshes[ph.name], guesses[ph.name], problem, scalars)
+        blocks.append(pb)
+    # boundary values are the first/last state nodes
+    for s, bv in problem.boundary_values.items():
+        pb = next(b for b in blocks if b.phase.name == bv.phase)
+        j = pb.phase.states.index(bv.var)
+        node = 0 if bv.which == "t0" else pb.layout.n_state_nodes - 1
+        scalars[s] = pb.block.X[node, j]
+    # boundary constraints: a single boundary value or t0/tf with bounds becomes variable bounds
+    m.boundary = pyo.ConstraintList()
+    general = []
+    for c in problem.boundary:
+        target = scalars.get(c.expr) if isinstance(c.expr, sp.Symbol) else None
+        if _is_vardata(target):
+            _tighten(target, c.lower, c.upper)
+        else:
+            general.append(c)
+    if general:
+        syms = sorted(set().union(*[c.expr.free_symbols for c in general]), key=str)
+        _check_known(syms, scalars, "boundary constraint")
+        fn = pyomo_function(syms, [c.expr for c in general])
+        values = fn(*[scalars[s] for s in syms])
+        for c, e in zip(general, values):
+            m.boundary.add(_ranged(e, c.lower, c.upper))
+    obj = problem.objective
+    syms = sorted(obj.expr.free_symbols, key=str)
+    _check_known(syms, scalars, "objective")
+    e = pyomo_function(syms, [obj.expr])(*[scalars[s] for s in syms])[0]
+    m.objective = pyo.Objective(expr=e, sense=pyo.minimize if obj.sense == "minimize" else pyo.maximize)
+    return Transcription(problem, m, blocks, scalars)
+
+
+def _is_vardata(x) -> bool:
+    from pyomo.core.base.var import VarData
+
+    return isinstance(x, VarData)
+
+
+def _check_known(syms, scalars, what):
+    unknown = [str(s) for s in syms if s not in scalars]
+    if unknown:
+        raise ValueError(f"{what} uses {', '.join(unknown)}, which the transcription cannot resolve")
+
+
+def _tighten(var, lo: float, hi: float) -> None:
+    if lo == hi:
+        var.fix(lo)
+        return
+    if math.isfinite(lo):
+        var.setlb(lo if var.lb is None else max(var.lb, lo))
+    if math.isfinite(hi):
+        var.setub(hi if var.ub is None else min(var.ub, hi))
+
+
+def _ranged(e, lo: float, hi: float):
+    if lo == hi:
+        return e == lo
+    if math.isfinite(lo) and math.isfinite(hi):
+        return pyo.inequality(lo, e, hi)
+    if math.isfinite(lo):
+        return e >= lo
+    return e <= hi
+
+
+def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, scalars) -> PhaseBlock:
+    lay = Layout.of(mesh)
+    b = pyo.Block()
+    m.add_component(f"phase_{ph.name}", b)
+    nx, nu = len(ph.states), len(ph.controls)
+    N, C = lay.n_state_nodes, lay.n_colloc
+
+    def state_bounds(model, n, j):
+        lo, hi = ph.state_bounds.get(ph.states[j], (-math.inf, math.inf))
+        return _bound(lo), _bound(hi)
+
+    def control_bounds(model, i, j):
+        lo, hi = ph.control_bounds.get(ph.controls[j], (-math.inf, math.inf))
+        return _bound(lo), _bound(hi)
+
+    xg = guess.states_at(lay.s_state)            # (N, nx)
+    ug = guess.controls_at(lay.s_colloc)         # (C, nu)
+    b.X = pyo.Var(range(N), range(nx), bounds=state_bounds, initialize=lambda _, n, j: float(xg[n, j]))
+    b.U = pyo.Var(range(C), range(nu), bounds=control_bounds, initialize=lambda _, i, j: float(ug[i, j]))
+    if ph.t0 is None:
+        b.t0 = pyo.Var(bounds=(_bound(ph.t0_bounds[0]), _bound(ph.t0_bounds[1])), initialize=guess.t0)
+    else:
+        b.t0 = pyo.Param(initialize=ph.t0, mutable=True)
+    if ph.tf is None:
+        b.tf = pyo.Var(bounds=(_bound(ph.tf_bounds[0]), _bound(ph.tf_bounds[1])), initialize=guess.tf)
+    else:
+        b.tf = pyo.Param(initialize=ph.tf, mutable=True)
+    scalars[ph.t0_symbol] = b.t0
+    scalars[ph.tf_symbol] = b.tf
+    duration = b.tf - b.t0 if (ph.t0 is None or ph.tf is None) else float(ph.tf - ph.t0)
+
+    free = sorted(problem.free_parameters, key=str)
+    params = [scalars[s] for s in free]
+    rhs = ph.rhs()
+    args = list(ph.states) + list(ph.controls) + [TIME] + free
+    _check_free(rhs, args, ph, "dynamics")
+    f = pyomo_function(args, list(rhs))
+    path_exprs = [c.expr for c in ph.path]
+    for c in ph.path:
+        _check_free(sp.Matrix([c.expr]), args, ph, f"path constraint '{c.text}'")
+    g = pyomo_function(args, path_exprs) if path_exprs else None
+    integrands = list(ph.integrals.values())
+    L = pyomo_function(args, integrands) if integrands else None
+
+    pb = PhaseBlock(ph, lay, b)
+    defect_exprs: dict[tuple, Any] = {}
+    end_exprs: dict[tuple, Any] = {}
+    path_list: list = []
+    integral_terms = [0.0] * len(integrands)
+    for k in range(mesh.segments):
+        sc = mesh.scheme(k)
+        half_h = (mesh.breakpoints[k + 1] - mesh.breakpoints[k]) / 2.0
+        scale = duration * half_h
+        sup = lay.support[k]
+        Fk = []
+        for i, (cn, sn) in enumerate(zip(lay.colloc[k], lay.colloc_state[k])):
+            t = b.t0 + duration * float(lay.s_colloc[cn])
+            xs = [b.X[sn, j] for j in range(nx)]
+            us = [b.U[cn, j] for j in range(nu)]
+            vals = xs + us + [t] + params
+            Fi = f(*vals)
+            Fk.append(Fi)
+            for j in range(nx):
+                dx = sum(float(sc.D[i, l]) * b.X[sup[l], j] for l in range(len(sup)) if sc.D[i, l] != 0.0)
+                defect_exprs[(k, i, j)] = dx - scale * Fi[j] == 0
+            if g is not None:
+                for c, e in zip(ph.path, g(*vals)):
+                    path_list.append(_ranged(e, c.lower, c.upper))
+            if L is not None:
+                for q, e in enumerate(L(*vals)):
+                    integral_terms[q] = integral_terms[q] + float(sc.weights[i]) * half_h * e
+        if not sc.end_from_support:
+            # LG: the segment end follows from Gauss quadrature of the dynamics
+            for j in range(nx):
+                quad = sum(float(sc.weights[i]) * Fk[i][j] for i in range(len(Fk)))
+                end_exprs[(k, j)] = b.X[lay.end[k], j] - b.X[sup[0], j] - scale * quad == 0
+    b.defect = pyo.Constraint(list(defect_exprs), rule=lambda _, *idx: defect_exprs[idx])
+    if end_exprs:
+        b.end = pyo.Constraint(list(end_exprs), rule=lambda _, *idx: end_exprs[idx])
+        pb.ends = {idx: b.end[idx] for idx in end_exprs}
+    if path_list:
+        b.path = pyo.Constraint(range(len(path_list)), rule=lambda _, i: path_list[i])
+    pb.defects = {idx: b.defect[idx] for idx in defect_exprs}
+    for q, s in enumerate(ph.integrals):
+        e = pyo.Expression(expr=duration * integral_terms[q])
+        b.add_component(f"integral_{q}", e)
+        scalars[s] = e
+        pb.integral_exprs[s] = e
+    return pb
+
+
+def _check_free(exprs: sp.Matrix, args, ph: Phase, what: str) -> None:
+    extra = set().union(*[sp.sympify(e).free_symbols for e in exprs]) - set(args)
+    if extra:
+        raise ValueError(f"phase '{ph.name}': {what} uses {', '.join(sorted(map(str, extra)))}, "
+                         "which is neither a state, a control, t, nor a parameter with a value")
