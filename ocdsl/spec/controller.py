@@ -196,10 +196,9 @@ class ControllerSpec(_Strict):
 
     def expand(self) -> list["ControllerSpec"]:
         """One spec per law (``type`` a list -> several specs sharing the rest)."""
-        out = []
-        for t in self.types():
-            out.append(self.model_copy(update={"type": t, "name": t if len(self.types()) > 1 or not self.name else self.name}))
-        return out
+        types = self.types()
+        return [self.model_copy(update={"type": t, "name": t if len(types) > 1 else (self.name or t)})
+                for t in types]
 
     def label(self) -> str:
         return self.name or "+".join(self.types())
