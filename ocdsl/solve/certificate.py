@@ -72,7 +72,7 @@ class Tolerances:
     bang_bang: float = 0.95          # fraction of nodes at a bound to call a control bang-bang
     reintegration: float = 1e-2      # local re-integration error / state range
     rtol: float = 1e-10              # solve_ivp rtol; atol = rtol * state range
-    refine: int = 10                 # max step = node spacing / refine
+    refine: int = 4                  # max integration step = node spacing / refine
 
 
 # ---------------------------------------------------------------------------------------
@@ -317,35 +317,37 @@ class _ControlInterp:
         self.hi = np.array([b[1] for b in bounds])
         self.segments = None if segments is None else np.asarray(segments, float)
         if self.segments is not None:
-            self.groups = []
+            self.coef = []   # per segment: (centre, half-width, power-basis coefficients)
             for a, b in zip(self.segments[:-1], self.segments[1:]):
                 sel = np.flatnonzero((t >= a) & (t <= b))
-                self.groups.append(sel)
-            if any(len(g) == 0 for g in self.groups):
-                raise ValueError("certificate: a segment holds no node")
+                if len(sel) == 0:
+                    raise ValueError("certificate: a segment holds no node")
+                c, hw = 0.5 * (a + b), 0.5 * (b - a)
+                V = np.vander((t[sel] - c) / hw, len(sel))
+                self.coef.append((c, hw, np.linalg.solve(V, U[sel])))
 
     def __call__(self, tt: float) -> np.ndarray:
         if self.segments is None:
-            u = np.array([np.interp(tt, self.t, self.U[:, j]) for j in range(self.U.shape[1])])
+            k = int(np.clip(np.searchsorted(self.t, tt) - 1, 0, len(self.t) - 2))
+            w = (tt - self.t[k]) / (self.t[k + 1] - self.t[k])
+            w = min(max(w, 0.0), 1.0)
+            u = (1 - w) * self.U[k] + w * self.U[k + 1]
         else:
-            i = int(np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.groups) - 1))
-            sel = self.groups[i]
-            ts, us = self.t[sel], self.U[sel]
-            w = np.ones(len(ts))
-            for a in range(len(ts)):
-                for b in range(len(ts)):
-                    if a != b:
-                        w[a] *= (tt - ts[b]) / (ts[a] - ts[b])
-            u = w @ us
-        return np.clip(u, self.lo, self.hi)
+            i = int(np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.coef) - 1))
+            c, hw, coef = self.coef[i]
+            z = (tt - c) / hw
+            u = coef[0].copy()
+            for row in coef[1:]:
+                u = u * z + row
+        return np.minimum(np.maximum(u, self.lo), self.hi)
 
 
 def _integrate(num: _Numeric, uf: _ControlInterp, ta: float, tb: float, xa, scale, tol: Tolerances,
-               max_step: float, dense: bool = False):
+               max_step: float):
     fun = lambda tt, x: num.f_point(tt, x, uf(tt))  # noqa: E731
     jac = lambda tt, x: num.fx_point(tt, x, uf(tt))  # noqa: E731
     sol = solve_ivp(fun, (ta, tb), xa, method="Radau", jac=jac, rtol=tol.rtol,
-                    atol=tol.rtol * scale, max_step=max_step, dense_output=dense)
+                    atol=tol.rtol * scale, max_step=max_step)
     return sol
 
 
@@ -372,7 +374,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     expected_hamiltonian : overrides the expected value (e.g. ``-dPhi/dtf`` of a general
         Mayer term).
     segments : mesh boundaries (t0, t1, ..., tf); with them the control is interpolated by
-        each segment's polynomial and integration restarts at each boundary.
+        each segment's polynomial (otherwise piecewise linear through the nodes).
     tolerances : :class:`Tolerances`.
     include_symbolic : add LaTeX of H and dH/du under ``symbolic``.
 
@@ -494,31 +496,35 @@ def _reintegration(num, model, t, X, U, bounds, segments, tol: Tolerances) -> di
     uf = _ControlInterp(t, U, bounds, segments)
     rng = X.max(axis=0) - X.min(axis=0)
     scale = np.where(rng > 0, rng, np.maximum(np.abs(X).max(axis=0), 1.0))
-    max_step = float(np.min(np.diff(t))) / tol.refine
-    res: dict[str, Any] = {"method": "Radau", "rtol": tol.rtol, "max_step": max_step,
+    res: dict[str, Any] = {"method": "Radau", "rtol": tol.rtol, "refine": tol.refine,
                            "interpolation": "segment polynomial" if segments is not None else "linear"}
+    # pieces between consecutive nodes (and segment boundaries): the interpolated control
+    # is smooth on each, so the integrator never steps over a kink
+    breaks = set(t.tolist())
+    if segments is not None:
+        breaks |= {float(s) for s in segments if t[0] < s < t[-1]}
+    breaks = np.array(sorted(breaks))
     try:
-        # local: restart from the collocated state at every node, compare at the next one
         local = np.zeros(X.shape)
-        for k in range(len(t) - 1):
-            sol = _integrate(num, uf, t[k], t[k + 1], X[k], scale, tol, max_step)
-            if not sol.success:
-                raise RuntimeError(sol.message)
-            local[k + 1] = np.abs(sol.y[:, -1] - X[k + 1]) / scale
-        # global: one pass from the first node (broken at segment boundaries)
-        breaks = [t[0]]
-        if segments is not None:
-            breaks += [s for s in segments if t[0] < s < t[-1]]
-        breaks.append(t[-1])
         glob = np.zeros(X.shape)
-        x = X[0].copy()
+        x_loc, x_glob = X[0].copy(), X[0].copy()
         for a, b in zip(breaks[:-1], breaks[1:]):
-            sel = np.flatnonzero((t >= a) & (t <= b))
-            sol = _integrate(num, uf, a, b, x, scale, tol, max_step, dense=True)
-            if not sol.success:
-                raise RuntimeError(sol.message)
-            glob[sel] = np.abs(sol.sol(t[sel]).T - X[sel]) / scale
-            x = sol.y[:, -1]
+            k = int(np.searchsorted(t, a))
+            if k < len(t) and t[k] == a:      # a node: the local pass restarts from it
+                x_loc = X[k].copy()
+            step = (b - a) / tol.refine
+            for which, x0 in (("local", x_loc), ("global", x_glob)):
+                sol = _integrate(num, uf, a, b, x0, scale, tol, step)
+                if not sol.success:
+                    raise RuntimeError(sol.message)
+                if which == "local":
+                    x_loc = sol.y[:, -1]
+                else:
+                    x_glob = sol.y[:, -1]
+            k = int(np.searchsorted(t, b))
+            if k < len(t) and t[k] == b:
+                local[k] = np.abs(x_loc - X[k]) / scale
+                glob[k] = np.abs(x_glob - X[k]) / scale
     except Exception as exc:  # noqa: BLE001 - reported, not raised
         res.update(passed=False, error=f"{type(exc).__name__}: {exc}")
         return res
