@@ -25,6 +25,8 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .blas import blas_threads
+
 INTEGRATORS = ("rk4", "euler", "rk45", "dop853")
 
 
@@ -78,8 +80,22 @@ def simulate(plant: Callable[[np.ndarray, np.ndarray], np.ndarray],
              controller: Callable[[float, np.ndarray], np.ndarray],
              z0: Sequence[float], index: Sequence[int], Q, R, horizon: float, dt: float,
              update: float | None = None, integrator: str = "rk4", saturation=None,
-             stable_ratio: float = 1e-2, blowup: float = 1e3) -> SimResult:
-    """Simulate dz/dt = plant(z, u) with u = sat(controller(t_k, z_k)) held over updates."""
+             stable_ratio: float = 1e-2, blowup: float = 1e3, threads: int | None = 1) -> SimResult:
+    """Simulate dz/dt = plant(z, u) with u = sat(controller(t_k, z_k)) held over updates.
+
+    ``threads``: BLAS threads during the run (1 by default: the matrices are small and a
+    multithreaded BLAS only adds synchronisation; None leaves the pool alone).
+    """
+    if threads is None:
+        return _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrator,
+                         saturation, stable_ratio, blowup)
+    with blas_threads(threads):
+        return _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrator,
+                         saturation, stable_ratio, blowup)
+
+
+def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrator, saturation,
+              stable_ratio, blowup) -> SimResult:
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator {integrator!r}; choose one of {INTEGRATORS}")
     if dt <= 0 or horizon <= 0:

@@ -295,7 +295,9 @@ def verify_exact(sdc: SDC) -> None:
         r = r.rewrite(sp.sin) if r.has(sp.sinc) else r
         r = sp.piecewise_fold(r)
         if isinstance(r, sp.Piecewise):
-            r = r.args[-1].expr  # the generic branch; the limit branch is continuous
+            # check the generic branch (the point branches x_j = 0 hold the limits, which
+            # are continuous extensions of it)
+            r = next(a.expr for a in r.args if not isinstance(a.cond, sp.Eq))
         if sp.simplify(sp.expand(r)) != 0 and sp.simplify(sp.expand_trig(r)) != 0:
             bad.append((str(sdc.states[i]), r))
     if bad:
