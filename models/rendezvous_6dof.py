@@ -6,8 +6,8 @@ Frames: L is the target's LVLH frame (x along-track, z toward the Earth's centre
 completing the triad, i.e. minus the orbit normal); B is the chaser's principal-axis body
 frame. States, in this order:
 
-* ``w1 w2 w3``: angular velocity of B relative to L, in B components (rad/s);
-* ``sig1 sig2 sig3``: MRPs of B relative to L;
+* ``omega1 omega2 omega3``: angular velocity w of B relative to L, in B components (rad/s);
+* ``sigma1 sigma2 sigma3``: MRPs of B relative to L;
 * ``vx vy vz``: velocity of the chaser relative to L, in L components (m/s);
 * ``x y z``: position of the chaser relative to the target, in L components (m).
 
@@ -16,15 +16,16 @@ Controls: body-axis torques ``T1 T2 T3`` (N m) and body-axis forces ``F1 F2 F3``
 Equations (digest section 2):
 
 * MRP kinematics: sigma' = B(sigma) w / 4;
-* C = C(sigma) = [BL] (L -> B), orbit rate in B: w_o = C [0, -wn, 0]^T
-  (the sign matters: y_L is minus the orbit normal);
+* C = C(sigma) = [BL] (L -> B), orbit rate in B (named expressions ``omega_o1..3``):
+  w_o = C [0, -wn, 0]^T (the sign matters: y_L is minus the orbit normal);
 * Euler equation, option ``euler``:
   - ``printed`` (default, the paper's eq. 13): I w' = T - w x (I w) - w_o x (I (w + w_o));
   - ``exact`` (rigid body, derived): I w' = T - w_BI x (I w_BI) + I (w x w_o), w_BI = w + w_o;
-* Hill / Clohessy-Wiltshire translation with the body thrust rotated into L, F_L = C^T F:
+* Hill / Clohessy-Wiltshire translation with the body thrust rotated into L, F_L = C^T F
+  (named expressions ``F_L1..3``):
   vx' = 2 wn vz + F_L1/m, vy' = -wn^2 y + F_L2/m, vz' = -2 wn vx + 3 wn^2 z + F_L3/m,
   (x, y, z)' = (vx, vy, vz);
-* orbit rate wn = sqrt(mu / (R_E + h)^3), with h, R_E in km and mu in km^3/s^2.
+* orbit rate wn = ``omega_n`` = sqrt(mu / (R_E + h)^3), with h, R_E in km and mu in km^3/s^2.
 
 A 90 deg rotation about body axis 2 is the MRP [0, tan(pi/8), 0] (not tan(pi/4)).
 """
@@ -53,16 +54,16 @@ def build(options: dict) -> Model:
     if euler not in EULER_FORMS:
         raise ValueError(f"rendezvous_6dof: option euler must be one of {EULER_FORMS}, got {euler!r}")
 
-    w = sp.Matrix(syms("w1 w2 w3"))
-    sig = sp.Matrix(syms("sig1 sig2 sig3"))
+    w = sp.Matrix(syms("omega1 omega2 omega3"))
+    sig = sp.Matrix(syms("sigma1 sigma2 sigma3"))
     v = sp.Matrix(syms("vx vy vz"))
     r = sp.Matrix(syms("x y z"))
     T = sp.Matrix(syms("T1 T2 T3"))
     F = sp.Matrix(syms("F1 F2 F3"))
     I1, I2, I3, m, h, mu, R_E = syms("I1 I2 I3 m h mu R_E")
-    wn = sym("wn")
-    wo = sp.Matrix(syms("wo1 wo2 wo3"))     # orbit rate [w_LI]^B
-    FL = sp.Matrix(syms("FL1 FL2 FL3"))     # thrust in L components
+    wn = sym("omega_n")
+    wo = sp.Matrix(syms("omega_o1 omega_o2 omega_o3"))  # orbit rate [w_LI]^B
+    FL = sp.Matrix(syms("F_L1 F_L2 F_L3"))     # thrust in L components
 
     C = mrp_to_dcm(sig)                     # [BL]
     Ib = sp.diag(I1, I2, I3)
@@ -84,12 +85,12 @@ def build(options: dict) -> Model:
     states = (*w, *sig, *v, *r)
     dynamics = dict(zip(states, (*wdot, *sigdot, *vdot, *v)))
     parameters = {s: DEFAULTS[s.name] for s in (I1, I2, I3, m, h, mu, R_E)}
-    units = {"w1": "rad/s", "w2": "rad/s", "w3": "rad/s", "sig1": "1", "sig2": "1", "sig3": "1",
+    units = {**{f"omega{i}": "rad/s" for i in (1, 2, 3)}, **{f"sigma{i}": "1" for i in (1, 2, 3)},
              "vx": "m/s", "vy": "m/s", "vz": "m/s", "x": "m", "y": "m", "z": "m",
-             "T1": "N*m", "T2": "N*m", "T3": "N*m", "F1": "N", "F2": "N", "F3": "N",
+             **{f"T{i}": "N*m" for i in (1, 2, 3)}, **{f"F{i}": "N" for i in (1, 2, 3)},
              "I1": "kg*m^2", "I2": "kg*m^2", "I3": "kg*m^2", "m": "kg", "h": "km",
-             "mu": "km^3/s^2", "R_E": "km", "wn": "rad/s", "wo1": "rad/s", "wo2": "rad/s",
-             "wo3": "rad/s", "FL1": "N", "FL2": "N", "FL3": "N"}
+             "mu": "km^3/s^2", "R_E": "km", "omega_n": "rad/s",
+             **{f"omega_o{i}": "rad/s" for i in (1, 2, 3)}, **{f"F_L{i}": "N" for i in (1, 2, 3)}}
     return Model(
         name="rendezvous_6dof",
         states=states,

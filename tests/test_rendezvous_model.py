@@ -6,7 +6,7 @@ from scipy.integrate import solve_ivp
 from ocdsl.symbolic.registry import build_model, model_names
 from ocdsl.symbolic.vectors import cross, mrp_to_dcm, rot2
 
-NAMES = ["w1", "w2", "w3", "sig1", "sig2", "sig3", "vx", "vy", "vz", "x", "y", "z"]
+NAMES = ["omega1", "omega2", "omega3", "sigma1", "sigma2", "sigma3", "vx", "vy", "vz", "x", "y", "z"]
 MU, RE, H = 398600.4418, 6378.137, 580.0
 
 
@@ -41,11 +41,11 @@ def test_registered_and_options():
 
 def test_orbit_rate_from_altitude():
     m = build_model("rendezvous_6dof")
-    wn = m.expand(m.symbol("wn")).xreplace(m.default_parameters())
+    wn = m.expand(m.symbol("omega_n")).xreplace(m.default_parameters())
     assert float(wn) == pytest.approx(np.sqrt(MU / (RE + H) ** 3), rel=1e-14)
     assert float(wn) == pytest.approx(1.08775e-3, rel=1e-5)
     # L rotates about -y_L: the orbit rate in B at sigma = 0 is [0, -wn, 0]
-    wo2 = m.expand(m.symbol("wo2")).xreplace(m.default_parameters())
+    wo2 = m.expand(m.symbol("omega_o2")).xreplace(m.default_parameters())
     assert float(wo2.xreplace({s: 0 for s in m.states})) == pytest.approx(-float(wn))
 
 
@@ -53,7 +53,7 @@ def test_exact_minus_printed_is_the_dropped_terms():
     mp, me = build_model("rendezvous_6dof"), build_model("rendezvous_6dof", {"euler": "exact"})
     I = sp.diag(*[mp.symbol(n) for n in ("I1", "I2", "I3")])
     w = sp.Matrix(mp.states[:3])
-    wo = sp.Matrix([mp.expand(mp.symbol(f"wo{i}")) for i in (1, 2, 3)])
+    wo = sp.Matrix([mp.expand(mp.symbol(f"omega_o{i}")) for i in (1, 2, 3)])
     diff = I * (me.rhs()[:3, 0] - mp.rhs()[:3, 0])
     expected = I * cross(w, wo) - cross(w, I * wo)
     rng = np.random.default_rng(3)
