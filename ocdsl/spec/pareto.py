@@ -252,13 +252,20 @@ class ParetoSpec(_Strict):
 # Loading with file and line
 # ---------------------------------------------------------------------------------------
 def _node_at(node: yaml.Node | None, path: tuple[Any, ...]) -> yaml.Node | None:
-    """Deepest YAML node along ``path`` (mapping keys / sequence indices)."""
-    for key in path:
+    """Deepest YAML node along ``path`` (mapping keys / sequence indices).
+
+    When the path ends at a mapping entry whose value is a block (mapping or sequence on
+    the following lines), the key node is returned so that the line is the key's.
+    """
+    for i, key in enumerate(path):
         if isinstance(node, yaml.MappingNode):
             nxt = None
             for k, v in node.value:
                 if k.value == str(key):
                     nxt = v
+                    if i == len(path) - 1 and isinstance(v, (yaml.MappingNode, yaml.SequenceNode)) \
+                            and v.start_mark.line != k.start_mark.line:
+                        nxt = k
                     break
             if nxt is None:
                 return node
@@ -278,17 +285,31 @@ def _line_text(source: str, line: int) -> str:
 def parse_pareto(block: Any, file: str | None = None, source: str | None = None,
                  root: yaml.Node | None = None, prefix: tuple[Any, ...] = ("pareto",)) -> ParetoSpec:
     """Validate a ``pareto:`` mapping; errors as :class:`ParetoSpecError` with the line."""
+    def fail(msg: str, loc: tuple[Any, ...]) -> None:
+        node = _node_at(root, prefix + loc) if root is not None else None
+        line = node.start_mark.line + 1 if node is not None else None
+        text = _line_text(source, line) if (source and line) else None
+        raise ParetoSpecError(f"{'.'.join(str(x) for x in prefix + loc)}: {msg}", file, line, text) from None
+
+    # durations first, so that the error points at the window entry itself
+    window = block.get("window") if isinstance(block, dict) else None
+    for key, w in (window.items() if isinstance(window, dict) else ()):
+        rng = w.get("range") if isinstance(w, dict) else None
+        if str(key).endswith(".duration") and isinstance(rng, (list, tuple)) and rng:
+            try:
+                lo = constant(rng[0])
+            except ValueError:
+                continue
+            if lo < 0:
+                fail(f"phase {str(key).rsplit('.', 1)[0]!r}: negative duration bound {lo:g} "
+                     f"(durations are >= 0)", ("window", key))
     try:
         return ParetoSpec.model_validate(block)
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and x.startswith("function-")))
-        node = _node_at(root, prefix + loc) if root is not None else None
-        line = node.start_mark.line + 1 if node is not None else None
-        text = _line_text(source, line) if (source and line) else None
-        msg = err["msg"].removeprefix("Value error, ")
-        where = ".".join(str(x) for x in prefix + loc)
-        raise ParetoSpecError(f"{where}: {msg}", file, line, text) from None
+        fail(err["msg"].removeprefix("Value error, "), loc)
+        raise  # unreachable: fail raises
 
 
 def check_phase_durations(phases: Any, file: str | None = None, source: str | None = None,
