@@ -1,0 +1,707 @@
+"""Build HTML and PDF reports from run folders (never re-solves).
+
+Public API (stable; the CLI calls these):
+
+``make_report(run_dir, formats=("html", "pdf"), *, out_dir=None, engine="auto") -> list[Path]``
+    Report of one run folder, written as ``report.html`` / ``report.pdf`` into the run
+    folder (or ``out_dir``). Returns the paths written, in the order of ``formats``.
+
+``make_comparison_report(run_dirs, out_dir, formats=("html", "pdf"), *, title=None, engine="auto") -> list[Path]``
+    One report comparing several run folders and/or study folders (a folder with
+    ``study.csv``/``study.json`` and one run folder per point, or any folder holding run
+    folders), written to ``out_dir/report.html`` and ``out_dir/report.pdf``.
+
+``make_index(report_dirs, out_path, paper_numbers, *, title=...) -> Path``
+    ``reports/index.html``: every paper number against ocdsl's (``paper_numbers`` is a list
+    of dicts ``{study, quantity, paper, ocdsl, error, passed, report_link}``) and a link to
+    each report folder in ``report_dirs``.
+
+The HTML is one self-contained file: figures are embedded PNG (``data:`` URIs), equations
+are rendered offline by matplotlib's mathtext, and nothing refers to the network. The PDF
+is made from the same HTML with WeasyPrint (CSS paged media: A4 pages, page numbers,
+repeated table headers); when WeasyPrint cannot be imported, headless Chromium is used if
+installed. ``engine`` forces one (``"weasyprint"`` or ``"chromium"``).
+"""
+from __future__ import annotations
+
+import base64
+import csv
+import io
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from ocdsl.result import Result
+from ocdsl.report import figures as F
+from ocdsl.report import tables as T
+
+TEMPLATES = Path(__file__).with_name("templates")
+GOOD = ("optimal", "acceptable", "feasible", "stable")
+FORMATS = ("html", "pdf")
+CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+STUDY_OUTPUT_COLS = {"status", "objective", "tf", "t_f", "iterations", "wall_time", "wall_time_s",
+                     "host", "message", "run", "run_dir", "folder", "dir", "path", "pareto", "seed",
+                     "point", "index", "id", "name", "family", "label", "solution", "elapsed",
+                     "worker", "attempt", "started", "finished", "nlp_variables", "ok"}
+
+
+class ReportError(RuntimeError):
+    """A report could not be written (bad input, or no PDF engine)."""
+
+
+# =============================================================================== document
+class Doc:
+    """Sections of blocks, numbering tables, figures and equations in document order."""
+
+    def __init__(self) -> None:
+        self.sections: list[dict] = []
+        self.n_tables = self.n_figures = self.n_equations = 0
+        self.warnings: list[str] = []
+
+    def section(self, sid: str, title: str) -> list[dict]:
+        self.sections.append({"id": sid, "title": title, "blocks": []})
+        return self.sections[-1]["blocks"]
+
+    def table(self, blocks: list[dict], tab: dict | None) -> None:
+        if tab:
+            self.n_tables += 1
+            blocks.append({"type": "table", "number": self.n_tables, **tab})
+
+    def figures(self, blocks: list[dict], figs: Iterable[F.Fig]) -> None:
+        for f in figs:
+            try:
+                width_cm = f.figure.get_figwidth() * 2.54
+                src = F.to_png_data_uri(f.figure)
+            finally:
+                f.figure.clear()
+            self.n_figures += 1
+            blocks.append({"type": "figure", "number": self.n_figures, "src": src,
+                           "caption": f.caption, "width_cm": min(width_cm, 16.5)})
+
+    def equations(self, blocks: list[dict], title: str | None, items: list[tuple[str, str, str]]) -> None:
+        """``items``: (latex, fallback text, tag) triples."""
+        out = []
+        for latex, text, tag in items:
+            self.n_equations += 1
+            img = math_image(latex) if latex else None
+            e = {"number": self.n_equations, "alt": text or latex, "tag": tag, "src": None}
+            if img:
+                e.update(img)
+            out.append(e)
+        if out:
+            blocks.append({"type": "equations", "title": title, "entries": out})
+
+    def guard(self, what: str, fn: Callable[[], Any]) -> Any:
+        """Run one optional part; a failure becomes a note in the report, never an error."""
+        try:
+            return fn()
+        except Exception as exc:  # noqa: BLE001
+            self.warnings.append(f"{what}: {type(exc).__name__}: {exc}")
+            return None
+
+
+# ============================================================================= equations
+_MATH_FIXES = [
+    (re.compile(r"\\text\{([^{}]*)\}"), r"\\mathrm{\1}"),
+    (re.compile(r"\\operatorname\{([^{}]*)\}"), r"\\mathrm{\1}"),
+    (re.compile(r"\\limits"), ""),
+    (re.compile(r"\\displaystyle"), ""),
+    (re.compile(r"\\,|\\;|\\!"), r"\\ "),
+    (re.compile(r"\\middle"), ""),
+]
+
+
+def math_image(latex: str, fontsize: float = 11.5, dpi: int = 220) -> dict | None:
+    """Render LaTeX with matplotlib mathtext to a PNG data URI; ``None`` if mathtext
+    cannot parse it (the report then shows the source text)."""
+    from matplotlib import rc_context
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.mathtext import math_to_image
+
+    src = latex.strip().strip("$").strip()
+    if not src:
+        return None
+    candidates = [src]
+    fixed = src
+    for pat, rep in _MATH_FIXES:
+        fixed = pat.sub(rep, fixed)
+    if fixed != src:
+        candidates.append(fixed)
+    for cand in candidates:
+        buf = io.BytesIO()
+        try:
+            with rc_context({"mathtext.fontset": "cm"}), warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                math_to_image(f"${cand}$", buf, prop=FontProperties(size=fontsize), dpi=dpi, format="png")
+        except Exception:  # noqa: BLE001  (mathtext parse errors are ValueError, some others)
+            continue
+        data = buf.getvalue()
+        w, h = int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+        return {"src": "data:image/png;base64," + base64.b64encode(data).decode("ascii"),
+                "w": w / dpi * 72.0, "h": h / dpi * 72.0}
+    return None
+
+
+def _dynamics_latex(state: str, latex: str) -> str:
+    s = latex.strip().strip("$")
+    if re.search(r"(?<![<>\\])=", s) or s.startswith(("\\dot", "\\frac{d")):
+        return s
+    return r"\dot{%s} = %s" % (F.tex_name(state), s)
+
+
+# ============================================================================== loading
+def _is_run(d: Path) -> bool:
+    return (d / "result.json").is_file()
+
+
+def _natural_key(p: Path) -> list:
+    return [int(s) if s.isdigit() else s for s in re.split(r"(\d+)", p.name)]
+
+
+def _find_runs(folder: Path, depth: int = 2) -> list[Path]:
+    out: list[Path] = []
+    if depth <= 0 or not folder.is_dir():
+        return out
+    for d in sorted((d for d in folder.iterdir() if d.is_dir() and not d.name.startswith(".")), key=_natural_key):
+        if _is_run(d):
+            out.append(d)
+        else:
+            out += _find_runs(d, depth - 1)
+    return out
+
+
+def load_run(run_dir: Path) -> tuple[Result, list[str]]:
+    """``Result.read`` with a fallback: a run folder with a broken or missing trajectory
+    still gives the scalars of ``result.json`` (and a note)."""
+    try:
+        return Result.read(run_dir), []
+    except Exception as exc:  # noqa: BLE001
+        note = f"the run folder could not be read in full ({type(exc).__name__}: {exc})"
+    try:
+        data = json.loads((run_dir / "result.json").read_text())
+    except Exception as exc:  # noqa: BLE001
+        raise ReportError(f"{run_dir}: not a readable run folder (result.json: {exc})") from exc
+    fields = set(Result.__dataclass_fields__) - {"phases", "tables"}
+    kw = {k: v for k, v in data.items() if k in fields}
+    kw.setdefault("name", run_dir.name)
+    kw.setdefault("status", "error")
+    res = Result(**kw)
+    for name in data.get("tables") or []:
+        try:
+            from ocdsl.result import read_csv
+            res.tables[name] = read_csv(run_dir / "tables" / f"{name}.csv")
+        except Exception:  # noqa: BLE001
+            pass
+    return res, [note]
+
+
+def read_study_table(folder: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Rows of ``study.csv`` (numbers converted) and the ``study.json`` object."""
+    rows: list[dict[str, Any]] = []
+    meta: dict[str, Any] = {}
+    if (folder / "study.json").is_file():
+        try:
+            meta = json.loads((folder / "study.json").read_text())
+        except Exception:  # noqa: BLE001
+            meta = {}
+        if isinstance(meta, list):
+            meta = {"rows": meta}
+    if (folder / "study.csv").is_file():
+        with open(folder / "study.csv", newline="") as fh:
+            for r in csv.DictReader(fh):
+                rows.append({k: _num(v) for k, v in r.items() if k is not None})
+    elif isinstance(meta, dict):
+        for key in ("rows", "points", "table", "results"):
+            if isinstance(meta.get(key), list) and all(isinstance(x, dict) for x in meta[key]):
+                rows = [dict(x) for x in meta[key]]
+                break
+    return rows, meta if isinstance(meta, dict) else {}
+
+
+def _num(v: Any) -> Any:
+    if isinstance(v, str):
+        s = v.strip()
+        if re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|[-+]?(inf|nan)", s, re.I):
+            f = float(s)
+            return int(f) if re.fullmatch(r"[-+]?\d+", s) else f
+        if s.lower() in ("true", "false"):
+            return s.lower() == "true"
+    return v
+
+
+# ============================================================================ sections
+def _problem_section(doc: Doc, res: Result) -> None:
+    prob = res.problem or {}
+    if not prob and not res.parameters and not res.method:
+        return
+    b = doc.section("problem", "Problem")
+    if prob.get("description"):
+        b.append({"type": "text", "text": prob["description"]})
+    doc.table(b, doc.guard("states table", lambda: T.variables_table(res, "states")))
+    doc.table(b, doc.guard("controls table", lambda: T.variables_table(res, "controls")))
+    doc.table(b, doc.guard("parameters table", lambda: T.parameters_table(res)))
+    phases = prob.get("phases") or {}
+    multi = len(phases) > 1
+    for pname, info in phases.items():
+        where = f" — phase {pname}" if multi else ""
+        dyn = [(_dynamics_latex(s, lt), f"d{s}/dt = {lt}", "") for s, lt in (info.get("dynamics_latex") or {}).items()]
+        doc.guard("dynamics", lambda: doc.equations(b, "Dynamics" + where, dyn))
+        texts = list(info.get("constraints") or [])
+        lats = list(info.get("constraints_latex") or [])
+        n = max(len(texts), len(lats))
+        cons = [(lats[i] if i < len(lats) else "", texts[i] if i < len(texts) else "", "") for i in range(n)]
+        times = []
+        for k, sym in (("t0", "t_0"), ("tf", "t_f")):
+            v = info.get(k)
+            if v is None:
+                continue
+            times.append((f"{sym} = {T.fmt(v)}" if v != "free" else r"%s\ \mathrm{free}" % sym,
+                          f"{k} = {v}", "time"))
+        doc.guard("constraints", lambda: doc.equations(b, "Constraints and boundary conditions" + where,
+                                                      cons + times))
+    obj = prob.get("objective") or {}
+    if obj:
+        sense = obj.get("sense", "minimize")
+        lat = obj.get("latex") or ""
+        items = [((r"\mathrm{%s}\quad " % sense) + lat if lat else "", f"{sense} {obj.get('text', '')}", "")]
+        doc.guard("objective", lambda: doc.equations(b, "Objective", items))
+    links = prob.get("links") or []
+    if links:
+        doc.guard("links", lambda: doc.equations(b, "Phase links", [("", str(x), "") for x in links]))
+    doc.table(b, doc.guard("method table", lambda: T.method_table(res)))
+
+
+def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
+    b = doc.section("solution", "Solution")
+    if res.status not in GOOD or (res.message and res.status not in GOOD):
+        hint = {"infeasible": "The solver found no point satisfying the constraints: check bounds, "
+                              "boundary conditions and the initial guess.",
+                "max_iter": "The iteration limit was reached before convergence: raise it, refine the "
+                            "initial guess, or scale the problem.",
+                "error": "The run stopped with an error before a solution was found.",
+                "mesh_not_converged": "The mesh refinement did not reach its tolerance.",
+                "unstable": "The closed loop diverged.",
+                "not_run": "This point was not run."}.get(res.status, "")
+        b.append({"type": "diagnosis", "status": res.status, "message": res.message, "hint": hint})
+    for n in notes:
+        b.append({"type": "note", "text": n})
+    doc.table(b, doc.guard("summary table", lambda: T.summary_table(res)))
+    doc.table(b, doc.guard("wall-time table", lambda: T.wall_time_table(res)))
+    doc.table(b, doc.guard("phases table", lambda: T.phases_table(res)))
+    doc.table(b, doc.guard("expect table", lambda: T.expect_table(res)))
+    doc.table(b, doc.guard("certificate table", lambda: T.certificate_table(res.certificate)))
+    doc.table(b, doc.guard("back-end table", lambda: T.extra_table(res)))
+
+
+def _figures_section(doc: Doc, res: Result) -> None:
+    if not any(len(p.time) for p in res.phases):
+        return
+    b = doc.section("trajectory", "Trajectory")
+    for what, fn in (("state/control figures", F.fig_states_controls), ("costate figure", F.fig_costates),
+                     ("Hamiltonian figures", F.fig_hamiltonian), ("trajectory view", F.fig_positions),
+                     ("other time histories", F.fig_other_extra)):
+        doc.guard(what, lambda fn=fn: doc.figures(b, fn(res)))
+    if any(k == "reintegration" or k.startswith("reintegration_") for k in res.tables):
+        b2 = doc.section("reintegration", "Re-integration check")
+        doc.table(b2, doc.guard("re-integration table", lambda: T.reintegration_table(res)))
+        doc.guard("re-integration figure", lambda: doc.figures(b2, F.fig_reintegration(res)))
+
+
+def _mesh_table(res: Result) -> dict[str, np.ndarray] | None:
+    if "mesh_history" in res.tables:
+        return res.tables["mesh_history"]
+    mh = (res.extra or {}).get("mesh_history")
+    if isinstance(mh, dict) and mh and all(isinstance(v, list) for v in mh.values()):
+        return {k: np.asarray(v, float) for k, v in mh.items()}
+    if isinstance(mh, list) and mh and all(isinstance(x, dict) for x in mh):
+        keys = [k for k in mh[0] if all(isinstance(x.get(k), (int, float)) for x in mh)]
+        return {k: np.asarray([x[k] for x in mh], float) for k in keys}
+    return None
+
+
+def _tables_sections(doc: Doc, res: Result) -> None:
+    cl = F.closed_loop_tables(res.tables)
+    if cl:
+        b = doc.section("closed-loop", "Closed-loop simulation")
+        doc.table(b, doc.guard("closed-loop table", lambda: T.closed_loop_table(res.tables, res.problem)))
+        doc.guard("closed-loop figures", lambda: doc.figures(b, F.fig_closed_loop(res.tables, res.problem)))
+    mh = doc.guard("mesh history", lambda: _mesh_table(res))
+    if mh:
+        b = doc.section("mesh", "Mesh refinement")
+        doc.table(b, doc.guard("mesh table", lambda: T.column_table(
+            "mesh_history", "Mesh refinement history.", mh, max_rows=30)))
+        doc.guard("mesh figure", lambda: doc.figures(b, F.fig_mesh_history(mh)))
+    for name, tab in sorted(res.tables.items()):
+        if name.startswith("pareto") or "pareto" in tab:
+            b = doc.section(f"tab-{name}", f"Pareto set ({name})")
+            rows = _rows_of(tab)
+            crit = _criteria(rows, {})
+            doc.table(b, doc.guard(f"table {name}", lambda: T.column_table(name, f"Solutions ({name}).", tab)))
+            if crit:
+                doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, res.problem.get("units"))))
+    other = [n for n in sorted(res.tables) if n != "mesh_history" and not n.startswith(("closed_loop_", "reintegration"))
+             and not (n.startswith("pareto") or "pareto" in res.tables[n])]
+    if other:
+        b = doc.section("tables", "Other tables in the run folder")
+        for n in other:
+            doc.table(b, doc.guard(f"table {n}", lambda n=n: T.column_table(
+                n, f"Table <code>tables/{n}.csv</code>.".replace("<code>", "").replace("</code>", ""),
+                res.tables[n])))
+
+
+def _rows_of(cols: dict[str, np.ndarray]) -> list[dict[str, Any]]:
+    n = max((len(v) for v in cols.values()), default=0)
+    return [{k: (v[i] if i < len(v) else None) for k, v in cols.items()} for i in range(n)]
+
+
+def _criteria(rows: list[dict], meta: dict) -> tuple[str, str] | None:
+    """The two Pareto criteria: named by study.json (``criteria``/``objectives``, possibly
+    under ``pareto``), else the first two numeric columns that are not bookkeeping."""
+    if not rows:
+        return None
+    for src in (meta, meta.get("pareto") if isinstance(meta.get("pareto"), dict) else {}):
+        for key in ("criteria", "objectives"):
+            v = src.get(key) if isinstance(src, dict) else None
+            if isinstance(v, list) and len(v) >= 2:
+                names = [x if isinstance(x, str) else (x.get("name") if isinstance(x, dict) else None) for x in v]
+                if all(n in rows[0] for n in names[:2] if n):
+                    if names[0] and names[1]:
+                        return names[0], names[1]
+    numeric = [k for k in rows[0] if k not in STUDY_OUTPUT_COLS and k != "t"
+               and sum(F._finite(r.get(k)) is not None for r in rows) >= max(1, len(rows) // 2)]
+    return (numeric[0], numeric[1]) if len(numeric) >= 2 else None
+
+
+# ================================================================================ output
+def _env():
+    import jinja2
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), autoescape=True,
+                              trim_blocks=False, lstrip_blocks=False)
+
+
+def _render(doc: Doc, title: str, subtitle: str, meta: list[tuple[str, str]], good: bool) -> str:
+    if doc.warnings:
+        b = doc.section("warnings", "Notes on this report")
+        b.append({"type": "warnings", "entries": doc.warnings})
+    return _env().get_template("report.html.j2").render(
+        title=title, subtitle=subtitle, meta=meta, good=good, sections=doc.sections)
+
+
+def _atomic_write(path: Path, data: bytes | str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def chromium_binary() -> str | None:
+    for name in CHROMIUM_CANDIDATES:
+        p = shutil.which(name)
+        if p:
+            return p
+    return None
+
+
+def _pdf_weasyprint(html: str, pdf: Path) -> None:
+    import logging
+    import weasyprint  # noqa: PLC0415  (optional: needs Pango; raises OSError without it)
+    logging.getLogger("weasyprint").setLevel(logging.ERROR)
+    logging.getLogger("fontTools").setLevel(logging.ERROR)
+    data = weasyprint.HTML(string=html, base_url=str(pdf.parent)).write_pdf()
+    _atomic_write(pdf, data)
+
+
+def _pdf_chromium(html: str, pdf: Path) -> None:
+    exe = chromium_binary()
+    if exe is None:
+        raise FileNotFoundError("no chromium binary on PATH")
+    with tempfile.TemporaryDirectory(prefix="ocdsl-report-") as tmp:
+        src = Path(tmp) / "report.html"
+        src.write_text(html, encoding="utf-8")
+        out = Path(tmp) / "report.pdf"
+        cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+               "--disable-background-networking", "--disable-component-update", "--disable-sync",
+               f"--user-data-dir={tmp}/profile", "--no-pdf-header-footer",
+               f"--print-to-pdf={out}", src.as_uri()]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+        if not out.is_file() or out.stat().st_size == 0:
+            raise OSError(f"chromium made no PDF (exit {proc.returncode}): {proc.stderr[-500:]}")
+        _atomic_write(pdf, out.read_bytes())
+
+
+PDF_ENGINES: dict[str, Callable[[str, Path], None]] = {"weasyprint": _pdf_weasyprint, "chromium": _pdf_chromium}
+
+
+def write_pdf(html: str, pdf: Path, engine: str = "auto") -> str:
+    """Write ``pdf`` from ``html``; returns the engine used. ``auto`` tries WeasyPrint, then
+    Chromium."""
+    names = list(PDF_ENGINES) if engine == "auto" else [engine]
+    errors = []
+    for name in names:
+        if name not in PDF_ENGINES:
+            raise ReportError(f"unknown PDF engine {name!r}; choose from {sorted(PDF_ENGINES)} or 'auto'")
+        try:
+            PDF_ENGINES[name](html, pdf)
+            return name
+        except (ImportError, OSError, subprocess.SubprocessError) as exc:
+            errors.append(f"{name}: {type(exc).__name__}: {exc}")
+    raise ReportError("could not write the PDF report (" + "; ".join(errors) + "). Install WeasyPrint "
+                      "(pip install weasyprint; Debian packages libpango-1.0-0 libpangoft2-1.0-0) "
+                      "or Debian's chromium, or ask for formats=('html',).")
+
+
+def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str, stem: str = "report") -> list[Path]:
+    formats = tuple(formats)
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        raise ReportError(f"unknown report format(s) {bad}; choose from {list(FORMATS)}")
+    written: dict[str, Path] = {}
+    if "html" in formats:
+        written["html"] = out_dir / f"{stem}.html"
+        _atomic_write(written["html"], html)
+    if "pdf" in formats:
+        written["pdf"] = out_dir / f"{stem}.pdf"
+        write_pdf(html, written["pdf"], engine)
+    return [written[f] for f in formats if f in written]
+
+
+# ============================================================================ public API
+def build_run_html(run_dir: str | os.PathLike) -> str:
+    """The HTML of one run folder's report (what :func:`make_report` writes)."""
+    run_dir = Path(run_dir)
+    if not _is_run(run_dir):
+        raise ReportError(f"{run_dir}: not a run folder (no result.json)")
+    res, notes = load_run(run_dir)
+    doc = Doc()
+    if res.status in GOOD:      # the problem first, as a paper would
+        _problem_section(doc, res)
+        _solution_section(doc, res, notes)
+    else:                       # a failed run: its diagnosis first
+        _solution_section(doc, res, notes)
+        _problem_section(doc, res)
+    _figures_section(doc, res)
+    _tables_sections(doc, res)
+    prob = res.problem or {}
+    title = prob.get("name") or res.name
+    meta = [("run", run_dir.name), ("status", res.status)]
+    if res.objective is not None:
+        meta.append(("objective", T.fmt(res.objective)))
+    if res.method.get("name") or res.method.get("method"):
+        meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
+    return _render(doc, title, prob.get("description", "") if not prob.get("phases") else "", meta,
+                   res.status in GOOD)
+
+
+def _renumber(doc: Doc) -> None:
+    """Renumber tables, figures and equations in document order (after moving sections)."""
+    n = {"table": 0, "figure": 0, "equations": 0}
+    for s in doc.sections:
+        for b in s["blocks"]:
+            if b["type"] in ("table", "figure"):
+                n[b["type"]] += 1
+                b["number"] = n[b["type"]]
+            elif b["type"] == "equations":
+                for e in b["entries"]:
+                    n["equations"] += 1
+                    e["number"] = n["equations"]
+
+
+def make_report(run_dir: str | os.PathLike, formats: Sequence[str] = ("html", "pdf"), *,
+                out_dir: str | os.PathLike | None = None, engine: str = "auto") -> list[Path]:
+    """Write the report of one run folder.
+
+    ``formats`` is any of ``"html"``, ``"pdf"``; files are ``report.html`` and ``report.pdf``
+    in the run folder (or ``out_dir``). Returns the written paths in ``formats`` order.
+    Reads only the run folder; a failed run (no trajectory) still gets a report with its
+    diagnosis. Raises :class:`ReportError` if ``run_dir`` is not a run folder or no PDF
+    engine is available (the HTML is written first).
+    """
+    run_dir = Path(run_dir)
+    html = build_run_html(run_dir)
+    return _write_outputs(html, Path(out_dir) if out_dir else run_dir, formats, engine)
+
+
+def build_comparison_html(run_dirs: Sequence[str | os.PathLike], title: str | None = None) -> str:
+    entries: list[tuple[str, Path]] = []       # (label, run folder)
+    studies: list[tuple[Path, list[dict], dict]] = []
+    for d in [Path(x) for x in ([run_dirs] if isinstance(run_dirs, (str, os.PathLike)) else run_dirs)]:
+        if _is_run(d):
+            entries.append((d.name, d))
+        elif d.is_dir():
+            rows, meta = read_study_table(d)
+            runs = _find_runs(d)
+            if not runs and not rows:
+                raise ReportError(f"{d}: neither a run folder nor a study folder (no result.json, no run folders)")
+            studies.append((d, rows, meta))
+            entries += [(str(r.relative_to(d)) if len(run_dirs) == 1 else f"{d.name}/{r.relative_to(d)}", r)
+                        for r in runs]
+        else:
+            raise ReportError(f"{d}: no such folder")
+    results, labels, notes = [], [], []
+    for lab, d in entries:
+        try:
+            r, n = load_run(d)
+        except ReportError as exc:
+            notes.append(str(exc))
+            continue
+        results.append(r)
+        labels.append(lab)
+        notes += [f"{lab}: {x}" for x in n]
+    doc = Doc()
+    doc.warnings += notes
+    for folder, rows, meta in studies:
+        _study_section(doc, folder, rows, meta, results)
+    if results:
+        b = doc.section("runs", "Runs compared")
+        doc.table(b, doc.guard("runs table", lambda: T.runs_table(results, labels)))
+        doc.table(b, doc.guard("expect table", lambda: T.expect_comparison_table(results, labels)))
+        for lab, r in zip(labels, results):
+            if r.status not in GOOD and r.message:
+                b.append({"type": "note", "text": f"{lab} ({r.status}): {r.message}"})
+        shown = [(lab, r) for lab, r in zip(labels, results) if r.phases][:40]
+        if shown:
+            for lab, r in shown:
+                r.name = lab
+            doc.guard("comparison figures", lambda: doc.figures(b, F.fig_compare_runs([r for _, r in shown])))
+            if len(shown) < sum(bool(r.phases) for r in results):
+                b.append({"type": "note", "text": f"Figures show the first {len(shown)} runs with a trajectory."})
+        merged: dict[str, dict[str, np.ndarray]] = {}
+        for lab, r in zip(labels, results):
+            for k, v in F.closed_loop_tables(r.tables).items():
+                merged[f"closed_loop_{k if len(results) == 1 else lab + ':' + k}"] = v
+        if merged:
+            prob = next((r.problem for r in results if r.problem), {})
+            b2 = doc.section("closed-loop", "Closed-loop comparison")
+            doc.table(b2, doc.guard("closed-loop table", lambda: T.closed_loop_table(merged, prob)))
+            doc.guard("closed-loop figures", lambda: doc.figures(b2, F.fig_closed_loop(merged, prob)))
+        names = {(r.problem or {}).get("name") for r in results}
+        if len(names) == 1 and results[0].problem:
+            sub = Doc()
+            _problem_section(sub, results[0])
+            _append(doc, sub, "Problem (common to the runs; values of the first run)")
+    if not title:
+        if studies and len(studies) == 1:
+            title = f"Study {studies[0][0].name}"
+        else:
+            title = "Comparison of " + ", ".join(labels[:4]) + (" …" if len(labels) > 4 else "")
+    n_good = sum(r.status in GOOD for r in results)
+    meta = [("runs", str(len(results))), ("converged", f"{n_good} of {len(results)}")]
+    return _render(doc, title, "", meta, n_good == len(results) and bool(results))
+
+
+def _append(doc: Doc, sub: Doc, title: str) -> None:
+    for s in sub.sections:
+        s["title"] = title if s["id"] == "problem" else s["title"]
+        doc.sections.append(s)
+    doc.warnings += sub.warnings
+    _renumber(doc)
+
+
+def _study_section(doc: Doc, folder: Path, rows: list[dict], meta: dict, results: list[Result]) -> None:
+    b = doc.section(f"study-{folder.name}", f"Study {folder.name}")
+    scalars = {k: v for k, v in meta.items() if not isinstance(v, (list, dict)) or
+               (isinstance(v, list) and len(v) <= 8 and not any(isinstance(x, dict) for x in v))}
+    if scalars:
+        doc.table(b, T.table("study-meta", "Study definition (study.json).", ["item", "value"],
+                             [[T.cell(k, "name"), T.cell(v)] for k, v in scalars.items()]))
+    if rows:
+        cols = {k: [r.get(k) for r in rows] for k in rows[0]}
+        doc.table(b, doc.guard("study table", lambda: T.column_table(
+            f"study-{folder.name}", f"Study table (study.csv), one row per point.", cols, max_rows=60)))
+        if any("pareto" in r for r in rows):
+            crit = _criteria(rows, meta)
+            if crit:
+                units = next((r.problem.get("units") for r in results if r.problem), {})
+                doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, units)))
+            else:
+                b.append({"type": "note", "text": "The study has Pareto flags but its two criteria could "
+                                                  "not be identified (name them in study.json: criteria)."})
+        varying = [k for k in rows[0] if k not in STUDY_OUTPUT_COLS
+                   and all(isinstance(r.get(k), (int, float)) for r in rows)
+                   and len({r.get(k) for r in rows}) > 1]
+        outputs = [o for o in ("objective", "tf", "t_f", "iterations") if o in rows[0]]
+        units = next((r.problem.get("units") for r in results if r.problem), {})
+        if len(varying) == 1 and "pareto" not in rows[0]:
+            doc.guard("sweep figure", lambda: doc.figures(b, F.fig_sweep(rows, varying[0], outputs[:3], units)))
+        elif len(rows) >= 8 and "pareto" not in rows[0]:
+            doc.guard("histograms", lambda: doc.figures(b, F.fig_histograms(rows, outputs[:2])))
+
+
+def make_comparison_report(run_dirs: Sequence[str | os.PathLike] | str | os.PathLike,
+                           out_dir: str | os.PathLike, formats: Sequence[str] = ("html", "pdf"), *,
+                           title: str | None = None, engine: str = "auto") -> list[Path]:
+    """Write one report comparing several runs and/or whole studies.
+
+    ``run_dirs``: run folders, study folders (``study.csv``/``study.json`` with one run
+    folder per point, or any folder holding run folders), or a single such folder. Writes
+    ``out_dir/report.html`` and ``out_dir/report.pdf`` (per ``formats``) and returns the
+    written paths. Contents: the study tables (with the Pareto front or the sweep figure
+    when the study has one), a per-run comparison table, every run's expect checks, states
+    and controls of all runs overlaid, closed-loop comparisons, and the common problem.
+    """
+    html = build_comparison_html(run_dirs, title)
+    return _write_outputs(html, Path(out_dir), formats, engine)
+
+
+def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.PathLike,
+               paper_numbers: Sequence[dict[str, Any]], *, title: str = "ocdsl reproductions") -> Path:
+    """Write ``out_path`` (e.g. ``reports/index.html``): a table of every paper number
+    against ocdsl's and a list of links to the reports in ``report_dirs``.
+
+    ``paper_numbers``: dicts ``{study, quantity, paper, ocdsl, error, passed,
+    report_link}``; ``report_link`` (a path to a report file or folder) is made relative to
+    the index. Links are relative, so the folder can be moved or published as is.
+    """
+    out_path = Path(out_path)
+    base = out_path.parent.resolve()
+
+    def rel(p: Any) -> str | None:
+        if not p:
+            return None
+        p = Path(p)
+        if p.is_dir() or (not p.suffix and not p.exists()):
+            p = p / "report.html"
+        p = p if p.is_absolute() else (Path.cwd() / p)
+        return os.path.relpath(p.resolve(), base).replace(os.sep, "/")
+
+    numbers = []
+    for r in paper_numbers:
+        passed = r.get("passed")
+        numbers.append({"study": r.get("study", ""), "quantity": r.get("quantity", ""),
+                        "paper": T.fmt(r.get("paper"), 8), "ocdsl": T.fmt(r.get("ocdsl"), 8),
+                        "error": T.fmt(r.get("error"), 3),
+                        "verdict": "—" if passed is None else ("pass" if passed else "FAIL"),
+                        "cls": "" if passed is None else ("pass" if passed else "fail"),
+                        "link": rel(r.get("report_link"))})
+    reports = []
+    for d in report_dirs:
+        d = Path(d)
+        title_r, status = d.name, None
+        if _is_run(d):
+            try:
+                data = json.loads((d / "result.json").read_text())
+                title_r = (data.get("problem") or {}).get("name") or data.get("name") or d.name
+                status = data.get("status")
+            except Exception:  # noqa: BLE001
+                pass
+        reports.append({"title": f"{title_r} ({d.name})" if title_r != d.name else title_r,
+                        "link": rel(d), "status": status, "good": status in GOOD})
+    n_passed = sum(1 for r in paper_numbers if r.get("passed"))
+    html = _env().get_template("index.html.j2").render(
+        title=title, numbers=numbers, reports=reports, n_passed=n_passed, n_total=len(paper_numbers))
+    _atomic_write(out_path, html)
+    return out_path

@@ -1,0 +1,388 @@
+"""Reports from synthetic run folders: HTML (self-contained, rendered by headless
+Chromium) and PDF (rendered to PNG pages by pdftoppm), for a solved run, a failed run,
+a controller run and studies (sweep and Pareto)."""
+from __future__ import annotations
+
+import base64
+import csv
+import io
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocdsl.report import build as B
+from ocdsl.report import make_comparison_report, make_index, make_report
+from ocdsl.result import PhaseTrajectory, Result
+
+CHROMIUM = B.chromium_binary()
+PDFTOPPM = shutil.which("pdftoppm")
+PDFTOTEXT = shutil.which("pdftotext")
+PDFIMAGES = shutil.which("pdfimages")
+need_chromium = pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+need_poppler = pytest.mark.skipif(None in (PDFTOPPM, PDFTOTEXT, PDFIMAGES),
+                                  reason="needs poppler-utils (apt-get install poppler-utils)")
+
+
+def _pdf_engine_available() -> bool:
+    try:
+        import weasyprint  # noqa: F401
+        return True
+    except (ImportError, OSError):
+        return CHROMIUM is not None
+
+
+need_pdf = pytest.mark.skipif(not _pdf_engine_available(),
+                              reason="no PDF engine: pip install weasyprint (needs libpango-1.0-0 "
+                                     "libpangoft2-1.0-0) or apt-get install chromium")
+
+
+# ------------------------------------------------------------------ synthetic runs
+def brachistochrone_problem() -> dict:
+    return {
+        "name": "brachistochrone", "description": "Bead sliding on a wire in minimum time.",
+        "phases": {"main": {
+            "states": ["x", "y", "v"], "controls": ["theta"],
+            "dynamics_latex": {"x": r"v \sin{\left(\theta \right)}", "y": r"- v \cos{\left(\theta \right)}",
+                               "v": r"g \cos{\left(\theta \right)}"},
+            "bounds": {"theta": [0.0, 3.141592653589793], "v": [0.0, None]},
+            "constraints": ["x(t0) == 0", "y(t0) == 0", "x(tf) == 2", "y(tf) == -2"],
+            "constraints_latex": [r"x(t_0) = 0", r"y(t_0) = 0", r"x(t_f) = 2", r"y(t_f) = -2"],
+            "t0": 0.0, "tf": "free"}},
+        "parameters": {"g": {"value": 9.80665, "free": False}},
+        "units": {"x": "m", "y": "m", "v": "m/s", "theta": "rad", "g": "m/s^2", "t": "s"},
+        "positions": ["x", "y"],
+        "objective": {"sense": "minimize", "text": "tf", "latex": "t_f"},
+        "links": [],
+    }
+
+
+def solved_result() -> Result:
+    t = np.linspace(0.0, 0.8, 41)
+    theta = np.clip(0.1 + 1.9 * t, 0, np.pi)
+    x, y = 2 * (t / 0.8) ** 1.3, -2 * np.sin(np.pi / 2 * t / 0.8)
+    v = 9.8 * t
+    H = -np.ones_like(t) + 1e-7 * np.sin(20 * t)
+    ph = PhaseTrajectory("main", t, states={"x": x, "y": y, "v": v}, controls={"theta": theta},
+                         costates={"x": -0.3 + 0 * t, "y": 0.1 + 0 * t, "v": -0.1 + 0.05 * t},
+                         extra={"H": H, "dH_dtheta": 1e-8 * np.cos(9 * t), "switch_theta": np.cos(5 * t)})
+    tr = np.linspace(0, 0.8, 161)
+    reint = {"t": tr, "x": 2 * (tr / 0.8) ** 1.3 + 1e-4 * tr, "y": -2 * np.sin(np.pi / 2 * tr / 0.8), "v": 9.8 * tr}
+    mesh = {"iteration": np.arange(4.0), "nodes": np.array([11, 21, 31, 41.0]),
+            "max_error": np.array([1e-2, 3e-4, 2e-6, 4e-8]), "nlp_variables": np.array([45, 85, 125, 165.0])}
+    return Result(
+        name="brachistochrone", status="optimal", message="Optimal Solution Found.", objective=0.8230,
+        tf=0.8230, iterations=14,
+        wall_time_s={"total": 1.52, "parse": 0.02, "symbolic": 0.3, "build": 0.4, "solve": 0.7, "post": 0.1},
+        nlp={"variables": 165, "constraints": 124, "nonzeros": 610},
+        method={"name": "radau", "degree": 3, "segments": 40, "mesh": {"tolerance": 1e-6, "max_iterations": 5}},
+        parameters={"g": 9.80665}, phases=[ph],
+        expect=[{"name": "tf", "value": 0.8230, "reference": 0.82446, "rtol": 1e-3, "atol": None,
+                 "error": 1.7e-3, "passed": False},
+                {"name": "x(tf)", "value": 2.0, "reference": 2.0, "rtol": 1e-6, "atol": 1e-9,
+                 "error": 0.0, "passed": True}],
+        certificate={"passed": False, "kkt": {"stationarity": 3e-9, "passed": True},
+                     "hamiltonian_constant": {"spread": 2e-7, "passed": True},
+                     "transversality": {"H(tf)": -1.0, "expected": 0.0, "passed": False},
+                     "max_multiplier": 12.5},
+        problem=brachistochrone_problem(), extra={"solver": "ipopt", "ipopt_version": "3.14.16"},
+        tables={"reintegration": reint, "mesh_history": mesh})
+
+
+def failed_result() -> Result:
+    return Result(name="brachistochrone_bad", status="infeasible",
+                  message="Converged to a point of local infeasibility. Problem may be infeasible.\n"
+                          "constraint residual 3.2e-1 at x(tf) == 50",
+                  iterations=312, wall_time_s={"total": 3.1, "solve": 2.9},
+                  nlp={"variables": 165, "constraints": 124}, method={"name": "radau", "segments": 40},
+                  parameters={"g": 9.80665}, problem=brachistochrone_problem(),
+                  expect=[{"name": "tf", "value": None, "reference": 0.82446, "rtol": 1e-3,
+                           "error": None, "passed": False}])
+
+
+def controller_result() -> Result:
+    t = np.linspace(0, 5, 101)
+    prob = {"name": "pendulum_control", "phases": {"main": {"states": ["theta", "omega"], "controls": ["u"],
+                                                            "dynamics_latex": {"theta": r"\omega",
+                                                                               "omega": r"- \sin{\left(\theta \right)} + u"},
+                                                            "bounds": {"u": [-2.0, 2.0]}}},
+            "units": {"theta": "rad", "omega": "rad/s", "u": "N m", "t": "s"}}
+    rng = np.random.default_rng(0)
+    tables = {}
+    for i, c in enumerate(("sdre", "theta_d")):
+        tables[f"closed_loop_{c}"] = {"t": t, "theta": np.exp(-(1 + i) * t) * np.cos(2 * t),
+                                      "omega": -np.exp(-(1 + i) * t) * np.sin(2 * t),
+                                      "u": np.clip(-3 * np.exp(-t) * np.cos(3 * t + i), -2, 2),
+                                      "timing": 1e-4 * (1 + i) * (1 + 0.3 * rng.random(t.size))}
+    return Result(name="pendulum_control", status="stable", problem=prob, tables=tables,
+                  wall_time_s={"total": 0.4}, method={"name": "sdre"})
+
+
+def di_result(x0: float, status: str = "optimal") -> Result:
+    tf = 2 * np.sqrt(abs(x0)) + 0.5
+    t = np.linspace(0, tf, 31)
+    u = np.where(t < tf / 2, -1.0, 1.0)
+    prob = {"name": "double_integrator",
+            "phases": {"main": {"states": ["x", "v"], "controls": ["u"], "dynamics_latex": {"x": "v", "v": "u"},
+                                "bounds": {"u": [-1, 1]}, "constraints": [], "constraints_latex": [],
+                                "t0": 0.0, "tf": "free"}},
+            "parameters": {"x0": {"value": 1.0, "free": False}}, "units": {"x": "m", "v": "m/s", "u": "m/s^2"},
+            "positions": ["x"], "objective": {"sense": "minimize", "text": "tf", "latex": "t_f"}}
+    ok = status == "optimal"
+    phases = [PhaseTrajectory("main", t, {"x": x0 * (1 - t / tf) ** 2, "v": -2 * x0 * (1 - t / tf) / tf},
+                              {"u": u}, extra={"switch_u": tf / 2 - t})] if ok else []
+    return Result(name=f"di_x0_{x0:g}", status=status, message="" if ok else "Maximum Number of Iterations Exceeded.",
+                  objective=tf if ok else None, tf=tf if ok else None, iterations=9 if ok else 3000,
+                  wall_time_s={"total": 0.3}, nlp={"variables": 93}, parameters={"x0": x0},
+                  problem=prob, method={"name": "radau", "segments": 10}, phases=phases,
+                  expect=[{"name": "tf", "value": tf, "reference": tf, "error": 0.0, "rtol": 1e-6, "passed": ok}])
+
+
+def write_study(folder: Path) -> Path:
+    folder.mkdir(parents=True)
+    rows = []
+    for i, (x0, st) in enumerate([(1.0, "optimal"), (2.0, "optimal"), (3.0, "max_iter"), (4.0, "optimal")]):
+        r = di_result(x0, st)
+        r.write(folder / f"p{i:03d}")
+        rows.append({"point": i, "x0": x0, "status": st, "objective": r.objective if r.objective else "",
+                     "tf": r.tf if r.tf else "", "iterations": r.iterations, "wall_time": 0.3, "host": "localhost"})
+    with open(folder / "study.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (folder / "study.json").write_text(json.dumps({"kind": "sweep", "problem": "di.yaml", "points": len(rows)}))
+    return folder
+
+
+def write_pareto_study(folder: Path) -> Path:
+    folder.mkdir(parents=True)
+    pts = [("1.1", 1.0, 5.0, 1), ("2.1", 1.5, 3.5, 1), ("2.3", 2.2, 2.8, 1), ("2.5", 3.0, 2.6, 0),
+           ("2.7", 3.5, 1.4, 1), ("1.4", 2.8, 4.0, 0)]
+    with open(folder / "study.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["label", "family", "t_motor", "dv", "pareto", "status"])
+        for lab, a, b, p in pts:
+            w.writerow([lab, lab.split(".")[0], a, b, p, "optimal"])
+    (folder / "study.json").write_text(json.dumps({"kind": "pareto", "criteria": ["t_motor", "dv"]}))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> dict[str, Path]:
+    base = tmp_path_factory.mktemp("report")
+    return {"solved": solved_result().write(base / "solved"),
+            "failed": failed_result().write(base / "failed"),
+            "control": controller_result().write(base / "control"),
+            "study": write_study(base / "study"),
+            "pareto": write_pareto_study(base / "pareto"),
+            "base": base}
+
+
+# -------------------------------------------------------------------------- helpers
+_IMG = re.compile(r'<img[^>]*src="data:image/png;base64,([^"]+)"')
+
+
+def embedded_images(html: str) -> list[np.ndarray]:
+    import matplotlib.image as mpimg
+    return [mpimg.imread(io.BytesIO(base64.b64decode(b)), format="png") for b in _IMG.findall(html)]
+
+
+def figure_images(html: str) -> list[np.ndarray]:
+    import matplotlib.image as mpimg
+    blocks = re.findall(r'<figure[^>]*>\s*<img src="data:image/png;base64,([^"]+)"', html)
+    return [mpimg.imread(io.BytesIO(base64.b64decode(b)), format="png") for b in blocks]
+
+
+def assert_self_contained(html: str) -> None:
+    assert not re.search(r"https?://", html), "the HTML refers to the network"
+    assert "<link" not in html and "<script" not in html and "@import" not in html
+    for attr in re.findall(r'(?:src|href)="([^"]*)"', html):
+        assert attr.startswith(("data:", "#")), f"external reference {attr[:60]!r}"
+    assert not re.search(r"url\((?!data:)", html)
+
+
+def not_blank(img: np.ndarray, min_std: float = 0.02) -> bool:
+    gray = img[..., :3].mean(axis=-1) if img.ndim == 3 else img
+    return float(gray.std()) > min_std and float((gray < 0.9).mean()) > 0.002
+
+
+def numbers(html: str, kind: str) -> list[int]:
+    return [int(n) for n in re.findall(rf"<b>{kind} (\d+)\.</b>", html)]
+
+
+# ------------------------------------------------------------------------------ HTML
+def test_solved_report_html(runs):
+    paths = make_report(runs["solved"], formats=("html",))
+    assert paths == [runs["solved"] / "report.html"]
+    html = paths[0].read_text()
+    assert_self_contained(html)
+    # figures: states, controls, costates, H, dH/du, switching, positions, re-integration, mesh
+    figs = figure_images(html)
+    assert len(figs) >= 9, len(figs)
+    assert all(not_blank(f) for f in figs)
+    assert numbers(html, "Figure") == list(range(1, len(figs) + 1))
+    tabs = numbers(html, "Table")
+    assert tabs == list(range(1, len(tabs) + 1)) and len(tabs) >= 8
+    for caption in ("State histories", "Control histories", "Costates", "Hamiltonian", "Switching functions",
+                    "Trajectory in the (x, y) plane", "Re-integrated trajectory", "Mesh refinement history"):
+        assert caption in html, caption
+    # equations typeset as images: 3 dynamics + 4 constraints + t0 + tf + objective
+    eqs = re.findall(r'<div class="eq">.*?</div>', html)
+    assert len(eqs) == 10 and all('src="data:image/png' in e for e in eqs)
+    # parameters with values and units, expect checks, certificate with pass/fail colouring
+    assert "9.80665" in html and "m/s^2" in html
+    assert re.search(r"<td class=\"name\">tf</td>.*?0.82446.*?<td class=\"fail\">FAIL</td>", html, re.S)
+    assert re.search(r"x\(tf\)</td>.*?<td class=\"pass\">pass</td>", html, re.S)
+    assert re.search(r"transversality.*?<td class=\"fail\">FAIL</td>", html, re.S)
+    assert re.search(r"kkt.*?stationarity = 3e−09.*?<td class=\"pass\">pass</td>", html, re.S)
+    assert "Optimality certificate" in html and "Wall-time breakdown" in html
+    # no warnings: every optional part was drawn
+    assert "could not be drawn" not in html
+
+
+def test_failed_report_shows_diagnosis(runs):
+    html = make_report(runs["failed"], formats=("html",))[0].read_text()
+    assert_self_contained(html)
+    assert "Diagnosis" in html and "local infeasibility" in html and "x(tf) == 50" in html
+    assert "infeasible" in html and 'class="badge fail"' in html
+    assert html.index("Diagnosis") < html.index("Dynamics")      # diagnosis before the problem
+    assert "<figure" not in html                                  # no trajectory, no figure
+    assert "could not be drawn" not in html
+
+
+def test_broken_run_folder_still_reports(tmp_path):
+    run = solved_result().write(tmp_path / "run")
+    (run / "trajectory.csv").unlink()                # a damaged folder: trajectory gone
+    html = make_report(run, formats=("html",))[0].read_text()
+    assert "could not be read in full" in html and "Solution summary" in html
+    with pytest.raises(B.ReportError, match="not a run folder"):
+        make_report(tmp_path / "nothing", formats=("html",))
+    with pytest.raises(B.ReportError, match="unknown report format"):
+        make_report(run, formats=("docx",))
+
+
+def test_controller_report(runs):
+    html = make_report(runs["control"], formats=("html",))[0].read_text()
+    assert_self_contained(html)
+    assert "Closed-loop simulation" in html and "sdre" in html and "theta_d" in html
+    assert "Controller computation time" in html
+    assert all(not_blank(f) for f in figure_images(html)) and len(figure_images(html)) == 3
+
+
+def test_study_comparison_report(runs, tmp_path):
+    out = tmp_path / "cmp"
+    paths = make_comparison_report([runs["study"]], out, formats=("html",))
+    html = paths[0].read_text()
+    assert_self_contained(html)
+    assert "Study table (study.csv)" in html and "Compared runs" in html
+    for i in range(4):
+        assert f"p{i:03d}" in html
+    assert "max_iter" in html and "Maximum Number of Iterations Exceeded" in html
+    assert "Study outputs against the swept parameter x0" in html
+    assert "State histories of the compared runs" in html
+    assert all(not_blank(f) for f in figure_images(html))
+    # several run folders and the controller run together
+    html2 = make_comparison_report([runs["solved"], runs["failed"], runs["control"]], tmp_path / "cmp2",
+                                   formats=("html",))[0].read_text()
+    assert "solved" in html2 and "failed" in html2 and "Closed-loop comparison" in html2
+
+
+def test_pareto_study(runs, tmp_path):
+    html = make_comparison_report(runs["pareto"], tmp_path / "p", formats=("html",))[0].read_text()
+    assert "Pareto front in the (t_motor, dv) criteria plane" in html
+    figs = figure_images(html)
+    assert len(figs) == 1 and not_blank(figs[0])
+    assert html.count(">Pareto</td>") == 4
+
+
+def test_index_page(runs, tmp_path):
+    make_report(runs["solved"], formats=("html",))
+    out = runs["base"] / "reports" / "index.html"
+    make_index([runs["solved"], runs["failed"]], out, [
+        {"study": "seed0", "quantity": "t_f", "paper": 0.82446, "ocdsl": 0.8230, "error": 1.7e-3,
+         "passed": False, "report_link": runs["solved"]},
+        {"study": "seed0", "quantity": "x(t_f)", "paper": 2.0, "ocdsl": 2.0, "error": 0.0, "passed": True,
+         "report_link": runs["solved"] / "report.html"}])
+    html = out.read_text()
+    assert "1 of 2 numbers agree" in html and '<td class="fail">FAIL</td>' in html
+    assert html.count('href="../solved/report.html"') == 3
+    assert not re.search(r"https?://", html)
+
+
+# ------------------------------------------------------------- browser and PDF pages
+def _chromium_screenshot(html_file: Path, png: Path, tmp: Path, size=(1000, 2400)) -> np.ndarray:
+    import matplotlib.image as mpimg
+    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync",
+           "--hide-scrollbars", f"--user-data-dir={tmp / 'profile'}", f"--window-size={size[0]},{size[1]}",
+           f"--screenshot={png}", html_file.as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+    assert png.is_file(), proc.stderr[-2000:]
+    return mpimg.imread(png)
+
+
+@need_chromium
+def test_html_renders_in_chromium(runs, tmp_path):
+    report = make_report(runs["solved"], formats=("html",))[0]
+    full = _chromium_screenshot(report, tmp_path / "full.png", tmp_path)
+    assert not_blank(full)
+    # only the figures visible: whatever is drawn now comes from the embedded images
+    html = report.read_text().replace(
+        "</style>", "header, h2, h3, .eqgroup, .tblock, p, .diagnosis, .warnings, figcaption "
+                    "{ display: none !important; } figure { margin: 0 !important; }</style>", 1)
+    only = tmp_path / "figures_only.html"
+    only.write_text(html)
+    shot = _chromium_screenshot(only, tmp_path / "figures.png", tmp_path, size=(900, 7000))
+    rgb = shot[..., :3]
+    ink = (rgb.mean(axis=-1) < 0.85).mean()
+    blue = ((np.abs(rgb - np.array([0x1f, 0x4e, 0x9c]) / 255).max(axis=-1)) < 0.12).sum()
+    red = ((np.abs(rgb - np.array([0xc0, 0x39, 0x2b]) / 255).max(axis=-1)) < 0.12).sum()
+    assert ink > 0.01, ink                 # axes, ticks, labels, curves
+    assert blue > 2000 and red > 300, (blue, red)    # the curves themselves
+    # the figures fill the screenshot from the top: no large blank band between them
+    rows_with_ink = (rgb.mean(axis=-1) < 0.85).any(axis=1)
+    first, last = np.argmax(rows_with_ink), len(rows_with_ink) - np.argmax(rows_with_ink[::-1])
+    assert first < 100 and last > 3000, (first, last)
+
+
+@need_pdf
+@need_poppler
+def test_pdf_pages(runs, tmp_path):
+    import matplotlib.image as mpimg
+    html_path, pdf = make_report(runs["solved"])
+    assert pdf.read_bytes()[:5] == b"%PDF-"
+    text = subprocess.run([PDFTOTEXT, "-layout", str(pdf), "-"], capture_output=True, text=True).stdout
+    n_fig = len(numbers(html_path.read_text(), "Figure"))
+    n_tab = len(numbers(html_path.read_text(), "Table"))
+    for i in range(1, n_fig + 1):
+        assert f"Figure {i}." in text
+    for i in range(1, n_tab + 1):
+        assert f"Table {i}." in text
+    pages = text.count("\f")
+    assert pages >= 3 and f"1 / {pages}" in text and f"{pages} / {pages}" in text   # page numbers
+    lst = subprocess.run([PDFIMAGES, "-list", str(pdf)], capture_output=True, text=True).stdout
+    n_img = len(lst.strip().splitlines()) - 2
+    assert n_img >= n_fig + 10, lst                           # figures + equations embedded
+    subprocess.run([PDFTOPPM, "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
+    pngs = sorted(tmp_path.glob("page*.png"))
+    assert len(pngs) == pages
+    imgs = [mpimg.imread(p) for p in pngs]
+    assert all(not_blank(i, 0.01) for i in imgs)
+    # pages with figures carry much more ink than the text pages around them
+    ink = [float((i[..., :3].mean(axis=-1) < 0.8).mean()) for i in imgs]
+    assert max(ink) > 0.04, ink
+
+
+@need_pdf
+@need_poppler
+def test_failed_and_study_pdf(runs, tmp_path):
+    pdf = make_report(runs["failed"], formats=("pdf",))[0]
+    text = subprocess.run([PDFTOTEXT, str(pdf), "-"], capture_output=True, text=True).stdout
+    assert "Diagnosis" in text and "local infeasibility" in text
+    pdf2 = make_comparison_report([runs["study"], runs["pareto"]], tmp_path / "cmp", formats=("pdf",))[0]
+    text2 = subprocess.run([PDFTOTEXT, str(pdf2), "-"], capture_output=True, text=True).stdout
+    assert "Pareto front" in text2 and "Compared runs" in text2
