@@ -21,7 +21,7 @@ Numbers may be written as constant expressions (``2*pi``, ``pi/2``, ``1e-3``), e
 by a whitelisted syntax-tree walker (nothing is ``eval``-ed).
 
 :func:`load_pareto` reads a problem file and raises :class:`ParetoSpecError` (a
-``ValueError``, the project's ``SpecError`` when that exists) naming the file, the line and
+``ocdsl.spec.errors.SpecError``) naming the file, the line and
 the offending text for: fewer than two objectives, an empty window, a phase with a
 negative duration bound, and every other schema error.
 """
@@ -36,27 +36,20 @@ from typing import Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-try:  # the project's problem-file error, when the spec package provides it
-    from ocdsl.spec.errors import SpecError as _ErrorBase  # type: ignore
-except Exception:  # pragma: no cover - depends on the state of ocdsl.spec
-    _ErrorBase = ValueError
+from ocdsl.spec.errors import Issue, SpecError
 
 __all__ = ["ParetoSpec", "Objective", "Window", "EpsilonSpec", "WeightsSpec", "ParetoSpecError",
            "load_pareto", "parse_pareto", "check_phase_durations", "constant"]
 
 
-class ParetoSpecError(_ErrorBase):  # type: ignore[misc,valid-type]
-    """A bad ``pareto:`` block: ``file``, ``line`` (1-based) and offending ``text``."""
+class ParetoSpecError(SpecError):
+    """A bad ``pareto:`` block (a :class:`SpecError` with one issue): ``file``, ``line``
+    (1-based) and offending ``text``."""
 
     def __init__(self, message: str, file: str | None = None, line: int | None = None,
                  text: str | None = None):
-        where = f"{file or '<pareto>'}" + (f":{line}" if line else "")
-        full = f"{where}: {message}" + (f" (in: {text})" if text else "")
-        ValueError.__init__(self, full)
+        super().__init__([Issue(file or "<pareto>", line, message, text or "")])
         self.message, self.file, self.line, self.text = message, file, line, text
-
-    def __str__(self) -> str:
-        return self.args[0]
 
 
 # ---------------------------------------------------------------------------------------

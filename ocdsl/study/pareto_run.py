@@ -171,17 +171,11 @@ def map_float(v: Sequence[Any]) -> list[float]:
 # The runner used by the CLI
 # ---------------------------------------------------------------------------------------
 def _local_map(workers: int | None) -> tuple[Callable, Callable[[], None]]:
-    """A map over local processes (the studies executor, when present, else concurrent.futures)."""
-    try:  # the studies executor of the studies issue, when it offers a map
-        from ocdsl.study import executor as ex  # type: ignore
-        if hasattr(ex, "local_map"):
-            return ex.local_map(workers), (lambda: None)
-    except Exception:
-        pass
-    from concurrent.futures import ProcessPoolExecutor
+    """``map`` of the studies executor on local processes (``ocdsl.study.executor.Executor``)."""
+    from ocdsl.study.executor import Executor
 
-    pool = ProcessPoolExecutor(max_workers=workers)
-    return pool.map, (lambda: pool.shutdown())
+    ex = Executor(workers=workers)
+    return ex.map, ex.close
 
 
 def _two_burn_from_doc(doc: dict[str, Any], spec: ParetoSpec, parameters: dict[str, float],
