@@ -22,7 +22,7 @@ import yaml
 
 from ocdsl.result import PhaseTrajectory, Result
 
-from .executor import worker_cache
+from .executor import cache_stats, worker_cache
 
 CONTROL = ("work_s", "fail", "raise", "crash")
 
@@ -71,7 +71,8 @@ def point(path, out_dir, parameters=None, seed=None, warm_start=None, quiet=True
         phases=[PhaseTrajectory("main", tgrid, states={"x": objective * tgrid})],
         problem={"name": model["name"], "phases": {"main": {"states": ["x"], "controls": []}},
                  "objective": {"sense": "minimize", "text": "demo", "latex": ""}},
-        extra={"warm_start_objective": warm_obj, "seed": seed})
+        extra={"warm_start_objective": warm_obj, "seed": seed, "pid": os.getpid(),
+               "cache_builds": cache_stats()["builds"]})
     res.write(out_dir)
     ledger = os.environ.get("OCDSL_DEMO_LEDGER")
     if ledger:

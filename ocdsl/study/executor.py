@@ -84,8 +84,8 @@ def _noop(x: Any = None) -> dict[str, Any]:
 # executor
 # --------------------------------------------------------------------------------------
 class WorkerLost(RuntimeError):
-    """The worker process running a task died (twice for local processes, Dask's
-    ``allowed-failures`` times on a cluster)."""
+    """The worker process running a task died: for local processes, when the task ran
+    alone after a pool break; on a cluster, Dask's ``allowed-failures`` times."""
 
 
 @dataclass(eq=False)
@@ -97,10 +97,11 @@ class Handle:
     fut: Any = None
     attempts: int = 1
     key: str | None = None
+    isolated: bool = False
     _ex: "Executor | None" = field(default=None, repr=False)
 
     def done(self) -> bool:
-        return self.fut.done()
+        return self.fut is not None and self.fut.done()
 
     def result(self) -> Any:
         return self._ex._result(self)
@@ -127,12 +128,16 @@ class Executor:
     PRELOAD = ["ocdsl.study.run", "ocdsl.study.demo"]
 
     def __init__(self, workers: int | None = None, serial: bool = False,
-                 scheduler: Any = None, connect_timeout: float = 5.0):
+                 scheduler: Any = None, connect_timeout: float = 3.0):
         if workers is not None and workers < 1:
             raise StudyError(f"--workers must be at least 1 (got {workers})")
         self._client = None
         self._own_client = False
         self._pool: cf.ProcessPoolExecutor | None = None
+        self._inflight: set[Handle] = set()   # submitted to the pool
+        self._suspects: list[Handle] = []     # in the pool when it broke; re-run alone
+        self._suspect: Handle | None = None   # the one running alone now
+        self._held: list[Handle] = []         # submitted while isolating suspects
         self.scheduler = None
         if scheduler is not None and serial:
             raise StudyError("--serial and --scheduler exclude each other")
@@ -195,7 +200,14 @@ class Executor:
 
     def submit(self, fn: Callable, *args: Any, key: str | None = None) -> Handle:
         h = Handle(fn, args, key=key, _ex=self)
-        h.fut = self._submit_raw(fn, args, key)
+        if self.kind == "processes":
+            self._check_broken()
+        if self.kind == "processes" and (self._suspects or self._suspect is not None):
+            self._held.append(h)  # isolating the culprit of a pool break: wait
+        else:
+            h.fut = self._submit_raw(fn, args, key)
+            if self.kind == "processes":
+                self._inflight.add(h)
         return h
 
     def _submit_raw(self, fn: Callable, args: tuple, key: str | None) -> Any:
@@ -220,41 +232,81 @@ class Executor:
         handles = list(handles)
         if not handles:
             return set(), set()
-        by_fut = {h.fut: h for h in handles}
+        if self.kind == "processes":
+            self._check_broken()
+            self._pump()
+        by_fut = {h.fut: h for h in handles if h.fut is not None}
+        if not by_fut:  # all held back (cannot happen while the caller waits on a suspect)
+            time.sleep(min(timeout or 0.05, 0.05))
+            return set(), set(handles)
         if self.kind == "dask":
             from distributed import wait as dwait
             try:
-                res = dwait(list(by_fut), timeout=timeout, return_when="FIRST_COMPLETED")
+                with self._client.as_current():  # our client need not be the default one
+                    res = dwait(list(by_fut), timeout=timeout, return_when="FIRST_COMPLETED")
                 done_f = res.done
             except TimeoutError:
                 done_f = {f for f in by_fut if f.done()}
         else:
             done_f, _ = cf.wait(list(by_fut), timeout=timeout, return_when=cf.FIRST_COMPLETED)
         done = {by_fut[f] for f in done_f}
-        if self.kind == "processes" and any(_broken(h.fut) for h in done):
-            self._recover(handles)
-            done = {h for h in handles if h.fut.done() and not _broken(h.fut)}
+        if self.kind == "processes":
+            self._check_broken()
+            self._pump()
+            done = {h for h in handles if h.done()}
         return done, set(handles) - done
 
-    def _recover(self, handles: list[Handle]) -> None:
-        """A worker died: rebuild the pool and resubmit the tasks it took down."""
+    def _check_broken(self) -> None:
+        if getattr(self._pool, "_broken", False) or any(
+                h.fut is not None and _broken(h.fut) for h in self._inflight):
+            self._recover()
+
+    def _recover(self) -> None:
+        """A worker died and took the pool down: rebuild the pool. The tasks that were in
+        it become suspects, re-run one at a time, alone, so that only the task that kills
+        its worker when running alone fails (:class:`WorkerLost`); the others succeed."""
         try:
             self._pool.shutdown(wait=False, cancel_futures=True)
         except Exception:  # pragma: no cover
             pass
         self._start_pool()
-        for h in handles:
-            if h.fut.done() and _broken(h.fut):
-                if h.attempts >= 2:
-                    f: cf.Future = cf.Future()
-                    f.set_exception(WorkerLost(
-                        f"the worker process died while running this task ({h.attempts} attempts)"))
-                    h.fut = f
-                else:
-                    h.attempts += 1
-                    h.fut = self._pool.submit(h.fn, *h.args)
+        for h in list(self._inflight):
+            if h.fut is not None and h.fut.done() and not _broken(h.fut):
+                continue
+            self._inflight.discard(h)
+            if h.isolated:
+                f: cf.Future = cf.Future()
+                f.set_exception(WorkerLost(
+                    f"the worker process died while running this task alone "
+                    f"({h.attempts} attempts)"))
+                h.fut = f
+            else:
+                h.fut = None
+                self._suspects.append(h)
+        if self._suspect is not None and self._suspect.fut is None:
+            self._suspect = None
+
+    def _pump(self) -> None:
+        """Submit the next suspect once the pool is empty; then what was held back."""
+        self._inflight = {h for h in self._inflight if not h.done()}
+        if self._suspect is not None and self._suspect.done():
+            self._suspect = None
+        if self._suspect is None and self._suspects and not self._inflight:
+            h = self._suspects.pop(0)
+            h.attempts += 1
+            h.isolated = True
+            h.fut = self._pool.submit(h.fn, *h.args)
+            self._inflight.add(h)
+            self._suspect = h
+        if self._suspect is None and not self._suspects and self._held:
+            for h in self._held:
+                h.fut = self._pool.submit(h.fn, *h.args)
+                self._inflight.add(h)
+            self._held = []
 
     def _result(self, h: Handle) -> Any:
+        if h.fut is None:
+            raise RuntimeError("task not started yet")
         if self.kind == "dask":
             from distributed.scheduler import KilledWorker
             try:
@@ -265,6 +317,10 @@ class Executor:
 
     def cancel(self, handles: Iterable[Handle]) -> None:
         for h in handles:
+            if h in self._held:
+                self._held.remove(h)
+            if h in self._suspects:
+                self._suspects.remove(h)
             try:
                 h.fut.cancel()
             except Exception:  # pragma: no cover

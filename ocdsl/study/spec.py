@@ -493,10 +493,11 @@ def _nominal(v: Any) -> float | None:
 
 
 def _pydantic_error(exc: ValidationError, file: str, lines: dict[tuple, int]) -> StudyError:
-    err = exc.errors()[0]
+    errs = exc.errors()
+    # a union (list of values | range) reports every member; our own messages say most
+    err = next((e for e in errs if e["type"] in ("value_error", "extra_forbidden")), errs[0])
     loc = tuple("zip" if x == "zip_" else "list" if x == "list_" else x for x in err["loc"]
-                if not (isinstance(x, str) and x in ("list[float]", "Range", "int", "function-before[_starts_int(), nullable[Starts]]")))
-    loc = tuple(x for x in loc if not (isinstance(x, str) and ("[" in x or x in ("Starts",))))
+                if not (isinstance(x, str) and ("[" in x or x in ("Range", "Starts", "int"))))
     full = ("study",) + loc
     line = None
     for k in range(len(full), 0, -1):
