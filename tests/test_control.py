@@ -1,0 +1,257 @@
+"""LQR, SDRE and Theta-D on the seed-3 spacecraft (seed_003.md section 5)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from pydantic import ValidationError
+
+from ocdsl.control.lqr import ControlError, LQRController
+from ocdsl.control.run import robustness_sweep, run_controllers
+from ocdsl.control.sdre import SDREController
+from ocdsl.control.simulate import overshoot, settling_time, simulate
+from ocdsl.control.theta_d import ThetaDController
+from ocdsl.result import Result
+from ocdsl.spec.controller import ControllerSpec, to_number
+from ocdsl.symbolic import sdc
+from ocdsl.symbolic.registry import build_model
+
+ROOT = Path(__file__).resolve().parents[1]
+AUX = ["hx", "hy", "hz"]
+Q = np.diag([0.5] * 6 + [0.05] * 3)
+R = np.eye(3)
+DEG = np.pi / 180
+
+
+def _load(name):
+    return yaml.safe_load((ROOT / "configs" / name).read_text())
+
+
+@pytest.fixture(scope="module")
+def plant():
+    from models.spacecraft_wheels import paper_sdc_matrix
+
+    m = build_model("spacecraft_wheels", {})
+    num = sdc.lambdify_sdc(sdc.given(m, paper_sdc_matrix(m), auxiliary=AUX))
+    z0 = np.zeros(12)
+    z0[:3] = 10 * DEG
+    z0[6:9] = 0.01
+    return m, num, z0
+
+
+# ---- method checks (B1-B5) -------------------------------------------------------
+
+def test_T0_is_the_lqr_riccati_solution(plant):
+    m, num, z0 = plant
+    lqr = LQRController(num, Q, R)
+    td = ThetaDController(num, Q, R)
+    np.testing.assert_allclose(td.T0, lqr.P, rtol=1e-9, atol=1e-12 * np.abs(lqr.P).max())
+    assert np.allclose(td.T0, td.T0.T) and np.linalg.eigvalsh(td.T0).min() > 0
+    assert np.linalg.eigvals(td.Ac).real.max() < 0
+    resid = td.A0.T @ td.T0 + td.T0 @ td.A0 - td.T0 @ td.S @ td.T0 + Q
+    assert np.abs(resid).max() < 1e-10
+
+
+def test_lqr_integral_gains_are_sqrt_half(plant):
+    K = LQRController(plant[1], Q, R).K
+    np.testing.assert_allclose(K[:, 3:6], np.sqrt(0.5) * np.eye(3), atol=1e-4)
+
+
+def test_theta_d_equals_lqr_at_t0_with_k_one(plant):
+    m, num, z0 = plant
+    u_td = ThetaDController(num, Q, R, terms=3, k=[1, 1], a=[0.5, 0.5])(0.0, z0)
+    u_lqr = LQRController(num, Q, R)(0.0, z0)
+    np.testing.assert_allclose(u_td, u_lqr, rtol=0, atol=1e-12)
+    # ... and not later: the higher terms fade in
+    assert np.abs(ThetaDController(num, Q, R)(5.0, z0) - u_lqr).max() > 1e-3
+
+
+@pytest.mark.parametrize("terms", [1, 2, 3])
+def test_theta_d_series_converges_to_sdre_at_order_N_plus_1(plant, terms):
+    m, num, z0 = plant
+    sdre = SDREController(num, Q, R)
+    td = ThetaDController(num, Q, R, terms=terms, k=0.0)
+    err = [np.linalg.norm(sdre.riccati(s * z0) - td.gain_matrix(0.0, s * z0)) for s in (1, 0.5, 0.25, 0.125)]
+    ratios = np.array(err[:-1]) / np.array(err[1:])
+    target = 2.0 ** terms  # N = terms - 1, error O(s^(N+1))
+    assert np.all(np.abs(ratios / target - 1) < 0.15), (err, ratios)
+
+
+def test_lyapunov_paths_agree_and_online_step_avoids_riccati(plant, monkeypatch):
+    m, num, z0 = plant
+    a = ThetaDController(num, Q, R, k=0.0, lyapunov="schur")
+    b = ThetaDController(num, Q, R, k=0.0, lyapunov="scipy")
+    for Ta, Tb in zip(a.series(1.0, z0), b.series(1.0, z0)):
+        np.testing.assert_allclose(Ta, Tb, atol=1e-10 * np.abs(Tb).max())
+    import scipy.linalg as sla
+
+    def boom(*args, **kw):
+        raise AssertionError("Riccati solved online")
+
+    monkeypatch.setattr(sla, "solve_continuous_are", boom)
+    a(2.0, z0)  # no Riccati equation in the online step
+
+
+def test_unstabilisable_pair_gives_clear_error():
+    m = build_model("spacecraft_wheels", {"wheels": "2"})
+    num = sdc.lambdify_sdc(sdc.factorise(m, auxiliary=AUX))
+    with pytest.raises(ControlError, match="rank 6 of 9"):
+        LQRController(num, Q, np.eye(2))
+    with pytest.raises(ControlError, match="rank 6 of 9"):
+        ThetaDController(num, Q, np.eye(2))
+
+
+# ---- closed loop (A4, A5, A7) -----------------------------------------------------
+
+@pytest.fixture(scope="module")
+def closed_loop(plant):
+    m, num, z0 = plant
+    out = {}
+    for c in (LQRController(num, Q, R), SDREController(num, Q, R), ThetaDController(num, Q, R)):
+        out[c.kind] = simulate(num.f, c, z0, num.index, Q, R, horizon=150.0, dt=0.05)
+    return out
+
+
+def test_all_three_regulate_the_angles(closed_loop):
+    for kind, s in closed_loop.items():
+        ang = np.abs(s.z[:, :3]) / DEG
+        assert s.status == "stable", kind
+        assert ang[s.t >= 60.0].max() < 0.1, kind
+        assert ang[-1].max() < 1e-3 and s.t[-1] == pytest.approx(150.0), kind
+        assert max(settling_time(s.t, s.z[:, i], 0.1 * DEG) for i in range(3)) < 60.0
+
+
+def test_sdre_and_theta_d_are_close(closed_loop):
+    d = np.abs(closed_loop["sdre"].z[:, :3] - closed_loop["theta-d"].z[:, :3]).max(axis=0) / DEG
+    assert np.all(d < 0.5), d
+    pk_s = np.abs(closed_loop["sdre"].u).max(axis=0)
+    pk_t = np.abs(closed_loop["theta-d"].u).max(axis=0)
+    assert np.all(np.abs(pk_t / pk_s - 1) < 0.2)
+
+
+def test_lqr_pitch_undershoot_is_the_largest(closed_loop):
+    mins = {k: overshoot(s.z[:, 1])["overshoot"] for k, s in closed_loop.items()}
+    assert mins["lqr"] >= mins["sdre"] and mins["lqr"] >= mins["theta-d"]
+
+
+def test_costs_agree_within_one_percent(closed_loop):
+    J = {k: s.J for k, s in closed_loop.items()}
+    assert max(J.values()) / min(J.values()) - 1 < 0.01, J
+
+
+def test_cost_integration_is_converged(plant):
+    m, num, z0 = plant
+    J = {}
+    for integ, dt in (("rk4", 0.05), ("rk45", 0.05), ("rk4", 0.01)):
+        J[(integ, dt)] = simulate(num.f, LQRController(num, Q, R), z0, num.index, Q, R, 60.0, dt,
+                                  integrator=integ).J
+    assert abs(J[("rk4", 0.05)] / J[("rk45", 0.05)] - 1) < 1e-6
+    assert abs(J[("rk4", 0.05)] / J[("rk4", 0.01)] - 1) < 1e-3
+
+
+def test_saturation_and_update_rate(plant):
+    m, num, z0 = plant
+    s = simulate(num.f, LQRController(num, Q, R), z0, num.index, Q, R, 60.0, 0.05, update=0.25,
+                 saturation=0.5)
+    assert np.abs(s.u).max() <= 0.5 + 1e-15 and np.abs(s.u_raw).max() > 0.5
+    assert s.ctrl_time.size == int(60 / 0.25) + 1
+    blocks = s.u[:-1].reshape(-1, 5, 3)
+    assert np.all(blocks == blocks[:, :1, :])  # held between updates
+    assert s.saturated_fraction > 0
+    with pytest.raises(ValueError, match="multiple"):
+        simulate(num.f, LQRController(num, Q, R), z0, num.index, Q, R, 1.0, 0.05, update=0.07)
+
+
+def test_metrics_helpers():
+    t = np.linspace(0, 10, 11)
+    y = np.array([1.0, 0.5, -0.2, 0.05, 0.01, 0, 0, 0, 0, 0, 0])
+    assert settling_time(t, y, 0.1) == 3.0
+    o = overshoot(y)
+    assert o["overshoot"] == pytest.approx(0.2) and o["overshoot_pct"] == pytest.approx(20.0)
+
+
+# ---- problem files, Result, robustness ---------------------------------------------
+
+@pytest.mark.parametrize("name", ["seed3_attitude.yaml", "seed3_robustness.yaml"])
+def test_config_controller_block_validates(name):
+    d = _load(name)
+    spec = ControllerSpec.model_validate(d["controller"])
+    assert spec.types() == ["lqr", "sdre", "theta-d"]
+    assert [s.type for s in spec.expand()] == ["lqr", "sdre", "theta-d"]
+    assert spec.matrix("Q", 9)[0, 0] == 0.5 and spec.matrix("R", 3)[2, 2] == 1.0
+    x0 = spec.simulate.initial_state([str(s) for s in build_model("spacecraft_wheels", {}).states])
+    np.testing.assert_allclose(x0[:3], 0.174533, atol=1e-6)
+    np.testing.assert_allclose(x0[6:9], 0.01)
+
+
+def test_controller_spec_rejects_mistakes():
+    base = _load("seed3_attitude.yaml")["controller"]
+    for bad in ({"Qq": [1]}, {"sdc": "given", "A": None}, {"type": "pid"},
+                {"theta_d": {"terms": 3, "k": [1]}}, {"simulate": {**base["simulate"], "update": 0.07}}):
+        with pytest.raises(ValidationError):
+            ControllerSpec.model_validate({**base, **bad})
+    assert to_number("10deg") == pytest.approx(np.pi / 18)
+    assert to_number("pi/18") == pytest.approx(np.pi / 18)
+    with pytest.raises(Exception):
+        to_number("__import__('os')")
+
+
+def test_given_sdc_from_the_problem_file_is_the_papers(plant):
+    from models.spacecraft_wheels import paper_sdc_matrix
+    from ocdsl.control.run import build_sdc
+
+    m = build_model("spacecraft_wheels", {})
+    spec = ControllerSpec.model_validate(_load("seed3_attitude.yaml")["controller"])
+    fac = build_sdc(m, spec)
+    assert fac.method == "given"
+    assert (fac.A - paper_sdc_matrix(m)).applyfunc(lambda e: e.simplify()) == paper_sdc_matrix(m) * 0
+
+
+def test_run_controllers_results_round_trip(tmp_path):
+    d = _load("seed3_attitude.yaml")
+    d["controller"]["type"] = ["lqr", "theta-d"]
+    d["controller"]["simulate"].update(horizon=20.0, check_times=[10])
+    m = build_model("spacecraft_wheels", d["model"]["options"])
+    res = run_controllers(m, [d["controller"]], parameters=d["model"]["parameters"])
+    assert [r.extra["kind"] for r in res] == ["lqr", "theta-d"]
+    for r in res:
+        assert r.status in ("stable", "unstable") and r.objective > 0
+        assert "settling_time@0.1deg" not in r.extra["metrics"]  # bands are in radians
+        assert r.extra["metrics"]["controller_time_s"]["calls"] == 401
+        back = Result.read(r.write(tmp_path / r.extra["kind"]))
+        np.testing.assert_allclose(back.tables["closed_loop"]["phi"], r.tables["closed_loop"]["phi"])
+        assert back.status == r.status
+    # 20 s is too short to regulate to 1% of the initial state
+    assert res[0].status == "unstable" and "not regulated" in res[0].message
+
+
+def test_run_controllers_reports_unstabilisable_design():
+    d = _load("seed3_attitude.yaml")["controller"]
+    spec = {**d, "sdc": "auto", "A": None, "B": None, "R": [1, 1], "type": "lqr"}
+    m = build_model("spacecraft_wheels", {"wheels": "2"})
+    (r,) = run_controllers(m, [spec])
+    assert r.status == "error" and "rank 6 of 9" in r.message
+
+
+def test_robustness_sweep_one_table():
+    d = _load("seed3_robustness.yaml")["controller"]
+    d = {**d, "type": ["lqr", "theta-d"]}
+    d["simulate"] = {**d["simulate"], "step": 0.1, "update": 0.1}
+    m = build_model("spacecraft_wheels", {})
+    res = robustness_sweep(m, d, factors=[0.8, 1.2], scaled=["J1", "J2", "J3"])
+    tab = res.tables["robustness"]
+    assert list(tab["factor"]) == [0.8, 1.2]
+    assert {"lqr.cost", "theta-d.cost", "lqr.stable", "theta-d.max_abs_after@60"} <= set(tab)
+    # a heavier plant under the nominal design costs more and still settles
+    assert tab["lqr.cost"][1] > tab["lqr.cost"][0]
+    assert np.all(tab["theta-d.stable"] == 1.0) and np.all(tab["lqr.stable"] == 1.0)
+    assert res.status == "stable" and len(res.extra["runs"]) == 4
+
+
+@pytest.mark.slow
+def test_robustness_file_full_sweep():
+    d = _load("seed3_robustness.yaml")
+    m = build_model("spacecraft_wheels", d["model"]["options"])
+    res = robustness_sweep(m, d["controller"], parameters=d["model"]["parameters"])
+    tab = res.tables["robustness"]
+    assert len(tab["factor"]) == 5 and np.isfinite(tab["sdre.cost"]).all()
