@@ -125,6 +125,28 @@ def test_wrong_states_fail_reintegration(di_nodes):
     assert cert["reintegration"]["global_max_error"] > 0.015
 
 
+def test_non_collocated_rows_are_ignored(di_nodes):
+    t, edges = di_nodes
+    ref = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf", segments=edges)
+    traj = di_solution(t)
+    # add the segment ends as rows with states but no control/costate (as a back end may)
+    te = np.concatenate([t, edges])
+    order = np.argsort(te, kind="stable")
+    full = di_solution(te)
+    for group in (full.controls, full.costates):
+        for k in group:
+            group[k] = np.concatenate([getattr(traj, "controls" if group is full.controls else "costates")[k],
+                                       np.full(len(edges), np.nan)])[order]
+    full.time = te[order]
+    full.states = {k: v[order] for k, v in full.states.items()}
+    cert = certificate(DI, {}, full, DI_BOUNDS, 0, "min_tf", segments=edges)
+    assert cert["nodes"] == len(t)
+    assert cert["passed"] and cert["hamiltonian"]["mean"] == ref["hamiltonian"]["mean"]
+    H = hamiltonian_arrays(DI, {}, full)["hamiltonian"]
+    assert len(H) == len(te) and np.isnan(H).sum() == len(edges)
+    assert np.allclose(H[np.isfinite(H)], -1)
+
+
 def test_hamiltonian_arrays(di_nodes):
     t, _ = di_nodes
     arr = hamiltonian_arrays(DI, {}, di_solution(t))

@@ -5,7 +5,6 @@ its reconstruction of the lost equations, NOT the paper's (lost) Table 1.
 """
 import json
 import math
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -194,8 +193,10 @@ def test_run_pareto_case_files_and_study_folder(tmp_path):
 
 
 def test_executor_map_gives_the_same_set(case_a):
-    with ProcessPoolExecutor(max_workers=2) as pool:
-        s = two_burn_pareto(Y0_A, map=pool.map)
+    from ocdsl.study.executor import Executor
+
+    with Executor(workers=2) as ex:
+        s = two_burn_pareto(Y0_A, map=ex.map)
     assert [(p.label, p.pareto) for p in s.points] == [(p.label, p.pareto) for p in case_a.points]
     for p, q in zip(s.points, case_a.points):
         assert abs(p.objectives["t_sum"] - q.objectives["t_sum"]) < 1e-12

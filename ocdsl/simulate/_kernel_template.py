@@ -170,7 +170,7 @@ def integrate(y0, s0, s_end, p, ck, cp, co, cd, T, clock, t_stop, rtol, atol, h0
     """Adaptive DOP853 from s0 to s_end (or until the clock state reaches t_stop).
 
     Returns (status, s, y, n_steps, n_fev, traj, events): status 0 reached the end,
-    1 terminal event, -1 too many steps, -2 step size underflow / non-finite state.
+    1 clock reached t_stop, 2 terminal event, -1 too many steps, -2 step size underflow / non-finite state.
     ``traj`` rows are [s, y...] at each accepted step (and ``n_dense`` dense points in
     between) when ``record``; ``events`` rows are [event index, s, y...].
     """
@@ -358,21 +358,19 @@ def integrate(y0, s0, s_end, p, ck, cp, co, cd, T, clock, t_stop, rtol, atol, h0
             traj[ntraj, 1:] = y
             ntraj += 1
         if x_end < 1.0 or stop_here:
-            status = 1
+            status = 2 if terminal else 1
             break
     return status, s, y, nsteps, nfev, traj[:ntraj], events[:nevents]
 
 
 @njit(cache=True)
 def final_batch(Y0, S_end, P, ck, cp, co, CD, Tc, clock, t_stop, rtol, atol, max_steps,
-                Yf, status, nsteps):
+                ev_i, ev_v, ev_d, ev_t, Yf, status, nsteps):
     """Final states of many runs (rows of Y0, P, CD; per-run S_end, Tc, t_stop)."""
-    ev_i = np.empty(0, np.int64)
-    ev_v = np.empty(0)
     for b in range(Y0.shape[0]):
         st, s, y, ns, nf, tr, evs = integrate(Y0[b], 0.0, S_end[b], P[b], ck, cp, co, CD[b],
                                               Tc[b], clock, t_stop[b], rtol, atol, 0.0,
-                                              max_steps, ev_i, ev_v, ev_i, ev_i, 0, False)
+                                              max_steps, ev_i, ev_v, ev_d, ev_t, 0, False)
         Yf[b] = y
         status[b] = st
         nsteps[b] = ns
@@ -380,13 +378,11 @@ def final_batch(Y0, S_end, P, ck, cp, co, CD, Tc, clock, t_stop, rtol, atol, max
 
 @njit(cache=True, parallel=True)
 def final_batch_parallel(Y0, S_end, P, ck, cp, co, CD, Tc, clock, t_stop, rtol, atol,
-                         max_steps, Yf, status, nsteps):
-    ev_i = np.empty(0, np.int64)
-    ev_v = np.empty(0)
+                         max_steps, ev_i, ev_v, ev_d, ev_t, Yf, status, nsteps):
     for b in prange(Y0.shape[0]):
         st, s, y, ns, nf, tr, evs = integrate(Y0[b], 0.0, S_end[b], P[b], ck, cp, co, CD[b],
                                               Tc[b], clock, t_stop[b], rtol, atol, 0.0,
-                                              max_steps, ev_i, ev_v, ev_i, ev_i, 0, False)
+                                              max_steps, ev_i, ev_v, ev_d, ev_t, 0, False)
         Yf[b] = y
         status[b] = st
         nsteps[b] = ns

@@ -113,6 +113,13 @@ class Event:
     terminal: bool = False
 
 
+def _event_arrays(cm: CompiledModel, events: Sequence[Event]):
+    return (np.array([cm.state_names.index(e.state) for e in events], np.int64),
+            np.array([e.value for e in events], float),
+            np.array([e.direction for e in events], np.int64),
+            np.array([int(e.terminal) for e in events], np.int64))
+
+
 def _atol(cm: CompiledModel, atol) -> np.ndarray:
     a = np.broadcast_to(np.asarray(atol, float), (cm.n,)).copy()
     return a
@@ -139,10 +146,7 @@ def simulate(cm: CompiledModel, y0, T: float, p=None, layout: ControlLayout | No
         s_end, t_stop = (s_max if s_max is not None else 1e3 * abs(T) + 1.0), float(T)
     else:
         s_end, t_stop = float(T), math.inf
-    ev_idx = np.array([cm.state_names.index(e.state) for e in events], np.int64)
-    ev_val = np.array([e.value for e in events], float)
-    ev_dir = np.array([e.direction for e in events], np.int64)
-    ev_term = np.array([int(e.terminal) for e in events], np.int64)
+    ev_idx, ev_val, ev_dir, ev_term = _event_arrays(cm, events)
     st, s, y, ns, nf, traj, evs = cm.module.integrate(
         y0, 0.0, s_end, p, ck, cp, co, cd, float(T), cm.clock, t_stop, float(rtol),
         _atol(cm, atol), float(first_step), int(max_steps), ev_idx, ev_val, ev_dir, ev_term,
@@ -157,9 +161,12 @@ def simulate(cm: CompiledModel, y0, T: float, p=None, layout: ControlLayout | No
 def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray,
                  layout: ControlLayout, CD: np.ndarray, rtol: float = 1e-9, atol=1e-11,
                  max_steps: int = 200_000, parallel: bool = False,
-                 s_max_factor: float = 1e3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 s_max_factor: float = 1e3, events: Sequence[Event] = ()
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Batched runs: row b integrates Y0[b] with parameters P[b] and control coefficients
-    CD[b] over [0, T[b]]. Returns (final states (B, n), status (B,), steps (B,)).
+    CD[b] over [0, T[b]]. Returns (final states (B, n), status (B,), steps (B,)); status
+    as :func:`simulate` (0/1 reached T, 2 stopped by a terminal event, < 0 failed).
+    ``events`` are typically terminal guards (impact, escape) that end hopeless runs early.
 
     ``parallel`` spreads the rows over Numba threads (all cores of this process).
     """
@@ -181,8 +188,9 @@ def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray
     status = np.empty(B, np.int64)
     steps = np.empty(B, np.int64)
     fn = cm.module.final_batch_parallel if parallel else cm.module.final_batch
+    ev = _event_arrays(cm, events)
     fn(Y0, s_end, P, ck, cp, co, CD, T, cm.clock, t_stop, float(rtol), _atol(cm, atol),
-       int(max_steps), Yf, status, steps)
+       int(max_steps), *ev, Yf, status, steps)
     return Yf, status, steps
 
 

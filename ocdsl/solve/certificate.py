@@ -192,7 +192,7 @@ class _Numeric:
         return np.asarray(self._fx(t, list(x), list(u)), float).reshape(self.n, self.n)
 
 
-def _arrays(model: Model, trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+def _arrays(model: Model, trajectory, return_mask: bool = False):
     get = (lambda k: trajectory[k]) if isinstance(trajectory, Mapping) else (lambda k: getattr(trajectory, k))
     t = np.asarray(get("time"), float).ravel()
     states, controls = get("states"), get("controls")
@@ -210,6 +210,15 @@ def _arrays(model: Model, trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarra
         Lam = np.column_stack([np.asarray(costates[s.name], float) for s in model.states])
     if not (len(t) == len(X) == len(U)) or (Lam is not None and len(Lam) != len(t)):
         raise ValueError("certificate: time, states, controls and costates differ in length")
+    # keep the collocation nodes: rows where everything is defined (a back end may also
+    # list non-collocated points, e.g. segment ends, with NaN controls or costates)
+    keep = np.isfinite(t) & np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1)
+    if Lam is not None:
+        keep &= np.isfinite(Lam).all(axis=1)
+    t, X, U = t[keep], X[keep], U[keep]
+    Lam = Lam[keep] if Lam is not None else None
+    if return_mask:
+        return t, X, U, Lam, keep
     if len(t) < 2 or np.any(np.diff(t) <= 0):
         raise ValueError("certificate: node times must be strictly increasing (at least 2 nodes)")
     return t, X, U, Lam
@@ -219,15 +228,22 @@ def hamiltonian_arrays(model: Model, parameter_values: Mapping | None, trajector
                        lagrange: sp.Expr | float = 0) -> dict[str, np.ndarray]:
     """H and the switching functions dH/du at the nodes, for ``PhaseTrajectory.extra``.
 
-    Keys: ``hamiltonian`` and ``dH_d<control>`` for every control.
+    Keys: ``hamiltonian`` and ``dH_d<control>`` for every control; arrays as long as the
+    trajectory's time, NaN on rows with a missing value.
     """
     num = _Numeric(model, parameter_values, lagrange)
-    t, X, U, Lam = _arrays(model, trajectory)
+    t, X, U, Lam, keep = _arrays(model, trajectory, return_mask=True)
     if Lam is None:
         raise ValueError("hamiltonian_arrays: the trajectory has no costates")
     H, dHdu, _, _ = _hamiltonian_nodes(num, t, X, U, Lam)
-    out = {"hamiltonian": H}
-    out.update({f"dH_d{c.name}": dHdu[:, j] for j, c in enumerate(model.controls)})
+
+    def full(a):   # back onto every row of the trajectory, NaN where a value is missing
+        out = np.full(len(keep), np.nan)
+        out[keep] = a
+        return out
+
+    out = {"hamiltonian": full(H)}
+    out.update({f"dH_d{c.name}": full(dHdu[:, j]) for j, c in enumerate(model.controls)})
     return out
 
 
@@ -366,7 +382,8 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     parameter_values : parameter name or symbol -> number (model defaults fill the rest).
     trajectory : ``PhaseTrajectory`` or mapping with ``time`` (N,), ``states``,
         ``controls`` and ``costates`` (name -> array (N,)) at the collocation nodes,
-        costates keyed by state name, in the convention ``H = L + lambda^T f``.
+        costates keyed by state name, in the convention ``H = L + lambda^T f``. Rows with
+        a NaN anywhere (non-collocated points) are left out.
     control_bounds : control name -> (lower, upper); None or missing = unbounded.
     lagrange : the Lagrange integrand L (SymPy, may be 0) of the minimisation form.
     objective : one of ``OBJECTIVE_KINDS`` (``min_tf``, ``max_tf``, ``free_tf``,
@@ -409,7 +426,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         raise ValueError("certificate: the trajectory has no costates")
     bounds = _bounds(model, control_bounds)
     N = len(t)
-    out: dict[str, Any] = {"objective": objective, "nodes": N}
+    out: dict[str, Any] = {"objective": objective, "nodes": N}  # nodes with every value defined
 
     H, dHdu, H_terms, dHdu_terms = _hamiltonian_nodes(num, t, X, U, Lam)
 

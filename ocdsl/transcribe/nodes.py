@@ -319,3 +319,20 @@ def scheme(name: str, degree: int) -> Scheme:
         end_from_support=bool(support[-1] == 1.0),
         colloc_in_support=_frozen(idx),
     )
+
+
+@functools.lru_cache(maxsize=None)
+def lobatto_integration_matrix(n: int) -> np.ndarray:
+    """A[i, j] = integral from -1 to tau_i of the j-th Lagrange basis on the n LGL points.
+
+    Used for LGL collocation in integral form (Lobatto IIIA): X_i = X_0 + (h/2) sum_j A_ij F_j.
+    Each integral is computed exactly by an n-point Gauss rule mapped onto [-1, tau_i].
+    """
+    tau, _ = legendre_gauss_lobatto(n)
+    g, gw = legendre_gauss(n)
+    A = np.zeros((n, n))
+    for i in range(1, n):
+        half = (tau[i] + 1.0) / 2.0
+        pts = -1.0 + (g + 1.0) * half
+        A[i] = half * (gw @ lagrange_matrix(tau, pts))
+    return _frozen(A)

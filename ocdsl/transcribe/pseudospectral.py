@@ -20,6 +20,7 @@ from ..symbolic.model import TIME
 from ..symbolic.problem import Phase, Problem
 from .guess import PhaseGuess
 from .mesh import Layout, Mesh
+from .nodes import lobatto_integration_matrix
 from .pyomo_expr import pyomo_function
 
 
@@ -177,6 +178,7 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
         scale = duration * half_h
         sup = lay.support[k]
         Fk = []
+        integral_form = sc.name == "LGL"
         for i, (cn, sn) in enumerate(zip(lay.colloc[k], lay.colloc_state[k])):
             t = b.t0 + duration * float(lay.s_colloc[cn])
             xs = [b.X[sn, j] for j in range(nx)]
@@ -184,7 +186,7 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
             vals = xs + us + [t] + params
             Fi = f(*vals)
             Fk.append(Fi)
-            for j in range(nx):
+            for j in range(nx if not integral_form else 0):
                 dx = sum(float(sc.D[i, l]) * b.X[sup[l], j] for l in range(len(sup)) if sc.D[i, l] != 0.0)
                 defect_exprs[(k, i, j)] = dx - scale * Fi[j] == 0
             if g is not None:
@@ -193,6 +195,14 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
             if L is not None:
                 for q, e in enumerate(L(*vals)):
                     integral_terms[q] = integral_terms[q] + float(sc.weights[i]) * half_h * e
+        if integral_form:
+            # LGL (Lobatto IIIA): D on the Lobatto points is rank-deficient, so the collocation
+            # equations are imposed in integral form, X_i = X_0 + scale * sum_j A_ij F_j.
+            A = lobatto_integration_matrix(sc.degree)
+            for i in range(1, len(sup)):
+                for j in range(nx):
+                    quad = sum(float(A[i, l]) * Fk[l][j] for l in range(len(Fk)) if A[i, l] != 0.0)
+                    defect_exprs[(k, i, j)] = b.X[sup[i], j] - b.X[sup[0], j] - scale * quad == 0
         if not sc.end_from_support:
             # LG: the segment end follows from Gauss quadrature of the dynamics
             for j in range(nx):

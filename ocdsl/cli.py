@@ -1,0 +1,195 @@
+"""The ``ocdsl`` command. Imports are lazy so that ``ocdsl --help`` starts fast.
+
+Exit codes: 0 solved and every expect check passed; 1 the run failed or a check failed
+(the run folder is still written, with the diagnosis); 2 bad problem file or bad usage.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+
+class _SpecFailure(click.ClickException):
+    exit_code = 2
+
+    def show(self, file=None):
+        click.echo(f"Error: {self.message}", err=True)
+
+
+def _compile_or_exit(fn, *args, **kwargs):
+    from .spec.errors import SpecError
+
+    try:
+        return fn(*args, **kwargs)
+    except SpecError as e:
+        raise _SpecFailure(str(e)) from None
+
+
+def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise click.BadParameter(f"'{item}' is not NAME=NUMBER", param_hint="--param") from None
+    return out
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="ocdsl")
+def main() -> None:
+    """Declarative optimal control: YAML problem files to verified optimal trajectories."""
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--out", "out", type=click.Path(file_okay=False), help="run folder (default runs/<file name>)")
+@click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="override a constant parameter")
+@click.option("--seed", type=int, default=None, help="seed of random initial guesses")
+@click.option("--warm-start", type=click.Path(file_okay=False, exists=True), help="start from a previous run folder")
+@click.option("--report", is_flag=True, help="also write report.html and report.pdf")
+@click.option("--verbose", "-v", is_flag=True, help="show Ipopt's own log")
+@click.option("--quiet", "-q", is_flag=True, help="no progress line and no summary")
+def run(file, out, params, seed, warm_start, report, verbose, quiet):
+    """Solve FILE and write a run folder (result.json, trajectory.csv, ...)."""
+    from .api import run_file
+
+    out = Path(out) if out else Path("runs") / Path(file).stem
+    result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
+                              quiet=quiet, verbose=verbose)
+    if report:
+        _make_reports([out], None)
+    if not quiet:
+        _summary(result, out)
+    sys.exit(0 if result.ok else 1)
+
+
+def _summary(result, out: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    con = Console()
+    ok = "green" if result.status == "optimal" else "red"
+    con.print(f"[bold]{result.name}[/bold]: [{ok}]{result.status}[/{ok}]")
+    if result.status not in ("optimal",) and result.message:
+        con.print(f"  {result.message.splitlines()[0]}")
+    t = Table(show_header=False, box=None, padding=(0, 2))
+    if result.objective is not None:
+        t.add_row("objective", f"{result.objective:.10g}")
+    if isinstance(result.tf, dict):
+        t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()))
+    elif result.tf is not None:
+        t.add_row("final time", f"{result.tf:.10g}")
+    if result.nlp:
+        t.add_row("NLP", f"{result.nlp.get('variables')} variables, {result.nlp.get('constraints')} constraints, "
+                  f"{result.nlp.get('nonzeros')} Jacobian nonzeros")
+    if result.iterations is not None:
+        t.add_row("iterations", str(result.iterations))
+    w = result.wall_time_s
+    if w:
+        parts = ", ".join(f"{k} {v:.3f}" for k, v in w.items() if k != "total")
+        t.add_row("wall time", f"{w.get('total', 0):.3f} s ({parts})")
+    t.add_row("run folder", str(out))
+    con.print(t)
+    for c in result.expect:
+        mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
+        con.print(f"  expect {c['name']}: {c['value']:.10g} vs {c['reference']:.10g} "
+                  f"(error {c['error']:.2e}) {mark}")
+    cert = result.certificate
+    if cert and "passed" in cert:
+        mark = "[green]pass[/green]" if cert["passed"] else "[yellow]not passed[/yellow]"
+        con.print(f"  optimality certificate: {mark}")
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+def check(file):
+    """Validate FILE without solving it."""
+    from .api import compile_file
+
+    f = _compile_or_exit(compile_file, file)
+    if f.problem is not None:
+        for ph in f.problem.phases:
+            click.echo(f"{file}: phase '{ph.name}': {len(ph.states)} states, {len(ph.controls)} controls, "
+                       f"{len(ph.path)} path constraints; {len(f.problem.boundary)} boundary constraints")
+    click.echo(f"{file}: ok")
+
+
+@main.command()
+def models():
+    """List the registered SymPy models with their states, controls and parameters."""
+    from .symbolic.registry import build_model, model_names, registered
+
+    for name in model_names():
+        entry = registered(name)
+        try:
+            m = build_model(name, {})
+        except Exception as e:  # a model that needs options still gets listed
+            click.echo(f"{name}: {entry.description} (needs options: {e})")
+            continue
+        click.echo(f"{name}: {entry.description}")
+        click.echo(f"  states:     {', '.join(s.name for s in m.states)}")
+        click.echo(f"  controls:   {', '.join(c.name for c in m.controls) or '-'}")
+        params = ", ".join(f"{p.name}={v:g}" if v is not None else p.name for p, v in m.parameters.items())
+        click.echo(f"  parameters: {params or '-'}")
+        if entry.options:
+            click.echo(f"  options:    {', '.join(f'{k} ({v})' for k, v in entry.options.items())}")
+
+
+@main.command()
+def schema():
+    """Print the JSON Schema of the problem language (for editors)."""
+    import json
+
+    from .spec.schema import ProblemFile
+
+    click.echo(json.dumps(ProblemFile.model_json_schema(), indent=2))
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False, exists=True))
+@click.option("--out", "out", type=click.Path(file_okay=False), required=True)
+@click.option("--workers", type=int, default=None, help="local worker processes (default: cores)")
+@click.option("--serial", is_flag=True, help="run points one after another in this process")
+@click.option("--scheduler", default=None, help="address of a Dask scheduler, tcp://HOST:PORT")
+@click.option("--resume", is_flag=True, help="skip finished points of an interrupted study")
+@click.option("--quiet", "-q", is_flag=True)
+def study(file, out, workers, serial, scheduler, resume, quiet):
+    """Run the study: block of FILE (sweep, starts, Monte Carlo) into folder OUT."""
+    from .study.run import run_study
+
+    try:
+        res = _compile_or_exit(run_study, file, out, workers=workers, serial=serial, scheduler=scheduler,
+                               resume=resume, quiet=quiet)
+    except (ValueError, ConnectionError, OSError) as e:
+        raise _SpecFailure(str(e)) from None
+    failed = getattr(res, "failed", 0)
+    sys.exit(0 if not failed else 1)
+
+
+@main.command()
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(file_okay=False, exists=True))
+@click.option("--out", type=click.Path(file_okay=False), help="folder of a comparison report")
+def report(run_dirs, out):
+    """Write report.html and report.pdf for a run folder, or one comparison report for several."""
+    _make_reports([Path(d) for d in run_dirs], Path(out) if out else None)
+
+
+def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
+    from .report.build import make_comparison_report, make_report
+
+    if len(run_dirs) == 1 and out is None:
+        files = make_report(run_dirs[0])
+    else:
+        files = make_comparison_report(run_dirs, out or run_dirs[0].parent / "comparison")
+    for f in files:
+        click.echo(f"wrote {f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,57 @@
+"""Published optima of the classic benchmarks, for every pseudospectral scheme.
+
+Sources (../shared/seeds/benchmarks-public.md):
+- double integrator, tf = 2 (analytic; control-toolbox CTProblems)
+- brachistochrone, tf = 1.8016 (dymos), cycloid 1.8016031224530815
+- Bryson-Denham with x <= 1/9, J = 4 (Bryson & Ho; dymos; PSOPT 3.999539)
+- Meditch moon landing, J = 1.4203125990 exact, tf = 1.3968080891 (PSOPT 1.420408)
+- Goddard with v <= 0.1, r(tf) = 1.0125762700748699 (control-toolbox, indirect)
+Each file's ``expect:`` holds the value and a tolerance of 1e-4 relative or tighter.
+"""
+import pytest
+import yaml
+
+import ocdsl
+
+EXAMPLES = ["double_integrator", "minimal_double_integrator", "brachistochrone", "bryson_denham",
+            "moon_landing", "goddard"]
+SCHEMES = ["LG", "LGR", "LGL"]
+
+
+def _with_scheme(configs, tmp_path, name, scheme):
+    data = yaml.safe_load((configs / f"{name}.yaml").read_text())
+    data["method"]["transcription"] = scheme
+    p = tmp_path / f"{name}_{scheme}.yaml"
+    p.write_text(yaml.safe_dump(data))
+    return p
+
+
+@pytest.mark.ipopt
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_published_optimum(configs, tmp_path, name, scheme):
+    res = ocdsl.load(_with_scheme(configs, tmp_path, name, scheme)).solve()
+    assert res.status == "optimal", res.message
+    assert res.expect, "every example states its published optimum"
+    for check in res.expect:
+        assert check["passed"], check
+        assert check["relative_error"] <= max(check["rtol"] or 0, 1e-4)
+
+
+@pytest.mark.ipopt
+def test_run_folder_contract(configs, tmp_path):
+    from ocdsl.api import run_file
+    from ocdsl.result import Result
+
+    out = tmp_path / "run"
+    res = run_file(configs / "brachistochrone.yaml", out)
+    assert res.ok
+    data = Result.read(out)
+    assert data.status == "optimal" and abs(data.tf - 1.8016) < 1e-3
+    for key in ("parse", "symbolic", "build", "solve", "post", "total"):
+        assert key in data.wall_time_s
+    assert data.nlp["variables"] > 0 and data.nlp["nonzeros"] > 0
+    assert set(data.phases[0].states) == {"x", "y", "v"}
+    assert len(data["x"]) == len(data["t"]) and data["x"][-1] == pytest.approx(10, abs=1e-6)
+    assert set(data.phases[0].costates) == {"x", "y", "v"}
+    assert (out / "problem.yaml").read_text() == (configs / "brachistochrone.yaml").read_text()
