@@ -25,6 +25,7 @@ from __future__ import annotations
 import sympy as sp
 
 from ocdsl.symbolic.model import Model, sym, syms
+from ocdsl.simulate.sundman import sundman
 from ocdsl.symbolic.registry import register
 
 MU = 0.0121506683
@@ -47,28 +48,6 @@ def _parameters():
     units = {"mu": "-", "LU": "km", "TU": "s", "Isp": "s", "g0": "m/s^2", "thrust": "N",
              "m0": "kg", "c": "LU/TU", "T_max": "LU/TU^2"}
     return params, exprs, units, (mu, c, T_max)
-
-
-def sundman(model: Model, distance: sp.Expr, k: float, c: float = 1.0,
-            clock: str = "time") -> Model:
-    """The model in the Sundman variable s: d()/ds = c R^k d()/dt, plus a clock state.
-
-    ``distance`` is R written with the model's symbols. The result's independent variable
-    (``TIME`` in the expressions) is s; the physical time is the new state ``clock``.
-    """
-    tau = sym(clock)
-    rate_sym = sym("sundman_rate")
-    rate = sp.Float(c) * distance ** sp.Float(k) if k != int(k) else sp.Float(c) * distance ** int(k)
-    dyn = {s: rate_sym * f for s, f in model.dynamics.items()}
-    dyn[tau] = rate_sym
-    exprs = dict(model.expressions)
-    exprs = {rate_sym: rate, **exprs}  # rate may use named expressions defined after it
-    units = dict(model.units)
-    units[clock] = units.get("t", "TU")
-    return Model(f"{model.name}_sundman", tuple(model.states) + (tau,), model.controls, dyn,
-                 dict(model.parameters), exprs, units,
-                 model.description + f" [Sundman: dt = {c} R^{k} ds, clock state {clock!r}]",
-                 model.positions)
 
 
 def _maybe_sundman(model: Model, options: dict, distance: sp.Expr) -> Model:

@@ -118,6 +118,7 @@ class IntegratorSpec(_Strict):
     atol: float = Field(1e-10, gt=0.0, le=1e-2)
     sundman_k: Optional[float] = Field(None, description="Sundman exponent (model must offer the option)")
     sundman_c: float = Field(1.0, gt=0.0)
+    sundman_distance: Optional[str] = Field(None, description="state or named expression R (default R_SE, then r)")
     max_steps: int = Field(200_000, ge=10)
 
 
@@ -127,6 +128,7 @@ class ParametricSpec(_Strict):
     parameters: dict[str, SearchParameter] = Field(default_factory=dict)
     tolerances: dict[str, float] = Field(default_factory=dict, description="zeta per terminal state ('default' for the rest)")
     penalty: Literal["normalized"] = "normalized"
+    guards: dict[str, tuple[float, float]] = Field(default_factory=dict, description="state -> [min, max]; leaving it ends the run as a failure")
     failure_fitness: float = Field(1e6, description="fitness of a run whose integration failed")
     integrator: IntegratorSpec = Field(default_factory=IntegratorSpec)
     optimizer: PSOSpec = Field(default_factory=PSOSpec)
@@ -140,6 +142,14 @@ class ParametricSpec(_Strict):
         for k, z in v.items():
             if not (z > 0):
                 raise ValueError(f"tolerance zeta for {k!r} must be > 0, got {z}")
+        return v
+
+    @field_validator("guards")
+    @classmethod
+    def _guards(cls, v):
+        for k, b in v.items():
+            if not b[0] < b[1]:
+                raise ValueError(f"guard for {k!r} must be [min, max] with min < max, got {list(b)}")
         return v
 
     @field_validator("controls")

@@ -1,0 +1,260 @@
+"""Runner of ``method: parametric``: problem + ParametricSpec -> PSO -> Result.
+
+``run(problem, spec)`` takes the symbolic :class:`~ocdsl.symbolic.problem.Problem` the
+spec layer builds (single phase, t0 = 0) and a validated
+:class:`~ocdsl.spec.parametric.ParametricSpec`:
+
+- initial states come from the boundary equalities ``x(t0) == number``;
+- every other boundary equality (``x(tf) == expr`` in final states and free parameters)
+  is a terminal constraint with tolerance zeta (``spec.tolerances[state]`` or
+  ``spec.tolerances['default']``, else 1e-3); inequalities at tf are penalised likewise;
+- free parameters of the problem and ``spec.parameters`` are decision variables
+  (integers when flagged ``integer``; they must have finite bounds);
+- tf is free within the phase's tf bounds (which must be finite) or fixed.
+
+The Result has the best particle's trajectory (states and controls), ``tables.history``
+(the convergence history), and ``extra``: N_rev (any integer parameters), terminal
+errors and error/zeta, m_p = 1 - m(tf) when the model has a mass state ``m``, evaluations
+per second, the PSO stop reason and the decision vector.
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Callable, Iterable
+
+import numpy as np
+import sympy as sp
+
+from ocdsl.result import PhaseTrajectory, Result
+from ocdsl.simulate import ControlLayout, Event
+from ocdsl.simulate.sundman import sundman
+
+from .parametric import ParametricProblem, Terminal, Variable
+from .pso import PSOSettings, pso
+
+MapLike = Callable[[Callable, Iterable], Iterable]
+
+
+class ParametricSetupError(ValueError):
+    pass
+
+
+def _layout(model, spec) -> tuple[ControlLayout, np.ndarray, np.ndarray]:
+    names = [c.name for c in model.controls]
+    missing = [n for n in names if n not in spec.controls]
+    unknown = [n for n in spec.controls if n not in names]
+    if missing or unknown:
+        raise ParametricSetupError(
+            f"method.controls must give a series for every control {names}; "
+            f"missing {missing}, unknown {unknown}")
+    kinds, orders, lo, hi = [], [], [], []
+    for n in names:
+        c = spec.controls[n]
+        kinds.append(c.series)
+        orders.append(c.order)
+        size = ControlLayout.size_of(c.series, c.order)
+        a0 = c.a0 if c.a0 is not None else c.bounds
+        lo += [a0[0]] + [c.bounds[0]] * (size - 1)
+        hi += [a0[1]] + [c.bounds[1]] * (size - 1)
+    return ControlLayout(tuple(kinds), tuple(orders)), np.array(lo), np.array(hi)
+
+
+def build(problem, spec, integer_parameters: Iterable[str] = ()) -> ParametricProblem:
+    """The :class:`ParametricProblem` of a symbolic Problem and a ParametricSpec."""
+    if len(problem.phases) != 1:
+        raise ParametricSetupError("method: parametric handles single-phase problems")
+    ph = problem.phases[0]
+    if ph.t0 not in (0, 0.0):
+        raise ParametricSetupError("method: parametric needs t0 = 0")
+    model = ph.model
+    states = list(model.states)
+    bv = problem.boundary_values
+    # ---- decision variables --------------------------------------------------------
+    ints = set(integer_parameters)
+    variables: dict[str, Variable] = {}
+    for s, fp in problem.free_parameters.items():
+        variables[s.name] = Variable(s.name, fp.lower, fp.upper, s.name in ints)
+    for name, sp_ in spec.parameters.items():
+        variables[name] = Variable(name, float(sp_.bounds[0]), float(sp_.bounds[1]), sp_.integer)
+    for v in variables.values():
+        if not (math.isfinite(v.lower) and math.isfinite(v.upper)):
+            kind = "integer parameter" if v.integer else "free parameter"
+            raise ParametricSetupError(f"{kind} {v.name!r} needs finite bounds for the search")
+    # ---- tf --------------------------------------------------------------------------
+    if ph.tf is not None:
+        tf_bounds = (float(ph.tf), float(ph.tf))
+    else:
+        tf_bounds = tuple(float(b) for b in ph.tf_bounds)
+        if not all(math.isfinite(b) for b in tf_bounds) or tf_bounds[0] <= 0:
+            raise ParametricSetupError("free tf needs finite positive bounds, e.g. '1.2 <= tf <= 2.6'")
+    # ---- boundary constraints ------------------------------------------------------------
+    y0 = {s: None for s in states}
+    final_sym = {}
+    for sym_, b in bv.items():
+        if b.which == "tf":
+            final_sym[sym_] = b.var
+    tf_sym = ph.tf_symbol
+    terminals: list[Terminal] = []
+    var_syms = {sp.Symbol(n, real=True): sp.Symbol(n, real=True) for n in variables}
+    zeta_default = float(spec.tolerances.get("default", 1e-3))
+    for c in problem.boundary:
+        syms_ = c.expr.free_symbols
+        t0_syms = [s for s in syms_ if s in bv and bv[s].which == "t0"]
+        if t0_syms:
+            if len(t0_syms) != 1 or not c.is_equality or len(syms_) != 1:
+                raise ParametricSetupError(f"initial conditions must be 'x(t0) == number': {c.text}")
+            s0 = t0_syms[0]
+            sol = sp.solve(sp.Eq(ph.substitute(c.expr), c.lower), s0)
+            if len(sol) != 1:
+                raise ParametricSetupError(f"cannot solve the initial condition {c.text}")
+            y0[bv[s0].var] = float(sol[0])
+            continue
+        expr = ph.substitute(c.expr).xreplace({**final_sym, tf_sym: sp.Symbol("tf", real=True)})
+        state = next((bv[s].var.name for s in sorted(syms_, key=str) if s in final_sym), None)
+        zeta = float(spec.tolerances.get(state, zeta_default)) if state else zeta_default
+        terminals.append(Terminal(expr, c.lower, c.upper, zeta, c.text, state))
+    missing = [s.name for s, v in y0.items() if v is None]
+    if missing:
+        raise ParametricSetupError(f"method: parametric needs every initial state fixed; missing {missing}")
+    unknown_tol = set(spec.tolerances) - {s.name for s in states} - {"default"}
+    if unknown_tol:
+        raise ParametricSetupError(f"tolerances for unknown states {sorted(unknown_tol)}")
+    y0v = [y0[s] for s in states]
+    # ---- objective -------------------------------------------------------------------------
+    obj = ph.substitute(problem.objective.expr).xreplace({**final_sym, tf_sym: sp.Symbol("tf", real=True)})
+    if problem.objective.sense == "maximize":
+        obj = -obj
+    # ---- regularisation ------------------------------------------------------------------
+    integ = spec.integrator
+    sim_model = model
+    if integ.sundman_k is not None:
+        dist = getattr(integ, "sundman_distance", None)
+        r = None
+        for cand in ([dist] if dist else []) + ["R_SE", "r"]:
+            try:
+                r = model.symbol(cand)
+                break
+            except KeyError:
+                continue
+        if r is None:
+            raise ParametricSetupError("sundman_k needs a distance: a state or named expression R_SE or r")
+        sim_model = sundman(model, r, integ.sundman_k, integ.sundman_c)
+        y0v.append(0.0)
+    layout, clo, chi = _layout(model, spec)
+    consts = {s.name: float(v) for s, v in ph.constants.items()}
+    guards = []
+    for name, (lo, hi) in getattr(spec, "guards", {}).items():
+        guards += [Event(name, float(lo), -1, True), Event(name, float(hi), +1, True)]
+    return ParametricProblem(sim_model, np.array(y0v, float), consts, layout, clo, chi, tf_bounds,
+                             list(variables.values()), terminals, obj, integ.rtol, integ.atol,
+                             integ.max_steps, spec.failure_fitness, spec.threads, guards)
+
+
+def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
+        seed: int | None = None, integer_parameters: Iterable[str] = (),
+        name: str | None = None, initial: np.ndarray | None = None) -> Result:
+    """Solve ``problem`` with the parametric method; never raises for a failed search."""
+    t_start = time.perf_counter()
+    timings: dict[str, float] = {}
+    try:
+        pp = build(problem, spec, integer_parameters)
+        lo, hi, is_int = pp.bounds()
+        t0 = time.perf_counter()
+        pp.fitness(np.atleast_2d((lo + hi) / 2))  # compile / load the kernel once
+        timings["build"] = time.perf_counter() - t0
+    except Exception as e:  # setup errors are reported in the Result
+        return Result(name or problem.name, "error", message=f"{type(e).__name__}: {e}",
+                      method=spec.model_dump(mode="json"), problem=problem.description,
+                      wall_time_s={"total": time.perf_counter() - t_start})
+    settings = PSOSettings.from_spec(spec.optimizer)
+    if seed is not None:
+        settings.seed = int(seed)
+    if executor is not None and settings.chunks == 0:
+        settings.chunks = 2 * (getattr(executor, "capacity", lambda: 2)() if hasattr(executor, "capacity") else 2)
+    int_names = [v.name for v in pp.variables if v.integer]
+    display = _Display(pp, settings, int_names) if progress else None
+    t0 = time.perf_counter()
+    mapper = executor.map if (executor is not None and hasattr(executor, "map")) else executor
+    try:
+        if display:
+            display.start()
+        res = pso(pp.fitness, lo, hi, is_int, settings, executor=mapper,
+                  callback=display.update if display else None, initial=initial)
+    finally:
+        if display:
+            display.stop()
+    timings["solve"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    det = pp.details(res.x)
+    tr, U = pp.trajectory(res.x)
+    cm = pp.compiled
+    states = {n: tr.y[:, i] for i, n in enumerate(cm.state_names) if n != "time"}
+    controls = {c.name: U[:, j] for j, c in enumerate(pp.model.controls)}
+    phase = PhaseTrajectory("main", tr.t.copy(), states, controls)
+    feasible = bool(np.all(det["ratio"] <= 1.0)) and det["status"] >= 0 and det["status"] != 2
+    extra: dict[str, Any] = {
+        "fitness": res.f, "stop_reason": res.stop_reason, "evaluations": res.n_evals,
+        "evals_per_s": res.n_evals / timings["solve"] if timings["solve"] > 0 else None,
+        "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
+        "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
+        "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
+        "decision_vector": dict(zip(pp.names(), map(float, res.x))),
+        "integrator_steps": det["steps"], "seed": settings.seed,
+    }
+    for n in int_names:
+        extra[n] = int(round(det["variables"][n]))
+    if "m" in cm.state_names:
+        mf = float(det["final"][cm.state_names.index("m")])
+        extra["m_f"] = mf
+        extra["m_p"] = float(tr.y[0, cm.state_names.index("m")] - mf)
+    timings["post"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    hist = dict(res.history)
+    status = "feasible" if feasible else "infeasible"
+    msg = (f"PSO stopped ({res.stop_reason}) after {res.iterations} iterations, {res.n_evals} evaluations; "
+           f"best fitness {res.f:.6g}, tf {det['tf']:.6g}; terminal errors "
+           f"{'inside' if feasible else 'NOT inside'} the tolerances (max |e|/zeta {det['ratio'].max() if len(det['ratio']) else 0:.3g})")
+    params = {k: float(v) for k, v in pp.parameters.items()}
+    params.update({k: float(v) for k, v in det["variables"].items()})
+    return Result(name or problem.name, status, message=msg, objective=det["objective"], tf=det["tf"],
+                  iterations=res.iterations, wall_time_s=timings,
+                  method=spec.model_dump(mode="json"), parameters=params, phases=[phase],
+                  problem=problem.description, extra=extra, tables={"history": hist})
+
+
+class _Display:
+    """Live progress (rich): iteration, best fitness, tf, integers, max |e|/zeta, evals/s."""
+
+    def __init__(self, pp: ParametricProblem, settings: PSOSettings, int_names: list[str]):
+        self.pp, self.s, self.int_names = pp, settings, int_names
+        self.last_best = None
+        self.info = ""
+        self.live = None
+
+    def start(self):
+        try:
+            from rich.live import Live
+            self.live = Live("", refresh_per_second=4, transient=False)
+            self.live.start()
+        except Exception:  # pragma: no cover - no terminal
+            self.live = None
+
+    def stop(self):
+        if self.live is not None:
+            self.live.stop()
+
+    def update(self, info: dict) -> bool:
+        if self.last_best is None or info["best_f"] < self.last_best:
+            self.last_best = info["best_f"]
+            d = self.pp.details(info["best_x"])
+            ints = " ".join(f"{n}={int(round(d['variables'][n]))}" for n in self.int_names)
+            self.info = (f"best J {info['best_f']:.6g}  tf {d['tf']:.5f}  {ints}  "
+                         f"max|e|/zeta {d['ratio'].max() if len(d['ratio']) else 0:.3g}")
+        if self.live is not None:
+            from rich.table import Table
+            t = Table.grid(padding=(0, 2))
+            t.add_row(f"PSO iteration {info['iteration']}/{self.s.iterations}", self.info,
+                      f"{info['evals_per_s']:.0f} evals/s")
+            self.live.update(t)
+        return False
