@@ -270,6 +270,11 @@ class StudyResult:
         return self.state == "complete"
 
     @property
+    def failed(self) -> int:
+        """Number of finished points that did not succeed."""
+        return self.counts.get("failed", 0)
+
+    @property
     def ok(self) -> bool:
         """Complete and every point succeeded."""
         return self.complete and self.counts.get("failed", 0) == 0
