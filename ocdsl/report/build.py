@@ -265,7 +265,7 @@ def _problem_section(doc: Doc, res: Result) -> None:
             if v is None:
                 continue
             times.append((f"{sym} = {T.fmt(v)}" if v != "free" else r"%s\ \mathrm{free}" % sym,
-                          f"{k} = {v}", "time"))
+                          f"{k} = {v}", ""))
         doc.guard("constraints", lambda: doc.equations(b, "Constraints and boundary conditions" + where,
                                                       cons + times))
     obj = prob.get("objective") or {}

@@ -271,39 +271,42 @@ def _overall(cert: Any) -> bool | None:
 
 
 def certificate_table(cert: Any) -> dict | None:
-    """Any certificate dict as key/value rows; booleans and nested ``passed`` flags become
-    coloured pass/FAIL verdicts."""
+    """Any certificate dict, one row per top-level item: its numbers as ``key = value``
+    and, when it carries a pass flag (``passed``, ``ok``, ...), a coloured verdict."""
     if not cert:
         return None
+    if not isinstance(cert, dict):
+        cert = {"certificate": cert}
     rows = []
+    overall = _overall(cert)
+    if overall is not None:
+        rows.append([cell("overall", "name"), cell("", ""), verdict(overall)])
 
-    def walk(prefix: str, v: Any) -> None:
+    def details(d: dict) -> str:
+        return "; ".join(f"{k} = {fmt(v, 4)}" for k, v in _flatten(d)
+                         if k.rsplit(".", 1)[-1] not in _PASS_KEYS or not isinstance(v, (bool, np.bool_)))
+
+    def flag(d: dict) -> bool | None:
+        return next((bool(d[k]) for k in _PASS_KEYS if isinstance(d.get(k), (bool, np.bool_))), None)
+
+    for k, v in cert.items():
+        if k in _PASS_KEYS and isinstance(v, (bool, np.bool_)):
+            continue
         if isinstance(v, dict):
-            ok = next((bool(v[k]) for k in _PASS_KEYS if isinstance(v.get(k), (bool, np.bool_))), None)
-            scalars = {k: x for k, x in v.items() if k not in _PASS_KEYS and not isinstance(x, (dict, list))}
-            nested = {k: x for k, x in v.items() if isinstance(x, (dict, list))}
-            if prefix and ok is not None and len(scalars) <= 4 and not nested:
-                rows.append([cell(prefix, "name"),
-                             cell("; ".join(f"{k} = {fmt(x)}" for k, x in scalars.items()) or "—", ""),
-                             verdict(ok)])
-                return
-            if ok is not None:
-                rows.append([cell(prefix or "overall", "name"), cell("", ""), verdict(ok)])
-            for k, x in v.items():
-                if k in _PASS_KEYS and isinstance(x, (bool, np.bool_)):
-                    continue
-                walk(f"{prefix}.{k}" if prefix else str(k), x)
+            ok = flag(v)
+            rows.append([cell(k, "name"), cell(details(v) or "—", "details"),
+                         verdict(ok) if ok is not None else cell("", "")])
         elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
             for i, x in enumerate(v):
                 label = x.get("name") or x.get("check") or x.get("label") or str(i)
-                walk(f"{prefix}[{label}]", {k: y for k, y in x.items() if k not in ("name", "check", "label")})
-        elif isinstance(v, (bool, np.bool_)):
-            rows.append([cell(prefix, "name"), cell(bool(v)), verdict(bool(v))])
+                rest = {kk: y for kk, y in x.items() if kk not in ("name", "check", "label")}
+                ok = flag(rest)
+                rows.append([cell(f"{k}[{label}]", "name"), cell(details(rest) or "—", "details"),
+                             verdict(ok) if ok is not None else cell("", "")])
         else:
-            rows.append([cell(prefix, "name"), cell(v), {"text": "", "cls": ""}])
-
-    walk("", cert)
-    return table("certificate", "Optimality certificate.", ["item", "value", "verdict"], rows)
+            rows.append([cell(k, "name"), cell(v, "details"), cell("", "")])
+    return table("certificate", "Optimality certificate (first-order necessary conditions and "
+                 "re-integration).", ["item", "values", "verdict"], rows)
 
 
 def extra_table(res: Result, skip: Iterable[str] = ("mesh_history",)) -> dict | None:
