@@ -157,7 +157,7 @@ class _Builder:
         if isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name):
             return self._boundary(func.value.id, func.attr, node)
         if not isinstance(func, ast.Name):
-            raise self.fail(f"'{ast.unparse(func)}' cannot be called")
+            raise self.fail(f"'{ast.unparse(func)}(...)' is not allowed (only whitelisted functions may be called)")
         name = func.id
         if name == "integral":
             if self.scope.integral is None:

@@ -1,0 +1,94 @@
+"""Malformed problem files: one clear error naming file, line and text; no run folder."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ocdsl.api import compile_file
+from ocdsl.spec.errors import SpecError
+
+GOOD = """name: t
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics:
+    x: v
+    v: u
+problem:
+  time: {t0: 0, tf: free}
+  constraints:
+    - -1 <= u <= 1
+    - x(t0) == 1
+    - v(t0) == 0
+    - x(tf) == 0
+    - v(tf) == 0
+    - 0.1 <= tf <= 10
+  objective: minimize tf
+method: {transcription: LGR, segments: 4, degree: 3}
+"""
+
+# (description, replace old -> new, expected line, fragment of the message)
+CASES = [
+    ("unknown name", ("v: u", "v: w"), 7, "unknown name 'w'"),
+    ("missing dynamics", ("    v: u\n", ""), 3, "state 'v' has no dynamics"),
+    ("dynamics of a non-state", ("    v: u\n", "    v: u\n    q: x\n"), 8, "'q', which is not a state"),
+    ("bad relation", ("- -1 <= u <= 1", "- -1 < u"), 11, "only <=, >= and =="),
+    ("not a relation", ("- -1 <= u <= 1", "- u + 1"), 11, "must be a relation"),
+    ("import", ("v: u", "v: __import__('os').system('true')"), 7, "not allowed"),
+    ("attribute escape", ("v: u", "v: u.__class__"), 7, "not allowed"),
+    ("huge exponent", ("v: u", "v: u**10**10"), 7, "too large"),
+    ("non-finite number", ("v: u", "v: u*1e999"), 7, "non-finite"),
+    ("wrong YAML type", ("segments: 4", "segments: [a, b]"), 18, "segments"),
+    ("states not a list", ("states: [x, v]", "states: {x: 1}"), 3, "states"),
+    ("unknown key", ("objective: minimize tf", "objectiv: minimize tf"), 17, "did you mean 'objective'"),
+    ("unknown function", ("v: u", "v: sinn(u)"), 7, "did you mean 'sin'"),
+    ("boundary of a control", ("x(tf) == 0", "u(tf) == 0"), 14, "'u' is not a state"),
+    ("bare state in objective", ("minimize tf", "minimize x"), 17, "without a time"),
+    ("YAML syntax", ("    v: u\n", "    v: [u\n"), None, "YAML syntax error"),
+    ("empty range", ("0.1 <= tf <= 10", "10 <= tf <= 0.1"), 16, "empty range"),
+    ("unknown transcription", ("transcription: LGR", "transcription: LGRR"), 18, "did you mean 'LGR'"),
+    ("reserved name", ("states: [x, v]", "states: [x, sin]"), 3, "not a valid state name"),
+]
+
+
+@pytest.mark.parametrize("desc,change,line,fragment", CASES, ids=[c[0] for c in CASES])
+def test_clear_error(tmp_path, desc, change, line, fragment):
+    old, new = change
+    assert old in GOOD
+    p = tmp_path / "bad.yaml"
+    p.write_text(GOOD.replace(old, new, 1))
+    with pytest.raises(SpecError) as info:
+        compile_file(p)
+    text = str(info.value)
+    assert fragment in text
+    assert str(p) in text
+    if line is not None:
+        assert f"{p}:{line}:" in text, text
+
+
+def test_good_file_compiles(tmp_path):
+    p = tmp_path / "good.yaml"
+    p.write_text(GOOD)
+    assert compile_file(p).problem is not None
+
+
+@pytest.mark.parametrize("desc,change,line,fragment", CASES[:6], ids=[c[0] for c in CASES[:6]])
+def test_cli_exit_code_and_no_run_folder(tmp_path, desc, change, line, fragment):
+    p = tmp_path / "bad.yaml"
+    p.write_text(GOOD.replace(*change, 1))
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(p), "--out", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert fragment in proc.stderr
+    assert not out.exists()
+    assert not any(tmp_path.glob(".run*")), "no half-written folder left beside it"
+
+
+def test_check_command(tmp_path):
+    p = tmp_path / "good.yaml"
+    p.write_text(GOOD)
+    proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "check", str(p)], capture_output=True, text=True)
+    assert proc.returncode == 0 and "ok" in proc.stdout
