@@ -178,8 +178,6 @@ def run_controllers(model: Model, spec_list: Sequence[ControllerSpec | dict],
             continue
         t_sym = time.perf_counter() - ts
         for one in spec.expand():
-            p = dict(parameters or {})
-            p.update(plant_parameters or {})
             results.append(run_one(model, one, one.type, sdc, num, parameters, one.name, t_sym))
             results[-1].extra["plant_parameters"] = {str(k): float(v) for k, v in (plant_parameters or {}).items()}
     return results
