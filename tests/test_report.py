@@ -257,7 +257,7 @@ def test_solved_report_html(runs, solved_report):
     assert re.search(r">stationarity</td>.*?<td class=\"pass\">pass</td>", cert, re.S)
     assert re.search(r">reintegration</td>.*?<td class=\"pass\">pass</td>", cert, re.S)
     assert "per_control.theta.max_abs = 3e−09" in cert
-    assert re.search(r">bang_bang</td>.*?all = no.*?<td class=\"\"></td>", cert, re.S)   # no flag, no verdict
+    assert re.search(r">bang_bang</td>.*?all = no.*?<td class=\"\">—</td>", cert, re.S)   # no flag, no verdict
     assert re.search(r">overall</td>.*?<td class=\"fail\">FAIL</td>", cert, re.S)
     assert "Optimality certificate" in html and "Wall-time breakdown" in html
     # no warnings: every optional part was drawn
