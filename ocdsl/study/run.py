@@ -480,15 +480,22 @@ def run_study(problem_path: str | os.PathLike, out_dir: str | os.PathLike, *,
     with their status and message. Ctrl-C leaves the study resumable and re-raises.
     """
     loaded = load_study(problem_path)
-    if point_fn is None:
-        _check_problem(loaded.problem_path)
-    return run_points(loaded.problem_path, out_dir, loaded.points, workers=workers,
-                      serial=serial, scheduler=scheduler, resume=resume, quiet=quiet,
-                      point_fn=point_fn,
-                      info={"name": loaded.spec.name or loaded.study_path.stem,
-                            "study_file": str(loaded.study_path),
-                            "spec": loaded.spec.model_dump(mode="json", by_alias=True,
-                                                           exclude_none=True)})
+    # connect first: an unreachable scheduler is reported within its timeout
+    ex = Executor(workers=workers, serial=serial, scheduler=scheduler)
+    try:
+        if point_fn is None:
+            _check_problem(loaded.problem_path)
+        res = run_points(loaded.problem_path, out_dir, loaded.points, resume=resume,
+                         quiet=quiet, point_fn=point_fn, executor=ex,
+                         info={"name": loaded.spec.name or loaded.study_path.stem,
+                               "study_file": str(loaded.study_path),
+                               "spec": loaded.spec.model_dump(mode="json", by_alias=True,
+                                                              exclude_none=True)})
+    except BaseException:
+        ex.close(kill=True)
+        raise
+    ex.close()
+    return res
 
 
 def run_points(problem_path: str | os.PathLike, out_dir: str | os.PathLike,
