@@ -151,6 +151,31 @@ def math_image(latex: str, fontsize: float = 11.5, dpi: int = 220) -> dict | Non
     return None
 
 
+_FUNCS = {"sin", "cos", "tan", "exp", "log", "sinh", "cosh", "tanh", "arcsin", "arccos", "arctan", "min", "max"}
+
+
+def text_to_latex(text: str) -> str:
+    """A constraint as written (``x(tf) == 2``, ``0 <= u <= 1``, ``v**2 + w``) as mathtext,
+    for files that give no LaTeX; the report falls back to the text if mathtext refuses it."""
+    s = str(text)
+    s = re.sub(r"\*\*\s*(\w+(?:\.\d+)?|\([^()]*\))", lambda m: "^{%s}" % m.group(1).strip("()"), s)
+
+    def ident(m: re.Match) -> str:
+        w = m.group(0)
+        if w in ("t0", "tf"):
+            return "t_{%s}" % w[1:]
+        if w in _FUNCS:
+            return "\\" + w
+        if w == "sqrt":
+            return r"\mathrm{sqrt}"
+        return F.tex_name(w)
+
+    s = re.sub(r"(?<![\\\w])[A-Za-z_]\w*", ident, s)
+    for a, b in (("==", "="), ("<=", r" \leq "), (">=", r" \geq "), ("!=", r" \neq "), ("*", r" \cdot ")):
+        s = s.replace(a, b)
+    return s
+
+
 def _dynamics_latex(state: str, latex: str) -> str:
     s = latex.strip().strip("$")
     if re.search(r"(?<![<>\\])=", s) or s.startswith(("\\dot", "\\frac{d")):
@@ -255,10 +280,14 @@ def _problem_section(doc: Doc, res: Result) -> None:
         where = f" — phase {pname}" if multi else ""
         dyn = [(_dynamics_latex(s, lt), f"d{s}/dt = {lt}", "") for s, lt in (info.get("dynamics_latex") or {}).items()]
         doc.guard("dynamics", lambda: doc.equations(b, "Dynamics" + where, dyn))
+        exprs = [(f"{F.tex_name(k)} = {lt}", f"{k} = {lt}", "") for k, lt in (info.get("expressions_latex") or {}).items()]
+        if exprs:
+            doc.guard("expressions", lambda: doc.equations(b, "Expressions" + where, exprs))
         texts = list(info.get("constraints") or [])
         lats = list(info.get("constraints_latex") or [])
         n = max(len(texts), len(lats))
-        cons = [(lats[i] if i < len(lats) else "", texts[i] if i < len(texts) else "", "") for i in range(n)]
+        cons = [(lats[i] if i < len(lats) and lats[i] else text_to_latex(texts[i]) if i < len(texts) else "",
+                 texts[i] if i < len(texts) else "", "") for i in range(n)]
         times = []
         for k, sym in (("t0", "t_0"), ("tf", "t_f")):
             v = info.get(k)
@@ -299,7 +328,11 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
     doc.table(b, doc.guard("phases table", lambda: T.phases_table(res)))
     doc.table(b, doc.guard("expect table", lambda: T.expect_table(res)))
     doc.table(b, doc.guard("certificate table", lambda: T.certificate_table(res.certificate)))
+    doc.table(b, doc.guard("multi-start table", lambda: T.starts_table(res)))
     doc.table(b, doc.guard("back-end table", lambda: T.extra_table(res)))
+    hist = (res.extra or {}).get("ipopt_history")
+    if hist:
+        doc.guard("solver history", lambda: doc.figures(b, F.fig_solver_history(hist)))
 
 
 def _figures_section(doc: Doc, res: Result) -> None:
@@ -594,10 +627,11 @@ def build_comparison_html(run_dirs: Sequence[str | os.PathLike], title: str | No
             _problem_section(sub, results[0])
             _append(doc, sub, "Problem (common to the runs; values of the first run)")
     if not title:
-        if studies and len(studies) == 1:
+        inputs = [Path(x).name for x in ([run_dirs] if isinstance(run_dirs, (str, os.PathLike)) else run_dirs)]
+        if studies and len(inputs) == 1:
             title = f"Study {studies[0][0].name}"
         else:
-            title = "Comparison of " + ", ".join(labels[:4]) + (" …" if len(labels) > 4 else "")
+            title = "Comparison of " + ", ".join(inputs[:5]) + (f" and {len(inputs) - 5} more" if len(inputs) > 5 else "")
     n_good = sum(r.status in GOOD for r in results)
     meta = [("runs", str(len(results))), ("converged", f"{n_good} of {len(results)}")]
     return _render(doc, title, "", meta, n_good == len(results) and bool(results))

@@ -26,6 +26,7 @@ DPI = 150
 MAX_PANELS = 8      # panels per figure; more are split into several figures
 MAX_LEGEND = 10
 HAMILTONIAN_KEYS = ("H", "hamiltonian")
+FLAG_COLUMNS = ("collocated", "node", "segment", "mesh_segment")   # bookkeeping, not drawn
 
 STYLE = {
     "font.family": "serif",
@@ -233,7 +234,7 @@ def _phase_series(res: Result, attr: str, prefix: str = "") -> list[tuple[str, S
             if n not in names:
                 names.append(n)
     multi = len(res.phases) > 1
-    return [(prefix + n, [(p.name if multi else res.name, p.time, getattr(p, attr)[n])
+    return [(prefix + n, [(p.name if multi else "solution", p.time, getattr(p, attr)[n])
                           for p in res.phases if n in getattr(p, attr)]) for n in names]
 
 
@@ -289,7 +290,7 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
     def ham(p: PhaseTrajectory):
         return next((p.extra[k] for k in HAMILTONIAN_KEYS if k in p.extra), None)
 
-    series = [(p.name if multi else res.name, p.time, ham(p)) for p in res.phases if ham(p) is not None]
+    series = [(p.name if multi else "solution", p.time, ham(p)) for p in res.phases if ham(p) is not None]
     if series:
         out += _grid_figures("hamiltonian", "Hamiltonian H along the solution "
                              "(constant for an autonomous problem, −1 for minimum time with free t_f).",
@@ -300,7 +301,7 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
         names += [k for k in p.extra if k.startswith("dH_d") and k not in names]
     for k in names:
         u = k[len("dH_d"):]
-        grads.append((k, [(p.name if multi else res.name, p.time, p.extra[k]) for p in res.phases if k in p.extra]))
+        grads.append((k, [(p.name if multi else "solution", p.time, p.extra[k]) for p in res.phases if k in p.extra]))
     if grads:
         tex = {k: r"\partial H / \partial %s" % tex_name(k[len("dH_d"):]) for k, _ in grads}
         out += _grid_figures("dHdu", "Gradient of the Hamiltonian with respect to each control "
@@ -342,8 +343,8 @@ def fig_other_extra(res: Result) -> list[Fig]:
     names: list[str] = []
     for p in res.phases:
         names += [k for k in p.extra if k not in names and k not in HAMILTONIAN_KEYS
-                  and not k.startswith(("dH_d", "switch_"))]
-    panels = [(k, [(p.name if multi else res.name, p.time, p.extra[k]) for p in res.phases if k in p.extra])
+                  and k not in FLAG_COLUMNS and not k.startswith(("dH_d", "switch_"))]
+    panels = [(k, [(p.name if multi else "solution", p.time, p.extra[k]) for p in res.phases if k in p.extra])
               for k in names]
     return _grid_figures("other", "Other time histories in the trajectory.", panels,
                          res.problem.get("units") or {}, boundaries=_phase_boundaries(res))
@@ -654,3 +655,24 @@ def fig_compare_runs(results: list[Result]) -> list[Fig]:
             out += _grid_figures(f"cmp-{attr}", f"{what} histories of the compared runs, one colour per run.",
                                  panels, units, _bounds_of(problem, names) if attr == "controls" else None)
     return out
+
+
+@_styled
+def fig_solver_history(history: Sequence[Sequence[float]]) -> list[Fig]:
+    """NLP solver convergence: rows ``(iteration, objective, inf_pr, inf_du)``."""
+    h = np.array([list(r)[:4] for r in history if len(r) >= 4], float)
+    if h.size == 0 or len(h) < 2:
+        return []
+    fig, axes = _new_figure(2, height=2.3)
+    ax = axes[0]
+    for j, lab, c in ((2, "primal infeasibility", "#1f4e9c"), (3, "dual infeasibility", "#c0392b")):
+        y = np.where(h[:, j] > 0, h[:, j], np.nan)
+        ax.semilogy(h[:, 0], y, label=lab, color=c, marker="o", markersize=2)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("infeasibility")
+    ax.legend(fontsize=7, frameon=False)
+    ax = axes[1]
+    ax.plot(h[:, 0], h[:, 1], color="#2a9d55", marker="o", markersize=2)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("NLP objective")
+    return [Fig("solver", "NLP solver convergence: infeasibilities (left) and objective (right) per iteration.", fig)]

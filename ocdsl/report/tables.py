@@ -309,7 +309,25 @@ def certificate_table(cert: Any) -> dict | None:
                  "re-integration).", ["item", "values", "verdict"], rows)
 
 
-def extra_table(res: Result, skip: Iterable[str] = ("mesh_history",)) -> dict | None:
+def starts_table(res: Result) -> dict | None:
+    """Multi-start records (``extra["starts"]``: list of dicts)."""
+    recs = (res.extra or {}).get("starts")
+    if not isinstance(recs, list) or len(recs) < 2 or not all(isinstance(r, dict) for r in recs):
+        return None
+    cols: list[str] = []
+    for r in recs:
+        cols += [k for k in r if k not in cols]
+    best = min((r.get("objective") for r in recs if isinstance(r.get("objective"), (int, float))), default=None)
+    rows = []
+    for r in recs:
+        row = [status_cell(str(r[c])) if c == "status" else cell(r.get(c), None, 10 if c == "objective" else 6)
+               for c in cols]
+        rows.append(row)
+    return table("starts", "Multi-start: every start and its result" +
+                 (f" (best objective {fmt(best, 10)})." if best is not None else "."), cols, rows)
+
+
+def extra_table(res: Result, skip: Iterable[str] = ("mesh_history", "ipopt_history", "starts")) -> dict | None:
     rows = [[cell(k, "name"), cell(v)] for k, v in _flatten({k: v for k, v in (res.extra or {}).items()
                                                              if k not in skip})]
     return table("extra", "Back-end details.", ["item", "value"], rows)
