@@ -73,8 +73,6 @@ class Loaded:
 
     def solve(self, out: str | Path | None = None, *, seed: int | None = None,
               warm_start: str | Path | None = None, verbose: bool = False, progress: bool = False) -> Result:
-        from .run import execute
-
         result = execute(self.file, self.timer, seed=seed, warm_start=warm_start, verbose=verbose,
                          progress=progress)
         if out is not None:
@@ -84,6 +82,17 @@ class Loaded:
 
 def load(path: str | Path, parameters: dict[str, float] | None = None) -> Loaded:
     return Loaded(path, parameters)
+
+
+def execute(file, timer: Timer, **kwargs) -> Result:
+    """Controller files go to the closed-loop back end; the rest to ``ocdsl.run.execute``."""
+    if file.controller is not None:
+        from .control.problem_file import run_controller_file
+
+        return run_controller_file(file, timer)
+    from .run import execute as run_method
+
+    return run_method(file, timer, **kwargs)
 
 
 def write_run(result: Result, out: str | Path, source: Path | None) -> Path:
@@ -103,8 +112,6 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     """
     timer = Timer()
     file = compile_file(path, parameters, timer)
-    from .run import execute
-
     try:
         result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=not quiet)
     except SpecError:

@@ -38,6 +38,8 @@ class LoadedFile:
     method: Any                                   # validated method spec
     expect: dict[str, sp.Expr] = field(default_factory=dict)
     parameters: dict[str, float] = field(default_factory=dict)   # constants in force
+    model: Model | None = None                                   # controller files: the plant
+    controller: Any = None                                       # validated ControllerSpec
 
 
 def load(path: str | Path, parameters: dict[str, float] | None = None) -> LoadedFile:
@@ -142,13 +144,33 @@ class _Compiler:
                 e = self.guarded(("expect", key), self.parse_expect, key, problem)
                 if e is not None:
                     expect[key] = e
+        model = controller = None
+        if spec.controller is not None and problem is None:
+            self.used_overrides = set()
+            self.constants_in_force = {}
+            model = self.model(spec.model, ("model",)) if spec.model else None
+            controller = self.guarded_pydantic(("controller",), "ocdsl.spec.controller", "ControllerSpec",
+                                               spec.controller)
         unused = set(self.overrides) - self.used_overrides if hasattr(self, "used_overrides") else set()
         if unused:
             self.issue((), f"parameters given on the command line or by a study are not in the file: {sorted(unused)}", "")
         if self.issues:
             raise SpecError(self.issues)
         return LoadedFile(self.path, self.located, spec, problem, method, expect,
-                          getattr(self, "constants_in_force", {}))
+                          getattr(self, "constants_in_force", {}), model, controller)
+
+    def guarded_pydantic(self, loc: tuple, module: str, cls: str, data):
+        """Validate a block with a back end's pydantic class, errors at their file lines."""
+        import importlib
+
+        klass = getattr(importlib.import_module(module), cls)
+        try:
+            return klass.model_validate(data)
+        except pydantic.ValidationError as e:
+            for err in e.errors():
+                err = dict(err, loc=loc + tuple(err["loc"]))
+                self.issues.append(_issue_from_pydantic(self.located, err))
+        return None
 
     def build_problem(self) -> Problem:
         spec = self.spec
