@@ -66,6 +66,11 @@ def test_decision_vector_layout():
     lo, hi, is_int = pp.bounds()
     assert is_int.tolist() == [True] + [False] * 29
     assert pp.y0[1] == pytest.approx(2 * np.pi - 2)     # theta(t0) in [0, 2 pi)
+    X = lo + np.random.default_rng(0).random((6, len(lo))) * (hi - lo)
+    X[:, 0] = np.round(X[:, 0])
+    serial = pp.final(X, parallel=False)
+    threaded = pp.final(X, parallel=True)
+    assert np.array_equal(serial[0], threaded[0]) and np.array_equal(serial[1], threaded[1])
 
 
 PAPER = {10: (5, 1.8265), 5: (10, 3.024), 2: (25, 6.873)}
