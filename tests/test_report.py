@@ -413,3 +413,47 @@ def test_failed_and_study_pdf(runs, tmp_path):
     pdf2 = make_comparison_report([runs["study"], runs["pareto"]], tmp_path / "cmp", formats=("pdf",))[0]
     text2 = subprocess.run([PDFTOTEXT, str(pdf2), "-"], capture_output=True, text=True).stdout
     assert "Pareto front" in text2 and "Compared runs" in text2
+
+
+def multiphase_result() -> Result:
+    phases = []
+    for name, (a, b) in (("ascent", (0.0, 1.0)), ("coast", (1.0, 2.5))):
+        t = np.linspace(a, b, 21)
+        phases.append(PhaseTrajectory(name, t, {"x": np.cos(t), "y": np.sin(t), "z": t ** 2},
+                                      {"u": np.full_like(t, 1.0 if name == "ascent" else 0.0)}))
+    info = {"states": ["x", "y", "z"], "controls": ["u"], "dynamics_latex": {"x": "- y", "y": "x", "z": "2 t"},
+            "bounds": {"u": [0, 1]}, "constraints": ["x(t0) == 1"], "constraints_latex": [],
+            "t0": 0.0, "tf": "free"}
+    prob = {"name": "two_phase", "phases": {"ascent": info, "coast": dict(info, t0="free")},
+            "units": {"x": "km", "y": "km", "z": "km"}, "positions": ["x", "y", "z"],
+            "objective": {"sense": "minimize", "text": "tf", "latex": "t_f"}, "links": ["x(ascent.tf) == x(coast.t0)"]}
+    return Result(name="two_phase", status="acceptable", objective=2.5, tf={"ascent": 1.0, "coast": 2.5},
+                  phases=phases, problem=prob,
+                  tables={"mesh_history": {"iteration": np.array([0, 0, 0, 1, 1, 1, 1.0]),
+                                           "t": np.array([0.2, 1.0, 2.0, 0.1, 0.5, 1.2, 2.2]),
+                                           "error": np.array([1e-3, 2e-2, 5e-3, 1e-6, 3e-7, 2e-6, 8e-7])}})
+
+
+def test_multiphase_report(tmp_path):
+    run = multiphase_result().write(tmp_path / "mp")
+    assert (run / "trajectory_ascent.csv").is_file()
+    html = make_report(run, formats=("html",))[0].read_text()
+    assert_self_contained(html)
+    assert "Phases of the solution" in html and ">ascent</td>" in html and ">coast</td>" in html
+    assert "Trajectory in the (x, y, z) space" in html
+    assert "error per segment against time" in html
+    assert "x(ascent.tf) == x(coast.t0)" in html          # phase link shown as written
+    assert 'class="badge pass"' in html                   # 'acceptable' counts as converged
+    figs = figure_images(html)
+    assert len(figs) == 4 and all(not_blank(f) for f in figs)
+    assert "could not be drawn" not in html
+
+
+@need_chromium
+@need_poppler
+def test_chromium_pdf_engine(runs, tmp_path):
+    pdf = make_report(runs["failed"], formats=("pdf",), out_dir=tmp_path, engine="chromium")[0]
+    text = subprocess.run([PDFTOTEXT, str(pdf), "-"], capture_output=True, text=True).stdout
+    assert "Diagnosis" in text and "Table 1." in text and "local infeasibility" in text
+    with pytest.raises(B.ReportError, match="unknown PDF engine"):
+        make_report(runs["failed"], formats=("pdf",), out_dir=tmp_path, engine="latex")
