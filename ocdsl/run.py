@@ -16,6 +16,11 @@ def execute(file: LoadedFile, timer, *, seed: int | None = None, warm_start: str
             verbose: bool = False, progress: bool = False) -> Result:
     method = file.method
     if isinstance(method, PseudospectralMethod):
+        if method.mesh is not None:
+            from .solve.mesh_refinement import solve_adaptive
+
+            return solve_adaptive(file, timer, seed=seed, warm_start=warm_start, verbose=verbose,
+                                  progress=progress)
         return solve_pseudospectral(file, timer, seed=seed, warm_start=warm_start, verbose=verbose,
                                     progress=progress)
     from .methods import runner
@@ -64,33 +69,12 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         records.append({"start": i, "seed": s, "status": info.status, "objective": info.objective,
                         "iterations": info.iterations, "solve_time_s": round(info.solve_time, 4)})
         if _better(info, best, problem.objective.sense):
-            best, best_tr = info, tr
-            if i < starts - 1:
-                best_values = _snapshot(tr)
-        elif best_tr is not None and i < starts - 1:
-            pass
-    if starts > 1:
-        _restore(best_tr, best_values) if best_tr is not None and 'best_values' in locals() else None
+            best, best_tr = info, tr      # each start builds its own model, which keeps its values
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
     result.wall_time_s = timer.breakdown()
     return result
-
-
-def _snapshot(tr) -> dict:
-    import pyomo.environ as pyo
-
-    vals = {v: v.value for v in tr.model.component_data_objects(pyo.Var)}
-    duals = dict(tr.model.dual.items())
-    return {"vars": vals, "duals": duals}
-
-
-def _restore(tr, snap) -> None:
-    for v, val in snap["vars"].items():
-        v.set_value(val, skip_validation=True)
-    tr.model.dual.clear()
-    tr.model.dual.update(snap["duals"])
 
 
 def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
@@ -124,7 +108,7 @@ def _certify(file: LoadedFile, result: Result) -> None:
     if result.status not in ("optimal", "acceptable"):
         return
     try:
-        from .solve.certificate import certify_result
+        from .solve.certify import certify_result
     except ImportError:
         return
     try:

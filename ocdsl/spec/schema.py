@@ -95,10 +95,24 @@ class ProblemSpec(Strict):
 
 
 class MeshSpec(Strict):
-    tolerance: float = Field(1e-6, gt=0)
-    max_iterations: int = Field(10, ge=1)
-    min_degree: int = Field(3, ge=1)
-    max_degree: int = Field(12, ge=2)
+    """Adaptive mesh refinement (docs/mesh-refinement.md). The starting mesh is the method's
+    ``segments``/``degree`` when given there, else this block's ``segments``/``degree``."""
+
+    tolerance: float = Field(1e-6, gt=0, description="largest relative error per segment")
+    max_iterations: int = Field(10, ge=1, description="mesh iterations (solves) at most")
+    min_degree: int = Field(3, ge=1, description="degree of new segments")
+    max_degree: int = Field(12, ge=2, description="above it a segment is split")
+    segments: Union[int, list[float]] = Field(2, description="starting mesh when the method gives none")
+    degree: Union[int, list[int]] = Field(3, description="starting degree when the method gives none")
+    bracket_pieces: int = Field(2, ge=1, le=10, description="pieces a switch bracket is cut into")
+    corner_tolerance: float = Field(1e-5, gt=0, description="a located control corner farther than this "
+                                    "(normalised time) from a breakpoint keeps refining")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.min_degree > self.max_degree:
+            raise ValueError(f"min_degree {self.min_degree} > max_degree {self.max_degree}")
+        return self
 
 
 class PseudospectralMethod(Strict):
