@@ -12,7 +12,8 @@ setup:
 demo: setup
 	$(VENV)/bin/ocdsl run configs/double_integrator.yaml --out runs/demo
 
-test: setup
+test:
+	@APT_EXTRA="chromium poppler-utils" ./scripts/setup.sh
 	$(PY) -m pytest -q -m "not slow" -n 2 --timeout 600
 
 bench: setup

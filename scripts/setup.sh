@@ -29,8 +29,9 @@ fi
 stamp="$VENV/.ocdsl-installed-$EXTRAS"
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   echo "setup: installing ocdsl[$EXTRAS] into $VENV"
-  "$VENV/bin/python" -m pip install -q --upgrade pip
-  "$VENV/bin/python" -m pip install -q -e ".[$EXTRAS]"
+  # this machine's pip config names local mirrors that may be absent: hide those warnings only
+  "$VENV/bin/python" -m pip install -q --upgrade pip 2>&1 | { grep -v "is ignored: it is neither" || true; }
+  "$VENV/bin/python" -m pip install -q -e ".[$EXTRAS]" 2>&1 | { grep -v "is ignored: it is neither" || true; }
   touch "$stamp"
 fi
 
