@@ -181,12 +181,18 @@ def report(run_dirs, out):
 
 
 def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
-    from .report.build import make_comparison_report, make_report
+    from .report.build import ReportError, make_comparison_report, make_report
 
-    if len(run_dirs) == 1 and out is None:
-        files = make_report(run_dirs[0])
-    else:
-        files = make_comparison_report(run_dirs, out or run_dirs[0].parent / "comparison")
+    try:
+        if len(run_dirs) == 1 and out is None:
+            single = run_dirs[0]
+            # a study folder (no result.json of its own) gets a comparison report inside it
+            files = make_report(single) if (single / "result.json").exists() else \
+                make_comparison_report([single], single)
+        else:
+            files = make_comparison_report(run_dirs, out or run_dirs[0].parent / "comparison")
+    except ReportError as e:
+        raise click.ClickException(str(e)) from None
     for f in files:
         click.echo(f"wrote {f}")
 

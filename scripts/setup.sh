@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PY=${PYTHON:-python3.11}
 EXTRAS=${EXTRAS:-dev}
-APT_PKGS="libamplsolver-dev cmake g++ ${APT_EXTRA:-}"
+# ASL for PyNumero; pango/harfbuzz/fonts for WeasyPrint (PDF reports)
+APT_PKGS="libamplsolver-dev cmake g++ libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz-subset0 fonts-dejavu-core ${APT_EXTRA:-}"
 
 need_apt=""
 for p in $APT_PKGS; do
