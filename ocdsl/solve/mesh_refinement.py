@@ -439,7 +439,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     # relaxation of the bounds, its stopping tolerance) is what the estimate measures
     options.setdefault("tol", min(1e-8, 1e-2 * spec.tolerance))
     options.setdefault("bound_relax_factor", min(1e-8, 1e-3 * spec.tolerance))
-    history, tables = [], {k: [] for k in ("iteration", "phase", "segments", "degrees", "nlp_variables",
+    history, tables = [], {k: [] for k in ("iteration", "phase", "segments", "min_degree", "max_degree", "nlp_variables",
                                           "nlp_constraints", "ipopt_iterations", "objective",
                                           "max_error", "max_error_segment", "max_error_t", "time_s")}
     best = None          # (max_error, iteration, tr, info, meshes, errors)
@@ -475,9 +475,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             es = errors[ph.name]
             w = max(es, key=lambda e: e.error) if es else None
             tables["iteration"].append(it)
-            tables["phase"].append(ph.name)
+            tables["phase"].append(problem.phases.index(ph))
             tables["segments"].append(m.segments)
-            tables["degrees"].append(" ".join(map(str, m.degrees)))
+            tables["min_degree"].append(min(m.degrees))
+            tables["max_degree"].append(max(m.degrees))
             tables["nlp_variables"].append(info.nlp.get("variables", 0))
             tables["nlp_constraints"].append(info.nlp.get("constraints", 0))
             tables["ipopt_iterations"].append(info.iterations)
@@ -531,11 +532,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.message = message
     result.iterations = sum(h["ipopt_iterations"] for h in history)
     err_tab = {k: [] for k in ("phase", "segment", "t_start", "t_end", "degree", "error",
-                               "discrepancy", "violation", "state", "nonsmooth")}
+                               "discrepancy", "violation", "nonsmooth")}
+    names = [ph.name for ph in problem.phases]
     for es in errors_c.values():
         for e in es:
             for key in err_tab:
-                err_tab[key].append(getattr(e, key))
+                v = getattr(e, key)
+                err_tab[key].append(names.index(v) if key == "phase" else float(v))
     result.extra["mesh_history"] = history
     result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
                             "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),

@@ -1,0 +1,122 @@
+"""Adaptive mesh refinement (issue 12): ocdsl/solve/mesh_refinement.py on configs/mesh_*.yaml."""
+import numpy as np
+import pytest
+
+import ocdsl
+from ocdsl.api import compile_file
+from ocdsl.result import Result
+
+pytestmark = pytest.mark.ipopt
+
+
+def _solve(configs, name, **override):
+    loaded = ocdsl.load(configs / name)
+    for k, v in override.items():
+        setattr(loaded.file.method.mesh, k, v)
+    return loaded.solve()
+
+
+def _breakpoints(res, phase="main"):
+    ph = res.phase(phase)
+    t0, tf = ph.time[0], ph.time[-1]
+    return t0 + (tf - t0) * np.asarray(res.method["meshes"][phase]["breakpoints"])
+
+
+def _uniform_nlp_size(configs, name, accurate, segments_list, degree=3):
+    """Variables of the smallest uniform mesh (degree ``degree``) for which ``accurate(result)``."""
+    from ocdsl.api import Timer
+    from ocdsl.run import solve_pseudospectral
+    from ocdsl.transcribe.mesh import Mesh
+
+    f = compile_file(configs / name)
+    tol = f.method.mesh.tolerance   # the Ipopt settings the adaptive run uses, for a fair comparison
+    f.spec.solver.options.setdefault("tol", min(1e-8, 1e-2 * tol))
+    f.spec.solver.options.setdefault("bound_relax_factor", min(1e-8, 1e-3 * tol))
+    for n in segments_list:
+        meshes = {ph.name: Mesh.uniform(f.method.transcription, n, degree) for ph in f.problem.phases}
+        r = solve_pseudospectral(f, Timer(), meshes=meshes)
+        if r.status in ("optimal", "acceptable") and accurate(r):
+            return n, r.nlp["variables"]
+    return None, None
+
+
+def test_double_integrator_from_2x3(configs, tmp_path):
+    res = _solve(configs, "mesh_double_integrator.yaml")
+    assert res.status == "optimal", res.message
+    assert abs(res.tf - 2.0) <= 1e-8
+    assert len(res.extra["mesh_history"]) <= 8
+    # the switch: the breakpoint where u goes from +1 (every node up to it) to -1 (every node after)
+    t, u = res.phase().time, res["u"]
+    switch = None
+    for tb in _breakpoints(res)[1:-1]:
+        if np.all(np.abs(u[t <= tb] - 1) < 1e-6) and np.all(np.abs(u[t > tb] + 1) < 1e-6):
+            switch = tb
+    assert switch is not None and abs(switch - 1.0) <= 1e-6
+    hist = res.tables["mesh_history"]
+    assert len(hist["iteration"]) == len(res.extra["mesh_history"])
+    assert set(res.tables["mesh_error"]) >= {"t_start", "t_end", "error", "degree"}
+    assert max(res.tables["mesh_error"]["error"]) <= res.extra["mesh"]["tolerance"]
+    res.write(tmp_path / "run")
+    back = Result.read(tmp_path / "run")
+    assert "mesh_history" in back.tables and back.extra["mesh_history"]
+    # smallest uniform degree-3 mesh with the same accuracy: the NLP is not smaller than ours
+    n, size = _uniform_nlp_size(configs, "mesh_double_integrator.yaml",
+                                lambda r: abs(r.tf - 2.0) <= abs(res.tf - 2.0) + 1e-12, [1, 2, 3, 4])
+    assert n is not None and res.nlp["variables"] <= size
+
+
+def test_bryson_denham_arc_ends_on_breakpoints(configs):
+    res = _solve(configs, "mesh_bryson_denham.yaml")
+    assert res.status == "optimal", res.message
+    assert abs(res.objective - 4.0) <= 1e-7
+    bp = _breakpoints(res)
+    for corner in (1 / 3, 2 / 3):
+        assert np.min(np.abs(bp - corner)) <= 1e-4, (corner, bp)
+    # every iteration's history is recorded with where the largest error was
+    for rec in res.extra["mesh_history"]:
+        assert rec["nlp"]["variables"] > 0 and rec["where"] is not None
+
+
+def test_not_converged_is_reported(configs):
+    res = _solve(configs, "mesh_bryson_denham.yaml", max_iterations=2)
+    assert res.status == "mesh_not_converged"
+    assert "did not reach the tolerance" in res.message and "segment" in res.message
+    assert len(res.extra["mesh_history"]) == 2
+    # the error map of the returned (best) mesh is there and shows segments above tolerance
+    err = res.tables["mesh_error"]["error"]
+    assert np.max(err) > res.extra["mesh"]["tolerance"]
+    assert res.extra["mesh"]["error_map"]["main"]
+    assert not res.extra["mesh"]["converged"]
+
+
+@pytest.mark.slow
+def test_bryson_denham_smaller_than_uniform(configs):
+    res = _solve(configs, "mesh_bryson_denham.yaml")
+    err = abs(res.objective - 4.0)
+    n, size = _uniform_nlp_size(configs, "mesh_bryson_denham.yaml",
+                                lambda r: abs(r.objective - 4.0) <= err, range(1, 80))
+    assert n is not None and res.nlp["variables"] < size, (res.nlp, n, size)
+
+
+@pytest.mark.slow
+def test_moon_landing(configs):
+    res = _solve(configs, "mesh_moon_landing.yaml")
+    J = 1.4203125990
+    assert res.status == "optimal", res.message
+    assert abs(res.objective - J) / J <= 1e-6
+    t, T = res.phase().time, res["T"]
+    coast = t[np.abs(T) < 1e-6]
+    burn = t[np.abs(T - 1.227) < 1e-6]
+    last_coast, first_burn = coast.max(), burn[burn > coast.max()].min()
+    assert last_coast <= 0.2392591086 <= first_burn
+    assert first_burn - last_coast <= 1e-3
+    err = abs(res.objective - J)
+    n, size = _uniform_nlp_size(configs, "mesh_moon_landing.yaml",
+                                lambda r: abs(r.objective - J) <= err, [5, 10, 20, 40, 80, 160])
+    assert n is None or res.nlp["variables"] < size, (res.nlp, n, size)
+
+
+@pytest.mark.slow
+def test_goddard(configs):
+    res = _solve(configs, "mesh_goddard.yaml")
+    assert abs(res.objective - 1.0125762700748699) <= 1e-6, (res.status, res.message, res.objective)
