@@ -60,6 +60,8 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet):
     from .api import run_file
 
     out = Path(out) if out else Path("runs") / Path(file).stem
+    if _has_block(file, "pareto"):
+        sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet))
     result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
                               quiet=quiet, verbose=verbose)
     if report:
@@ -67,6 +69,33 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet):
     if not quiet:
         _summary(result, out)
     sys.exit(0 if result.ok else 1)
+
+
+def _has_block(file: str, key: str) -> bool:
+    from .spec.loader import load_yaml
+
+    located = _compile_or_exit(load_yaml, file)
+    return key in located.data
+
+
+def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool) -> int:
+    """A ``pareto:`` file is a study of its own: a table of every solution plus a run per point."""
+    import json
+
+    from .study.pareto_run import run_pareto
+
+    results, table = _compile_or_exit(run_pareto, file, out, parameters=params)
+    if report:
+        _make_reports([out], None)
+    summary = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else {}
+    checks = summary.get("expect", [])
+    if not quiet:
+        flags = table.get("pareto", [])
+        click.echo(f"{len(results)} solutions, {sum(bool(f) for f in flags)} Pareto-optimal; study folder {out}")
+        for c in checks:
+            click.echo(f"  expect {c.get('name')}: {c.get('value')} vs {c.get('reference')} "
+                       f"{'pass' if c.get('passed') else 'FAIL'}")
+    return 0 if results and all(c.get("passed") for c in checks) else 1
 
 
 def _summary(result, out: Path) -> None:
@@ -112,6 +141,12 @@ def check(file):
     """Validate FILE without solving it."""
     from .api import compile_file
 
+    if _has_block(file, "pareto"):
+        from .spec.pareto import load_pareto
+
+        _compile_or_exit(load_pareto, file)
+        click.echo(f"{file}: ok (pareto study)")
+        return
     f = _compile_or_exit(compile_file, file)
     if f.problem is not None:
         for ph in f.problem.phases:

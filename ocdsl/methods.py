@@ -30,7 +30,7 @@ def _load() -> None:
     """Import the optional back ends' spec modules (each registers itself)."""
     import importlib
 
-    for mod in ("ocdsl.spec.parametric", "ocdsl.transcribe.flat_bspline_spec"):
+    for mod in ("ocdsl.spec.parametric", "ocdsl.search.problem_file", "ocdsl.transcribe.flat_bspline_spec"):
         try:
             importlib.import_module(mod)
         except ImportError:

@@ -1,0 +1,32 @@
+"""``method: {transcription: parametric, ...}`` as a runner of the problem-file pipeline."""
+from __future__ import annotations
+
+from ..methods import register_runner
+from ..result import Result
+
+
+def run_parametric_file(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
+    from ..run import check_expectations
+    from .run import run
+
+    with timer.measure("solve"):
+        result = run(file.problem, file.method, progress=progress, seed=seed, name=file.spec.name)
+    values = {}
+    for s, bv in file.problem.boundary_values.items():
+        traj = next((p for p in result.phases if p.name == bv.phase), None)
+        if traj is not None and bv.var.name in traj.states:
+            arr = traj.states[bv.var.name]
+            values[s] = float(arr[0] if bv.which == "t0" else arr[-1])
+    for ph in file.problem.phases:
+        if isinstance(result.tf, (int, float)):
+            values[ph.tf_symbol] = float(result.tf)
+        values[ph.t0_symbol] = float(ph.t0 or 0.0)
+    for s in file.problem.free_parameters:
+        if s.name in result.parameters:
+            values[s] = float(result.parameters[s.name])
+    result.expect = check_expectations(file, values, result.objective)
+    result.wall_time_s = {**result.wall_time_s, **timer.breakdown()}
+    return result
+
+
+register_runner("parametric", run_parametric_file)
