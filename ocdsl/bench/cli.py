@@ -1,0 +1,31 @@
+"""``ocdsl bench FILES...``: each problem file through ``ocdsl run`` and a generated CasADi script.
+
+Imports only click at module level, so registering the command keeps ``ocdsl --help`` fast.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, exists=True))
+@click.option("--runs", type=int, default=3, show_default=True, help="runs of each tool per file (medians)")
+@click.option("--out", type=click.Path(dir_okay=False), default="reports/bench/peers.md", show_default=True)
+@click.option("--scaling", "scaling_file", type=click.Path(dir_okay=False, exists=True), default=None,
+              help="problem file of the build-time scaling series")
+@click.option("--scaling-segments", default="10,20,50,100,200,500,1000,2000", show_default=True)
+@click.option("--series-solve", default="", help="segment counts at which the scaling problem is also solved")
+def bench(files, runs, out, scaling_file, scaling_segments, series_solve):
+    """Compare ocdsl with a CasADi script generated from the same problem (needs `pip install casadi`)."""
+    try:
+        import casadi  # noqa: F401
+    except ImportError:
+        raise click.ClickException("the CasADi comparison needs CasADi: pip install 'ocdsl[bench]'") from None
+    from .peers import main_peers
+
+    seg = [int(k) for k in scaling_segments.split(",") if k.strip()]
+    solve = [int(k) for k in series_solve.split(",") if k.strip()]
+    click.echo(main_peers([Path(f) for f in files], runs, Path(out), Path(scaling_file) if scaling_file else None,
+                          seg, solve))

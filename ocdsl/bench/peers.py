@@ -1,0 +1,222 @@
+"""ocdsl against a CasADi script generated from the same symbolic Problem (``ocdsl bench``).
+
+Each problem file runs as whole processes, alternating ``ocdsl run`` and the generated
+CasADi script, several times; the table gives medians. Both get the same mesh, guess and
+Ipopt options, plus ``print_timing_statistics`` into an output file, from which Ipopt's
+own times, iterations and NLP size are read. Peak memory is the child's maximum RSS.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+from . import ipopt_log
+
+
+def _ocdsl_cmd() -> list[str]:
+    exe = Path(sys.executable).with_name("ocdsl")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "ocdsl.cli"]
+
+
+def _run(cmd: list[str], cwd: Path, env: dict) -> dict:
+    """Wall seconds, CPU seconds and peak RSS (MB) of one child process; its stdout."""
+    out_path = cwd / f"stdout_{time.monotonic_ns()}.txt"
+    with open(out_path, "w") as out:
+        t = time.perf_counter()
+        p = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=subprocess.STDOUT, env=env)
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t
+    p.returncode = os.waitstatus_to_exitcode(status)
+    return {"wall": wall, "cpu": ru.ru_utime + ru.ru_stime, "rss_mb": ru.ru_maxrss / 1024.0,
+            "rc": p.returncode, "stdout": out_path.read_text()}
+
+
+def prepare(problem_file: Path, work: Path, segments: int | None = None) -> tuple[Path, Path, Path, Path]:
+    """The ocdsl problem file and the CasADi script of one case, with Ipopt statistics on."""
+    from ..api import compile_file
+    from .casadi_gen import write_script
+
+    data = yaml.safe_load(problem_file.read_text())
+    if segments is not None:
+        data.setdefault("method", {})["segments"] = segments
+    work.mkdir(parents=True, exist_ok=True)
+    log_o, log_c = work / "ipopt_ocdsl.txt", work / "ipopt_casadi.txt"
+    solver = data.setdefault("solver", {})
+    solver["options"] = {**(solver.get("options") or {}), **ipopt_log.options(log_o)}
+    yml = work / "problem.yaml"
+    yml.write_text(yaml.safe_dump(data, sort_keys=False))
+    file = compile_file(yml)
+    script = write_script(work / "casadi_script.py", file, extra_options=ipopt_log.options(log_c))
+    return yml, script, log_o, log_c
+
+
+def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | None = None) -> dict:
+    yml, script, log_o, log_c = prepare(problem_file, work, segments)
+    env = dict(os.environ)
+    o_runs, c_runs = [], []
+    for i in range(runs):
+        for who in (("o", "c") if i % 2 == 0 else ("c", "o")):
+            if who == "o":
+                out = work / "run"
+                shutil.rmtree(out, ignore_errors=True)
+                r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work, env)
+                res = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else {}
+                r["result"] = res
+                r["ipopt"] = ipopt_log.parse(log_o)
+                o_runs.append(r)
+            else:
+                r = _run([sys.executable, str(script)], work, env)
+                line = next((ln for ln in r["stdout"].splitlines() if ln.startswith("CASADI_RESULT ")), None)
+                r["result"] = json.loads(line.split(" ", 1)[1]) if line else {}
+                r["ipopt"] = ipopt_log.parse(log_c)
+                c_runs.append(r)
+    return {"name": problem_file.stem if segments is None else f"{problem_file.stem} K={segments}",
+            "ocdsl": summarize(o_runs, "ocdsl"), "casadi": summarize(c_runs, "casadi")}
+
+
+def _med(values):
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def summarize(runs: list[dict], who: str) -> dict:
+    s = {"wall": _med([r["wall"] for r in runs]), "cpu": _med([r["cpu"] for r in runs]),
+         "rss_mb": _med([r["rss_mb"] for r in runs]), "rc": [r["rc"] for r in runs]}
+    for key in ("ipopt_wo_fe_s", "ipopt_fe_s", "iterations", "variables", "constraints"):
+        s[key] = _med([r["ipopt"].get(key) for r in runs])
+    ip = [(r["ipopt"].get("ipopt_wo_fe_s") or 0) + (r["ipopt"].get("ipopt_fe_s") or 0) for r in runs]
+    if who == "ocdsl":
+        st = [r["result"].get("wall_time_s", {}) for r in runs]
+        for k in ("parse", "symbolic", "build", "post"):
+            s[k] = _med([w.get(k) for w in st])
+        s["handover"] = _med([w.get("solve", 0) - i for w, i in zip(st, ip)])
+        s["lazy_imports"] = _med([w.get("total", 0) - sum(v for k, v in w.items() if k != "total") for w in st])
+        s["startup"] = _med([r["wall"] - r["result"].get("wall_time_s", {}).get("total", 0) for r in runs])
+        s["status"] = runs[-1]["result"].get("status")
+        s["objective"] = runs[-1]["result"].get("objective")
+    else:
+        res = [r["result"] for r in runs]
+        s["parse"] = s["symbolic"] = s["post"] = s["lazy_imports"] = 0.0
+        s["build"] = _med([x.get("build") for x in res])
+        s["handover"] = _med([x.get("handover", 0) + x.get("solve", 0) - i for x, i in zip(res, ip)])
+        s["startup"] = _med([r["wall"] - sum(x.get(k, 0) for k in ("import", "build", "handover", "solve"))
+                             + x.get("import", 0) for r, x in zip(runs, res)])
+        s["status"] = res[-1].get("status")
+        s["objective"] = res[-1].get("objective")
+    s["outside"] = s["wall"] - ((s["ipopt_wo_fe_s"] or 0) + (s["ipopt_fe_s"] or 0)) if s["wall"] else None
+    return s
+
+
+def _f(v, nd=3):
+    return "-" if v is None else (f"{v:.{nd}f}" if isinstance(v, float) else str(v))
+
+
+def table(cases: list[dict]) -> str:
+    head = ("| problem | tool | vars | cons | iter | Ipopt w/o f-eval | f-eval | start-up+imports | parse | "
+            "symbolic | build | hand-over | post | peak MB | wall (median) | CPU | ratio wall | ratio CPU | objective |")
+    lines = [head, "|" + "---|" * head.count("|")[:-1] if False else "|" + "---|" * (head.count("|") - 1)]
+    for c in cases:
+        o, k = c["ocdsl"], c["casadi"]
+        for who, s in (("ocdsl", o), ("CasADi", k)):
+            ratio_w = f"{o['wall'] / k['wall']:.2f}" if who == "ocdsl" and k["wall"] else ""
+            ratio_c = f"{o['cpu'] / k['cpu']:.2f}" if who == "ocdsl" and k["cpu"] else ""
+            obj = "-" if s["objective"] is None else f"{s['objective']:.10g}"
+            lines.append(
+                f"| {c['name']} | {who} | {_f(s['variables'], 0)} | {_f(s['constraints'], 0)} | "
+                f"{_f(s['iterations'], 0)} | {_f(s['ipopt_wo_fe_s'])} | {_f(s['ipopt_fe_s'])} | "
+                f"{_f((s['startup'] or 0) + (s['lazy_imports'] or 0))} | {_f(s['parse'])} | {_f(s['symbolic'])} | "
+                f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s['rss_mb'], 0)} | "
+                f"{_f(s['wall'])} | {_f(s['cpu'])} | {ratio_w} | {ratio_c} | {obj} ({s['status']}) |")
+    return "\n".join(lines)
+
+
+def scaling(problem_file: Path, segments: list[int], work: Path) -> tuple[str, dict]:
+    """Build + hand-over time (no solve) of ocdsl and of the CasADi script against segments."""
+    import numpy as np
+
+    from ..api import compile_file
+    from ..transcribe.guess import make_guess
+    from ..transcribe.mesh import Mesh
+    from ..transcribe.pseudospectral import build
+    from .casadi_gen import write_script
+
+    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
+
+    file = compile_file(problem_file)
+    problem, method = file.problem, file.method
+    rows = []
+    for K in segments:
+        meshes = {ph.name: Mesh.uniform(method.transcription, K, method.degree) for ph in problem.phases}
+        t = time.perf_counter()
+        guesses = {ph.name: make_guess(problem, ph) for ph in problem.phases}
+        tr = build(problem, meshes, guesses)
+        b = time.perf_counter() - t
+        t = time.perf_counter()
+        nlp = PyomoNLP(tr.model)
+        h = time.perf_counter() - t
+        n = nlp.n_primals()
+        del nlp, tr
+        script = write_script(work / f"scale_{K}.py", file, segments=K)
+        r = _run([sys.executable, str(script), "--no-solve"], work, dict(os.environ))
+        line = next((ln for ln in r["stdout"].splitlines() if ln.startswith("CASADI_RESULT ")), "x {}")
+        cr = json.loads(line.split(" ", 1)[1])
+        rows.append({"K": K, "vars": n, "build": b, "handover": h, "c_build": cr.get("build"),
+                     "c_handover": cr.get("handover"), "c_rss": r["rss_mb"]})
+        print(f"  scaling K={K}: ocdsl build {b:.3f} + hand-over {h:.3f}; CasADi build {cr.get('build')}",
+              file=sys.stderr)
+    Ks = np.array([r["K"] for r in rows], float)
+    fit = {}
+    for key in ("build", "handover", "c_build", "c_handover"):
+        y = np.array([r[key] or np.nan for r in rows], float)
+        ok = np.isfinite(y) & (Ks >= 50) & (y > 0)
+        fit[key] = float(np.polyfit(np.log(Ks[ok]), np.log(y[ok]), 1)[0]) if ok.sum() >= 2 else None
+    lines = ["| segments | NLP variables | ocdsl build | ocdsl hand-over | CasADi build | CasADi nlpsol set-up |",
+             "|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['K']} | {r['vars']} | {r['build']:.3f} | {r['handover']:.3f} | "
+                     f"{_f(r['c_build'])} | {_f(r['c_handover'])} |")
+    lines.append("")
+    lines.append("Fitted exponent of time ~ segments^p over segments >= 50: " + ", ".join(
+        f"{k} p = {_f(v, 2)}" for k, v in fit.items()))
+    return "\n".join(lines), fit
+
+
+def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("reports/bench/peers.md"),
+               scaling_file: Path | None = None, scaling_segments: list[int] | None = None,
+               series_solve: list[int] | None = None) -> str:
+    from .core import machine
+
+    cases = []
+    with tempfile.TemporaryDirectory(prefix="ocdsl-bench-") as tmp:
+        tmp = Path(tmp)
+        for i, f in enumerate(files):
+            print(f"  {f}", file=sys.stderr)
+            cases.append(bench_case(Path(f), tmp / f"case{i}", runs))
+        for K in series_solve or []:
+            print(f"  {scaling_file} K={K}", file=sys.stderr)
+            cases.append(bench_case(Path(scaling_file), tmp / f"series{K}", runs, segments=K))
+        scale_text = ""
+        if scaling_file is not None and scaling_segments:
+            scale_text, _ = scaling(Path(scaling_file), scaling_segments, tmp)
+    text = (f"# ocdsl against a generated CasADi script\n\n{machine()}, {time.strftime('%Y-%m-%d %H:%M')}, "
+            f"{runs} runs each, alternating, medians; seconds.\n\n"
+            "Whole processes. ocdsl: start-up+imports = process wall minus `ocdsl run`'s own total, plus the "
+            "lazy imports inside it (Pyomo, cyipopt); hand-over = solve stage minus Ipopt's own total "
+            "(PyNumero NL writer + ASL + cyipopt set-up); post includes costates, certificate and expect "
+            "checks. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
+            "Ratios are ocdsl/CasADi.\n\n" + table(cases) + "\n")
+    if scale_text:
+        text += f"\n## Scaling: build time against segments ({Path(scaling_file).stem}, no solve)\n\n" + scale_text + "\n"
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+    return text
