@@ -25,8 +25,35 @@ class SolverUnavailable(RuntimeError):
     """Ipopt or PyNumero's ASL library is missing; the message says how to fix it."""
 
 
+def _light_scipy() -> None:
+    """Let Pyomo's first scipy import load only scipy.sparse, not scipy.stats.
+
+    Pyomo registers a callback that, on the first import of scipy anywhere (cyipopt imports
+    it), also imports scipy.stats, spatial and integrate: about 1 s of start-up that the NLP
+    never uses (PyNumero needs scipy.sparse only; SciPy loads other submodules lazily on
+    attribute access). Replaces that callback while it has not run yet; does nothing
+    otherwise or if Pyomo's internals differ.
+    """
+    if "scipy.stats" in sys.modules:
+        return
+    try:
+        from pyomo.common import dependencies as deps
+
+        ind = deps.scipy_available
+        if getattr(ind, "_callback", None) is deps._finalize_scipy:
+            ind._callback = _finalize_scipy_sparse
+    except Exception:  # pragma: no cover - a Pyomo without this hook
+        pass
+
+
+def _finalize_scipy_sparse(module, available) -> None:
+    if available:
+        import scipy.sparse  # noqa: F401
+
+
 def check_available() -> None:
     """Fail early with a fix, instead of Pyomo's opaque AttributeError on AmplInterface."""
+    _light_scipy()
     try:
         import cyipopt  # noqa: F401
     except ImportError as e:
