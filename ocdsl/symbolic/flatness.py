@@ -213,9 +213,14 @@ class FlatMap:
 # ---------------------------------------------------------------------------------------
 # internals
 # ---------------------------------------------------------------------------------------
-def _total_derivative(expr: sp.Expr, functions: Iterable[sp.Symbol], orders: dict) -> sp.Expr:
-    """d/dt of an expression in derivative symbols of ``functions`` (and TIME)."""
+def _total_derivative(expr: sp.Expr, functions: Iterable[sp.Symbol], orders: dict,
+                      rates: Mapping[sp.Symbol, sp.Expr] | None = None) -> sp.Expr:
+    """d/dt of an expression in derivative symbols of ``functions``, TIME and
+    quadrature states (whose rates are given)."""
     out = sp.diff(expr, TIME)
+    for x, fx in (rates or {}).items():
+        if expr.has(x):
+            out += sp.diff(expr, x) * fx
     for y in functions:
         for k in range(orders.get(y, 0) + 1):
             s = derivative_symbol(y, k)
@@ -283,10 +288,8 @@ class _Sampler:
             for k in range(orders.get(y, 0) + 1):
                 values[derivative_symbol(y, k)] = complex(
                     sp.N(self.lie(y, k).xreplace(truth))).real
-        for c, x in constants.items():
-            # x = x_t0 + int_0^t f  ->  x_t0 from the drawn x (f is time/parameter only)
-            integral = sp.integrate(self.f[x], (TIME, 0, TIME))
-            values[c] = truth[x] - float(integral.xreplace({TIME: truth[TIME]}))
+        for x in constants.values():     # quadrature states stay symbols until the end
+            values[x] = truth[x]
         return values, truth
 
 
@@ -313,6 +316,46 @@ def _choose(unknown, candidates, sampler, functions, orders, constants, eq_text)
             f"({', '.join(map(str, candidates))}) is consistent with the bounds given")
     winners = [c for c, s in zip(candidates, score) if s == best]
     return min(winners, key=sp.count_ops)
+
+
+SOLVE_SECONDS = 3
+
+
+def _solve_limited(eqs, unknowns, seconds: int = SOLVE_SECONDS) -> list[dict]:
+    """``sympy.solve(eqs, unknowns, dict=True)``, given up after ``seconds`` (on the
+    main thread of a POSIX process; elsewhere without a limit) or when SymPy cannot."""
+    import signal
+    import threading
+
+    def handler(signum, frame):
+        raise TimeoutError
+
+    limited = hasattr(signal, "SIGALRM") and threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGALRM, handler) if limited else None
+    if limited:
+        signal.alarm(seconds)
+    try:
+        return sp.solve(eqs, unknowns, dict=True)
+    except (NotImplementedError, TimeoutError):
+        return []
+    finally:
+        if limited:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, old)
+
+
+def _solve_linear(eqs: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol]) -> dict | None:
+    """Cramer's rule for a square linear system, keeping the factored form."""
+    try:
+        A, b = sp.linear_eq_to_matrix(list(eqs), list(unknowns))
+    except (sp.polys.polyerrors.PolynomialError, ValueError):
+        return None
+    det = sp.factor_terms(A.det())
+    if det == 0:
+        return None
+    adj = A.adjugate()
+    sol = adj * b
+    return {u: sp.factor_terms(sol[i] / det) for i, u in enumerate(unknowns)}
 
 
 def _trig_angle(eqs: Sequence[sp.Expr], unknowns: set) -> sp.Symbol | None:
@@ -376,7 +419,8 @@ def flatten(model: Model, outputs: Sequence[str] | None = None,
             except FlatnessError as e:
                 errors.append(f"{[s.name for s in combo]}: {e}")
                 continue
-            key = (len(fm.residuals) + len(fm.remaining_states), size, len(fm.residuals))
+            key = (len(fm.residuals) + len(fm.remaining_states), size,
+                   sum(fm.orders.values()), sum(y.name not in model.positions for y in combo))
             if best_key is None or key < best_key:
                 best, best_key = fm, key
         if best is not None and best_key[0] == 0:
@@ -394,6 +438,8 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
     known: dict[sp.Symbol, sp.Expr] = {y: y for y in outputs}
     orders: dict[sp.Symbol, int] = {y: 0 for y in outputs}
     constants: dict[sp.Symbol, sp.Symbol] = {}
+    quad: dict[sp.Symbol, sp.Expr] = {}      # quadrature state -> closed form
+    rates: dict[sp.Symbol, sp.Expr] = {}     # quadrature state -> its rate
     pending = [x for x in model.states]          # equations not yet used
     used: list[str] = []
     residuals: list[Residual] = []
@@ -401,7 +447,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
 
     def current(x: sp.Symbol) -> sp.Expr:
         """Equation x' - f(x, u) = 0 with known quantities substituted."""
-        lhs = _total_derivative(known[x], outputs, orders)
+        lhs = _total_derivative(known[x], outputs, orders, rates)
         return lhs - f[x].xreplace(known)
 
     def unknowns_of(e: sp.Expr) -> set:
@@ -418,7 +464,9 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             if x not in known and not (f[x].free_symbols & unknown_syms):
                 c = sym(f"{x.name}_t0")
                 constants[c] = x
-                known[x] = c + sp.integrate(f[x], (TIME, 0, TIME))
+                quad[x] = c + sp.integrate(f[x], (TIME, 0, TIME))
+                rates[x] = f[x]
+                known[x] = x
                 pending.remove(x)
                 used.append(_eq_name(x))
                 progress = True
@@ -431,10 +479,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             (u,) = unk
             if _trig_angle([e], unk) is not None:
                 continue  # handled with its partner equation (rule 3)
-            try:
-                sols = sp.solve(e, u)
-            except NotImplementedError:
-                sols = []
+            sols = [d[u] for d in _solve_limited(e, [u]) if u in d]
             if not sols:
                 continue
             known[u] = choose(u, sols, f"{_eq_name(x)} = {f[x]}")
@@ -461,25 +506,31 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             unk = [S, C, *sorted(others, key=lambda s: s.name)]
             src = tuple(_eq_name(x) for x in group)
             if len(lin) >= len(unk):        # over-determined: sin^2 + cos^2 = 1 is left over
-                sol = sp.solve(lin[:len(unk)], unk, dict=True)
-                if not sol:
+                sol = _solve_linear(lin[:len(unk)], unk)
+                if sol is None:
                     continue
-                sol = sol[0]
                 rest = [sp.simplify(e.xreplace(sol)) for e in lin[len(unk):]]
                 resid = sol[S] ** 2 + sol[C] ** 2 - 1
                 residuals.append(Residual(resid, "algebraic", src))
                 residuals.extend(Residual(r, "algebraic", src) for r in rest if r != 0)
-            else:                           # use the identity to find the other unknown
-                sol_list = sp.solve([*lin, S ** 2 + C ** 2 - 1], unk, dict=True)
-                if not sol_list:
+            else:
+                # polar pair: sin c and cos c both multiplied by the other unknown o
+                # (x' = v cos psi, y' = v sin psi): solve for P = o S, Q = o C, then
+                # o = +-sqrt(P^2 + Q^2) by the bounds
+                (o,) = others
+                P, Q = sp.Dummy("P"), sp.Dummy("Q")
+                pq = [sp.expand(e.xreplace({S: P / o, C: Q / o})) for e in lin]
+                if any(e.has(o) for e in pq):
                     continue
-                if others:
-                    (o,) = others
-                    o_val = choose(o, [s[o] for s in sol_list], " and ".join(src))
-                    sol = next(s for s in sol_list if sp.simplify(s[o] - o_val) == 0)
-                    known[o] = o_val
-                else:
-                    sol = sol_list[0]
+                sol_pq = _solve_linear(pq, [P, Q])
+                if sol_pq is None:
+                    continue
+                norm = sp.sqrt(sol_pq[P] ** 2 + sol_pq[Q] ** 2)
+                o_val = choose(o, [norm, -norm], " and ".join(src))
+                known[o] = o_val
+                sol = {S: sol_pq[P] / o_val, C: sol_pq[Q] / o_val}
+                if o_val == norm:   # positive factor: atan2 of the numerators only
+                    sol = {S: sol_pq[P], C: sol_pq[Q]}
             known[c] = sp.atan2(sol[S], sol[C])
             for x in group:
                 pending.remove(x)
@@ -494,10 +545,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             unk = unknowns_of(e1) | unknowns_of(e2)
             if len(unk) != 2:
                 continue
-            try:
-                sols = sp.solve([e1, e2], sorted(unk, key=lambda s: s.name), dict=True)
-            except NotImplementedError:
-                sols = []
+            sols = _solve_limited([e1, e2], sorted(unk, key=lambda s: s.name))
             if not sols:
                 continue
             text = f"{_eq_name(x1)} and {_eq_name(x2)}"
@@ -533,9 +581,8 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
         orders[x] = 0
         known[x] = x
     for x in list(pending):
-        e = _total_derivative(known[x], functions, orders) - f[x].xreplace(known)
-        e = sp.simplify(e)
-        if e == 0:
+        e = _total_derivative(known[x], functions, orders, rates) - f[x].xreplace(known)
+        if sp.expand(e) == 0:
             continue
         kind = "differential" if any(e.has(derivative_symbol(r, k)) for r in remaining
                                      for k in range(orders.get(r, 0) + 1)) else "algebraic"
@@ -547,7 +594,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
         final_orders[y] = max([k for k in range(orders.get(y, 0) + 2)
                                if any(e.has(derivative_symbol(y, k)) for e in all_exprs)] or [0])
     def num(e: sp.Expr) -> sp.Expr:
-        return e.xreplace(numbers)
+        return e.xreplace(quad).xreplace(numbers)
 
     return FlatMap(
         model=model, outputs=tuple(outputs), functions=functions, orders=final_orders,
