@@ -66,15 +66,25 @@ class Loaded:
         self.path = Path(path)
         self.timer = Timer()
         self.file = compile_file(path, parameters, self.timer)
+        self._parameters = dict(parameters or {})
 
     @property
     def problem(self):
         return self.file.problem
 
-    def solve(self, out: str | Path | None = None, *, seed: int | None = None,
-              warm_start: str | Path | None = None, verbose: bool = False, progress: bool = False) -> Result:
-        result = execute(self.file, self.timer, seed=seed, warm_start=warm_start, verbose=verbose,
-                         progress=progress)
+    def solve(self, out: str | Path | None = None, *, parameters: dict[str, float] | None = None,
+              seed: int | None = None, warm_start: str | Path | None = None, verbose: bool = False,
+              progress: bool = False) -> Result:
+        """Solve; ``parameters`` re-compiles with other constants without re-reading the file
+        (what a study worker does for each of its points). The handle itself is not changed."""
+        timer, file = Timer(), self.file
+        if parameters:
+            with timer.measure("symbolic"):
+                merged = {**self._parameters, **parameters}
+                file = spec_compile._Compiler(self.path, file.located, file.spec, merged).compile()
+        else:
+            timer.stages.update(self.timer.stages)
+        result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=progress)
         if out is not None:
             write_run(result, out, self.path)
         return result

@@ -55,3 +55,13 @@ def test_run_folder_contract(configs, tmp_path):
     assert len(data["x"]) == len(data["t"]) and data["x"][-1] == pytest.approx(10, abs=1e-6)
     assert set(data.phases[0].costates) == {"x", "y", "v"}
     assert (out / "problem.yaml").read_text() == (configs / "brachistochrone.yaml").read_text()
+
+
+@pytest.mark.ipopt
+def test_resolve_with_other_parameters(configs):
+    """A loaded file re-solved with another g: tf scales as 1/sqrt(g) (same cycloid)."""
+    handle = ocdsl.load(configs / "brachistochrone.yaml")
+    base = handle.solve()
+    other = handle.solve(parameters={"g": 9.81})
+    assert other.tf == pytest.approx(base.tf * (9.80665 / 9.81) ** 0.5, rel=1e-7)
+    assert handle.solve().tf == pytest.approx(base.tf, rel=1e-12)   # the handle is unchanged
