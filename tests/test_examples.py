@@ -39,6 +39,17 @@ def test_published_optimum(configs, tmp_path, name, scheme):
 
 
 @pytest.mark.ipopt
+def test_two_linked_phases(configs):
+    """Links carry states and time across phases; per-phase trajectories and final times."""
+    res = ocdsl.load(configs / "two_phase_double_integrator.yaml").solve()
+    assert res.ok, (res.status, res.expect)
+    assert set(res.tf) == {"accelerate", "brake"}
+    acc, brake = res.phase("accelerate"), res.phase("brake")
+    assert acc.time[-1] == pytest.approx(brake.time[0], abs=1e-9)
+    assert acc.states["v"][-1] == pytest.approx(brake.states["v"][0], abs=1e-9)
+
+
+@pytest.mark.ipopt
 def test_run_folder_contract(configs, tmp_path):
     from ocdsl.api import run_file
     from ocdsl.result import Result

@@ -340,8 +340,9 @@ class _Compiler:
                 self.issue(loc, f"model parameter '{s}' has no value; give it under model: parameters:")
         t0s, tfs = sym(prefix + "t0"), sym(prefix + "tf")
         tf = None if time.tf == "free" else float(time.tf)
-        if tf is not None and tf <= time.t0:
-            self.issue(loc + ("time", "tf"), f"tf = {tf} must be greater than t0 = {time.t0}")
+        t0 = None if time.t0 == "free" else float(time.t0)
+        if tf is not None and t0 is not None and tf <= t0:
+            self.issue(loc + ("time", "tf"), f"tf = {tf} must be greater than t0 = {t0}")
         guess_items = dict(guess.model_extra or {})
         known = {s.name for s in model.states + model.controls} | {p.name for p in self.free}
         for k in guess_items:
@@ -349,7 +350,7 @@ class _Compiler:
                 self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + _did_you_mean(k, known))
         guess_dict = {"values": guess_items, "tf": guess.tf, "from": guess.from_, "random": guess.random,
                       "seed": guess.seed}
-        return Phase(name, model, constants, float(time.t0), tf, t0s, tfs, guess=guess_dict)
+        return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
 
     def scope(self, ph: Phase | None, phases: list[Phase], link: bool = False) -> Scope:
         names: dict[str, sp.Basic] = {}

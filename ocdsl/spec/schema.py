@@ -62,7 +62,7 @@ class ModelSpec(Strict):
 
 
 class TimeSpec(Strict):
-    t0: float = Field(0.0, description="initial time")
+    t0: Union[float, Literal["free"]] = Field(0.0, description="initial time, or `free` (e.g. a later phase linked to the one before)")
     tf: Union[float, Literal["free"]] = Field(..., description="final time, or `free` (bounds as a constraint `lo <= tf <= hi`)")
 
 
