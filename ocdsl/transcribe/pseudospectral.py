@@ -8,6 +8,8 @@ KKT system sets Ipopt's time (../shared/design/transcription-notes.md).
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -48,8 +50,38 @@ def _bound(v: float):
     return None if not math.isfinite(v) else float(v)
 
 
+# Construction fast paths (same NLP, fewer Python objects and passes); tests turn them off
+# to check that the optimum does not move (tests/test_fast_paths.py), reports/bench/levers.md
+# has what each one saves.
+FAST = {
+    # no cyclic garbage collection while the model is built: the collector otherwise walks
+    # every expression object already made, again and again (build time grew ~K^1.6)
+    "no_gc": True,
+    # D @ X as one Pyomo LinearExpression from precomputed monomials, not a sum() that
+    # rebuilds the expression term by term, and variable data looked up once per node
+    "linear_defects": True,
+}
+
+
+@contextlib.contextmanager
+def _gc_paused():
+    if not FAST["no_gc"] or not gc.isenabled():
+        yield
+        return
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
+
+
 def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess]) -> Transcription:
     """Build the Pyomo model of ``problem`` on ``meshes`` (one per phase) from ``guesses``."""
+    with _gc_paused():
+        return _build(problem, meshes, guesses)
+
+
+def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess]) -> Transcription:
     m = pyo.ConcreteModel(name=problem.name)
     m.dual = pyo.Suffix(direction=pyo.Suffix.IMPORT)
     scalars: dict[sp.Symbol, Any] = {}
@@ -168,6 +200,12 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
     L = pyomo_function(args, integrands) if integrands else None
 
     pb = PhaseBlock(ph, lay, b)
+    linear = FAST["linear_defects"]
+    if linear:
+        from pyomo.core.expr.numeric_expr import LinearExpression, MonomialTermExpression
+
+        Xd = [[b.X[n, j] for j in range(nx)] for n in range(N)]
+        Ud = [[b.U[i, j] for j in range(nu)] for i in range(C)]
     defect_exprs: dict[tuple, Any] = {}
     end_exprs: dict[tuple, Any] = {}
     path_list: list = []
@@ -179,15 +217,24 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
         sup = lay.support[k]
         Fk = []
         integral_form = sc.name == "LGL"
+        if linear:
+            Drows = [[(float(sc.D[i, l]), int(sup[l])) for l in range(len(sup)) if sc.D[i, l] != 0.0]
+                     for i in range(sc.D.shape[0])]
         for i, (cn, sn) in enumerate(zip(lay.colloc[k], lay.colloc_state[k])):
             t = b.t0 + duration * float(lay.s_colloc[cn])
-            xs = [b.X[sn, j] for j in range(nx)]
-            us = [b.U[cn, j] for j in range(nu)]
-            vals = xs + us + [t] + params
+            if linear:
+                xs, us = Xd[sn], Ud[cn]
+            else:
+                xs = [b.X[sn, j] for j in range(nx)]
+                us = [b.U[cn, j] for j in range(nu)]
+            vals = list(xs) + list(us) + [t] + params
             Fi = f(*vals)
             Fk.append(Fi)
             for j in range(nx if not integral_form else 0):
-                dx = sum(float(sc.D[i, l]) * b.X[sup[l], j] for l in range(len(sup)) if sc.D[i, l] != 0.0)
+                if linear:
+                    dx = LinearExpression([MonomialTermExpression((c, Xd[n][j])) for c, n in Drows[i]])
+                else:
+                    dx = sum(float(sc.D[i, l]) * b.X[sup[l], j] for l in range(len(sup)) if sc.D[i, l] != 0.0)
                 defect_exprs[(k, i, j)] = dx - scale * Fi[j] == 0
             if g is not None:
                 for c, e in zip(ph.path, g(*vals)):
