@@ -1,0 +1,353 @@
+"""Flat-output B-spline collocation (seed 002): a Pyomo NLP from a :class:`FlatMap`.
+
+Each function of the flat map (the flat outputs, plus any state that could not be
+eliminated) is a clamped B-spline in normalised time ``tau = t / tf`` in [0, 1]; its
+control points are the NLP variables, with ``tf`` of each phase. The residual equations
+of the flat map are collocated at ``n_col`` points; boundary conditions, links and path
+bounds are written on the ORIGINAL states/controls and rewritten through the flat map.
+Derivatives: ``d^k y / dt^k = (B^(k)(tau) c) / tf^k``.
+
+Inputs (kept simple; the problem-file front end maps onto them)
+---------------------------------------------------------------
+:class:`FlatPhase`:
+    ``name``; ``model`` (a :class:`~ocdsl.symbolic.model.Model`); ``outputs`` (state names,
+    or None for the automatic search); ``boundary`` ``{(state, "t0"|"tf"): value}``;
+    ``path_bounds`` ``{name: (lo, hi)}`` on states or controls (for a flat output these
+    bound its control points, which by the convex-hull property bounds the curve; for
+    any other quantity they are inequalities at the collocation points; they also choose
+    solution branches in the flat map); ``tf_bounds``, ``tf_guess``; ``guess``
+    ``{function: callable(tau) -> value | (start, end)}``; ``parameters`` (numbers
+    overriding the model's defaults); ``options`` (:class:`FlatBSplineOptions`).
+``links``: ``[((phase_a, state, "tf"), (phase_b, state, "t0")), ...]`` equalities.
+``objective``: ``"tf"`` (total duration, all phases) or a callable ``f(nlp) -> Pyomo
+expression``.
+
+Variables are scaled: an output with finite bounds (lo, hi) is ``lo + (hi - lo) z`` with
+``z`` in [0, 1] the NLP variable (the seed scales to [0, 1] as well); ``tf`` is
+``tf_guess * s``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+import pyomo.environ as pyo
+import sympy as sp
+
+from ocdsl.symbolic.flatness import FlatMap, derivative_symbol, flatten
+from ocdsl.symbolic.model import TIME, Model
+
+from .bspline import basis_matrix, greville
+
+__all__ = ["FlatBSplineOptions", "FlatPhase", "FlatNLP", "build_flat_bspline", "solve_flat",
+           "PYOMO_FUNCTIONS"]
+
+
+def _atan2(y, x):
+    # half-angle form, exact except on the negative x axis
+    return 2 * pyo.atan(y / (pyo.sqrt(x ** 2 + y ** 2) + x))
+
+
+#: SymPy function names -> Pyomo functions for ``sympy.lambdify``.
+PYOMO_FUNCTIONS = {"sin": pyo.sin, "cos": pyo.cos, "tan": pyo.tan, "asin": pyo.asin,
+                   "acos": pyo.acos, "atan": pyo.atan, "atan2": _atan2, "sqrt": pyo.sqrt,
+                   "exp": pyo.exp, "log": pyo.log, "sinh": pyo.sinh, "cosh": pyo.cosh,
+                   "tanh": pyo.tanh, "Abs": abs, "pi": np.pi, "E": np.e}
+
+
+@dataclass(frozen=True)
+class FlatBSplineOptions:
+    """Options of the flat B-spline transcription.
+
+    degree : spline degree p (order p + 1); the seed uses order 6, i.e. degree 5.
+    n_ctrl : control points per function (seed: 15 = 10 pieces + 5).
+    n_col : collocation points for the residuals (seed: 15).
+    collocation : "uniform" (both ends included) or "interior" (uniform, ends excluded).
+    """
+
+    degree: int = 5
+    n_ctrl: int = 15
+    n_col: int = 15
+    collocation: str = "uniform"
+
+    def __post_init__(self) -> None:
+        if self.collocation not in ("uniform", "interior"):
+            raise ValueError(f"collocation must be 'uniform' or 'interior', not {self.collocation!r}")
+        if self.n_ctrl < self.degree + 1:
+            raise ValueError(f"n_ctrl = {self.n_ctrl} < degree + 1 = {self.degree + 1}")
+        if self.n_col < 1:
+            raise ValueError("n_col must be >= 1")
+
+    def points(self) -> np.ndarray:
+        if self.collocation == "uniform":
+            return np.linspace(0.0, 1.0, self.n_col)
+        return (np.arange(self.n_col) + 0.5) / self.n_col
+
+
+@dataclass
+class FlatPhase:
+    """One phase of a flat B-spline problem (see the module docstring)."""
+
+    name: str
+    model: Model
+    boundary: Mapping[tuple[str, str], float]
+    tf_bounds: tuple[float, float]
+    tf_guess: float
+    outputs: Sequence[str] | None = None
+    path_bounds: Mapping[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    guess: Mapping[str, Any] = field(default_factory=dict)
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    options: FlatBSplineOptions = field(default_factory=FlatBSplineOptions)
+    flatmap: FlatMap | None = None
+
+
+class _PhaseNLP:
+    """The Pyomo pieces of one phase, and evaluation of flat expressions in it."""
+
+    def __init__(self, m: pyo.ConcreteModel, ph: FlatPhase):
+        self.ph = ph
+        self.fm = ph.flatmap or flatten(ph.model, ph.outputs, bounds=ph.path_bounds,
+                                        parameter_values=dict(ph.parameters))
+        fm, opt = self.fm, ph.options
+        self.functions = list(fm.functions)
+        self.max_order = max(fm.orders.values())
+        self.block = b = pyo.Block()
+        m.add_component(ph.name, b)
+        nf, nc = len(self.functions), opt.n_ctrl
+        b.I = pyo.RangeSet(0, nc - 1)
+        self.offset, self.scale = {}, {}
+        for y in self.functions:
+            lo, hi = ph.path_bounds.get(y.name, (None, None))
+            if lo is not None and hi is not None and np.isfinite(lo) and np.isfinite(hi):
+                self.offset[y], self.scale[y] = float(lo), float(hi - lo)
+            else:
+                self.offset[y], self.scale[y] = 0.0, 1.0
+        b.z = pyo.Var(range(nf), b.I, initialize=0.5)
+        for j, y in enumerate(self.functions):
+            lo, hi = ph.path_bounds.get(y.name, (None, None))
+            for i in range(nc):
+                if lo is not None and np.isfinite(lo):
+                    b.z[j, i].setlb((lo - self.offset[y]) / self.scale[y])
+                if hi is not None and np.isfinite(hi):
+                    b.z[j, i].setub((hi - self.offset[y]) / self.scale[y])
+        tf_lo, tf_hi = ph.tf_bounds
+        self.tf_ref = float(ph.tf_guess)
+        b.s = pyo.Var(bounds=(tf_lo / self.tf_ref, tf_hi / self.tf_ref), initialize=1.0)
+        self.tf = self.tf_ref * b.s
+        # integration constants (quadrature states): fixed when a boundary value gives them
+        b.k = pyo.Var(range(len(fm.constants)), initialize=0.0)
+        self.constants = list(fm.constants)
+        for q, c in enumerate(self.constants):
+            x = fm.constants[c]
+            at0 = sp.expand(fm.states[x].xreplace({TIME: 0}))
+            if (x.name, "t0") in ph.boundary and at0 == c:
+                b.k[q].fix(float(ph.boundary[(x.name, "t0")]))
+        self.args = [derivative_symbol(y, k) for y in self.functions
+                     for k in range(self.max_order + 1)] + self.constants + [TIME]
+        self._fns: dict[sp.Expr, Callable] = {}
+        self._initial_guess()
+
+    # -- evaluation ---------------------------------------------------------------
+    def coeff(self, y) -> list:
+        j = self.functions.index(y)
+        return [self.offset[y] + self.scale[y] * self.block.z[j, i] for i in range(self.ph.options.n_ctrl)]
+
+    def values_at(self, tau: float) -> list:
+        """Pyomo expressions for all lambdify arguments at normalised time tau."""
+        opt = self.ph.options
+        out = []
+        for y in self.functions:
+            c = self.coeff(y)
+            for k in range(self.max_order + 1):
+                row = basis_matrix(opt.degree, opt.n_ctrl, [tau], k)[0]
+                expr = sum(float(row[i]) * c[i] for i in range(opt.n_ctrl) if row[i] != 0.0)
+                out.append(expr / self.tf ** k if k else expr)
+        out += [self.block.k[q] for q in range(len(self.constants))]
+        out.append(self.tf * tau)
+        return out
+
+    def fn(self, expr: sp.Expr) -> Callable:
+        if expr not in self._fns:
+            self._fns[expr] = sp.lambdify(self.args, expr, modules=[PYOMO_FUNCTIONS])
+        return self._fns[expr]
+
+    def expr_of(self, name: str) -> sp.Expr:
+        return self.fm.expression(name)
+
+    def at(self, name_or_expr, tau: float):
+        e = self.expr_of(name_or_expr) if isinstance(name_or_expr, str) else name_or_expr
+        return self.fn(e)(*self.values_at(tau))
+
+    # -- guess --------------------------------------------------------------------
+    def _initial_guess(self) -> None:
+        opt, ph = self.ph.options, self.ph
+        tau = np.linspace(0, 1, max(4 * opt.n_ctrl, 50))
+        A = basis_matrix(opt.degree, opt.n_ctrl, tau)
+        for j, y in enumerate(self.functions):
+            g = ph.guess.get(y.name)
+            if g is None:
+                a = ph.boundary.get((y.name, "t0"), 0.0)
+                b_ = ph.boundary.get((y.name, "tf"), a)
+                g = (a, b_)
+            vals = (g[0] + (g[1] - g[0]) * tau) if isinstance(g, (tuple, list)) else np.array([g(t) for t in tau])
+            c, *_ = np.linalg.lstsq(A, vals, rcond=None)
+            for i in range(opt.n_ctrl):
+                z = (c[i] - self.offset[y]) / self.scale[y]
+                v = self.block.z[j, i]
+                if v.lb is not None:
+                    z = max(z, v.lb)
+                if v.ub is not None:
+                    z = min(z, v.ub)
+                v.set_value(float(z))
+        for q, c in enumerate(self.constants):
+            x = self.fm.constants[c]
+            if not self.block.k[q].fixed:
+                self.block.k[q].set_value(float(ph.guess.get(f"{x.name}_t0", 0.0)))
+
+    # -- numbers after the solve -----------------------------------------------------
+    def numeric(self, tau: np.ndarray) -> dict[str, np.ndarray]:
+        """States and controls (and residuals) on a grid of tau after the solve."""
+        opt = self.ph.options
+        tf = pyo.value(self.tf)
+        vals: dict[sp.Symbol, np.ndarray] = {}
+        for y in self.functions:
+            c = np.array([pyo.value(e) for e in self.coeff(y)])
+            for k in range(self.max_order + 1):
+                vals[derivative_symbol(y, k)] = basis_matrix(opt.degree, opt.n_ctrl, tau, k) @ c / tf ** k
+        for q, c in enumerate(self.constants):
+            vals[c] = np.full_like(tau, pyo.value(self.block.k[q]))
+        vals[TIME] = tf * tau
+        argv = [vals[a] for a in self.args]
+        out = {"t": tf * tau}
+        for group in (self.fm.states, self.fm.controls):
+            for s, e in group.items():
+                out[s.name] = np.broadcast_to(sp.lambdify(self.args, e, "numpy")(*argv), tau.shape).astype(float)
+        for i, r in enumerate(self.fm.residuals):
+            out[f"residual_{i}"] = np.broadcast_to(sp.lambdify(self.args, r.expr, "numpy")(*argv), tau.shape).astype(float)
+        return out
+
+
+@dataclass
+class FlatNLP:
+    """The built Pyomo model and what is needed to read the solution back."""
+
+    model: pyo.ConcreteModel
+    phases: dict[str, _PhaseNLP]
+    build_time_s: float
+
+    def size(self) -> dict[str, int]:
+        """Active unfixed variables and active equality/inequality constraint rows."""
+        nv = sum(1 for v in self.model.component_data_objects(pyo.Var, active=True) if not v.fixed)
+        nc = sum(1 for c in self.model.component_data_objects(pyo.Constraint, active=True))
+        neq = sum(1 for c in self.model.component_data_objects(pyo.Constraint, active=True) if c.equality)
+        return {"variables": nv, "constraints": nc, "equalities": neq}
+
+    def tf(self) -> dict[str, float]:
+        return {k: float(pyo.value(p.tf)) for k, p in self.phases.items()}
+
+    def value(self, phase: str, name: str, where: str) -> float:
+        """Value of a state or control at ``where`` in {"t0", "tf"} of ``phase``."""
+        p = self.phases[phase]
+        return float(pyo.value(p.at(name, 0.0 if where == "t0" else 1.0)))
+
+
+def build_flat_bspline(phases: Sequence[FlatPhase], links: Sequence = (),
+                       objective: str | Callable = "tf") -> FlatNLP:
+    """Build the Pyomo ConcreteModel of a (multi-phase) flat B-spline problem."""
+    t_start = time.perf_counter()
+    m = pyo.ConcreteModel(name="flat_bspline")
+    nlps: dict[str, _PhaseNLP] = {}
+    for ph in phases:
+        if ph.name in nlps:
+            raise ValueError(f"phase name {ph.name!r} used twice")
+        p = nlps[ph.name] = _PhaseNLP(m, ph)
+        b, opt = p.block, ph.options
+        taus = opt.points()
+        # residuals at collocation points
+        b.residual = pyo.ConstraintList()
+        for r in p.fm.residuals:
+            for tau in taus:
+                b.residual.add(p.at(r.expr, float(tau)) == 0)
+        # boundary conditions through the flat map
+        b.boundary = pyo.ConstraintList()
+        for (name, where), value in ph.boundary.items():
+            if where not in ("t0", "tf"):
+                raise ValueError(f"phase {ph.name!r}: boundary key ({name!r}, {where!r}) must use 't0' or 'tf'")
+            sym_ = ph.model.symbol(name)
+            if sym_ in p.fm.constants.values():
+                q = p.constants.index(next(c for c, x in p.fm.constants.items() if x == sym_))
+                if where == "t0" and b.k[q].fixed:
+                    continue
+            b.boundary.add(p.at(name, 0.0 if where == "t0" else 1.0) == float(value))
+        # path bounds on non-function quantities, at collocation points
+        b.path = pyo.ConstraintList()
+        fnames = {y.name for y in p.functions}
+        for name, (lo, hi) in ph.path_bounds.items():
+            if name in fnames:
+                continue
+            for tau in taus:
+                e = p.at(name, float(tau))
+                if lo is not None and np.isfinite(lo):
+                    b.path.add(e >= float(lo))
+                if hi is not None and np.isfinite(hi):
+                    b.path.add(e <= float(hi))
+    m.links = pyo.ConstraintList()
+    for (pa, xa, wa), (pb, xb, wb) in links:
+        ea = nlps[pa].at(xa, 0.0 if wa == "t0" else 1.0)
+        eb = nlps[pb].at(xb, 0.0 if wb == "t0" else 1.0)
+        m.links.add(ea == eb)
+    if objective == "tf":
+        m.obj = pyo.Objective(expr=sum(p.tf for p in nlps.values()), sense=pyo.minimize)
+    elif callable(objective):
+        m.obj = pyo.Objective(expr=objective(nlps), sense=pyo.minimize)
+    else:
+        raise ValueError(f"objective must be 'tf' or a callable, not {objective!r}")
+    return FlatNLP(m, nlps, time.perf_counter() - t_start)
+
+
+@dataclass
+class FlatSolution:
+    """Outcome of :func:`solve_flat`."""
+
+    status: str
+    termination: str
+    objective: float
+    tf: dict[str, float]
+    size: dict[str, int]
+    wall_time_s: dict[str, float]
+    trajectories: dict[str, dict[str, np.ndarray]]
+    max_residual_dense: float
+
+
+def solve_flat(nlp: FlatNLP, tee: bool = False, options: Mapping[str, Any] | None = None,
+               n_dense: int = 201) -> FlatSolution:
+    """Solve with Ipopt through Pyomo's ``cyipopt`` interface; sample the trajectories
+    on ``n_dense`` points per phase and report the largest residual between
+    collocation points too (``max_residual_dense``)."""
+    solver = pyo.SolverFactory("cyipopt")
+    opts = {"tol": 1e-9, "max_iter": 3000, "print_level": 5 if tee else 0}
+    opts.update(options or {})
+    for k, v in opts.items():
+        solver.config.options[k] = v
+    t0 = time.perf_counter()
+    res = solver.solve(nlp.model, tee=tee, load_solutions=False)
+    solve_s = time.perf_counter() - t0
+    term = str(res.solver.termination_condition)
+    ok = term in ("optimal", "locallyOptimal", "acceptable")
+    if ok or res.solution:
+        try:
+            nlp.model.solutions.load_from(res)
+        except Exception:  # noqa: BLE001 - no solution to load
+            pass
+    tau = np.linspace(0, 1, n_dense)
+    traj = {k: p.numeric(tau) for k, p in nlp.phases.items()}
+    dense = max([float(np.max(np.abs(v))) for tr in traj.values() for k, v in tr.items()
+                 if k.startswith("residual_")] or [0.0])
+    return FlatSolution(
+        status=("acceptable" if term == "acceptable" else "optimal") if ok
+        else ("max_iter" if "maxIterations" in term else "error"),
+        termination=term, objective=float(pyo.value(nlp.model.obj)), tf=nlp.tf(),
+        size=nlp.size(), wall_time_s={"build": nlp.build_time_s, "solve": solve_s},
+        trajectories=traj, max_residual_dense=dense)
