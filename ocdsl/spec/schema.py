@@ -107,6 +107,13 @@ class MeshSpec(Strict):
     bracket_pieces: int = Field(2, ge=1, le=10, description="pieces a switch bracket is cut into")
     corner_tolerance: float = Field(1e-5, gt=0, description="a located control corner farther than this "
                                     "(normalised time) from a breakpoint keeps refining")
+    snap: float = Field(0.25, ge=0, le=0.5, description="a located switch/corner this close to a breakpoint "
+                        "(fraction of its segment's width) moves that breakpoint onto it instead of a split")
+    coarsen: bool = Field(True, description="once converged, merge segments and lower degrees where a "
+                          "polynomial fits within coarsen_margin * tolerance, and check by solving again")
+    coarsen_margin: float = Field(0.1, gt=0, le=1, description="fit error allowed by coarsening, "
+                                  "as a fraction of tolerance")
+    lowest_degree: int = Field(1, ge=1, description="coarsening lowers a segment's degree down to this")
 
     @model_validator(mode="after")
     def _check(self):
@@ -146,6 +153,27 @@ class PseudospectralMethod(Strict):
 class SolverSpec(Strict):
     name: Literal["ipopt"] = "ipopt"
     options: dict[str, Union[str, int, float]] = Field(default_factory=dict, description="Ipopt options")
+
+    @field_validator("options")
+    @classmethod
+    def _known_options(cls, v):
+        # a misspelt option is an error now, not a warning at solve time
+        import difflib
+
+        known = ipopt_option_names()
+        for name in v:
+            if name not in known:
+                close = difflib.get_close_matches(name, known, n=1)
+                hint = f" (did you mean '{close[0]}'?)" if close else ""
+                raise ValueError(f"unknown Ipopt option '{name}'{hint}")
+        return v
+
+
+def ipopt_option_names() -> list[str]:
+    from importlib.resources import files
+
+    text = files("ocdsl.solve").joinpath("ipopt_options.txt").read_text()
+    return [line.strip() for line in text.splitlines() if line.strip() and not line.startswith("#")]
 
 
 class ExpectItem(Strict):
