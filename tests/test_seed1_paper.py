@@ -34,7 +34,10 @@ def test_short_run_machinery(tmp_path):
     assert abs(res.extra["m_p"] - T_MAX[10] * tf / C) < 1e-6
     # the fitness is tf + the normalised penalties of the reported errors
     ratios = np.array(list(res.extra["terminal_error_over_zeta"].values()))
-    assert res.extra["fitness"] == pytest.approx(tf + np.maximum(ratios - 1, 0).sum(), rel=1e-9)
+    assert res.extra["fitness_final"] == pytest.approx(tf + np.maximum(ratios - 1, 0).sum(), rel=1e-9)
+    # the polish (configured) never makes the swarm's best worse, and keeps tf and N_rev
+    assert res.extra["fitness_final"] <= res.extra["fitness"]
+    assert res.extra["pso_only"]["tf"] == tf
     assert res.status == ("feasible" if np.all(ratios <= 1) else "infeasible")
     h = res.tables["history"]
     assert len(h["best_f"]) == 5 and np.all(np.diff(h["best_f"]) <= 0)
@@ -65,7 +68,7 @@ def test_decision_vector_layout():
     assert len(names) == 30                             # 10 N: 2 + (2*5+1) + (2*8+1)
     lo, hi, is_int = pp.bounds()
     assert is_int.tolist() == [True] + [False] * 29
-    assert pp.y0[1] == pytest.approx(2 * np.pi - 2)     # theta(t0) in [0, 2 pi)
+    assert pp.y0[1] == pytest.approx(-2.0)               # theta(t0): atan2 convention
     X = lo + np.random.default_rng(0).random((6, len(lo))) * (hi - lo)
     X[:, 0] = np.round(X[:, 0])
     serial = pp.final(X, parallel=False)

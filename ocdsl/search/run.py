@@ -55,8 +55,12 @@ def _layout(model, spec) -> tuple[ControlLayout, np.ndarray, np.ndarray]:
         orders.append(c.order)
         size = ControlLayout.size_of(c.series, c.order)
         a0 = c.a0 if c.a0 is not None else c.bounds
-        lo += [a0[0]] + [c.bounds[0]] * (size - 1)
-        hi += [a0[1]] + [c.bounds[1]] * (size - 1)
+        if c.series == "fourier":
+            scale = [k ** -c.decay for k in range(1, c.order + 1)] * 2
+        else:
+            scale = [k ** -c.decay for k in range(1, size)]
+        lo += [a0[0]] + [c.bounds[0] * f for f in scale]
+        hi += [a0[1]] + [c.bounds[1] * f for f in scale]
     return ControlLayout(tuple(kinds), tuple(orders)), np.array(lo), np.array(hi)
 
 
@@ -185,9 +189,19 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         if display:
             display.stop()
     timings["solve"] = time.perf_counter() - t0
+    x_best = res.x
+    pso_only = None
+    if spec.polish.method == "least_squares":
+        t0 = time.perf_counter()
+        d0 = pp.details(res.x)
+        pso_only = {"fitness": res.f, "tf": d0["tf"], "max_error_over_zeta": float(d0["ratio"].max()),
+                    "decision_vector": dict(zip(pp.names(), map(float, res.x)))}
+        x_best, pinfo = polish(pp, res.x, spec.polish)
+        pso_only.update(pinfo)
+        timings["polish"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    det = pp.details(res.x)
-    tr, U = pp.trajectory(res.x)
+    det = pp.details(x_best)
+    tr, U = pp.trajectory(x_best)
     cm = pp.compiled
     states = {n: tr.y[:, i] for i, n in enumerate(cm.state_names) if n != "time"}
     controls = {c.name: U[:, j] for j, c in enumerate(pp.model.controls)}
@@ -199,11 +213,14 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
         "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
         "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
-        "decision_vector": dict(zip(pp.names(), map(float, res.x))),
+        "decision_vector": dict(zip(pp.names(), map(float, x_best))),
+        "fitness_final": det["fitness"],
         "integrator_steps": det["steps"], "seed": settings.seed,
     }
     for n in int_names:
         extra[n] = int(round(det["variables"][n]))
+    if pso_only is not None:
+        extra["pso_only"] = pso_only
     if "m" in cm.state_names:
         mf = float(det["final"][cm.state_names.index("m")])
         extra["m_f"] = mf
@@ -212,7 +229,8 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
     timings["total"] = time.perf_counter() - t_start
     hist = dict(res.history)
     status = "feasible" if feasible else "infeasible"
-    msg = (f"PSO stopped ({res.stop_reason}) after {res.iterations} iterations, {res.n_evals} evaluations; "
+    polished = " and least-squares polish" if pso_only is not None else ""
+    msg = (f"PSO{polished} stopped ({res.stop_reason}) after {res.iterations} iterations, {res.n_evals} evaluations; "
            f"best fitness {res.f:.6g}, tf {det['tf']:.6g}; terminal errors "
            f"{'inside' if feasible else 'NOT inside'} the tolerances (max |e|/zeta {det['ratio'].max() if len(det['ratio']) else 0:.3g})")
     params = {k: float(v) for k, v in pp.parameters.items()}
@@ -221,6 +239,56 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
                   iterations=res.iterations, wall_time_s=timings,
                   method=spec.model_dump(mode="json"), parameters=params, phases=[phase],
                   problem=problem.description, extra=extra, tables={"history": hist})
+
+
+def polish(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, dict]:
+    """Drive the terminal errors / zeta to zero from ``x`` (integers and tf fixed)."""
+    from scipy.optimize import least_squares
+
+    lo, hi, is_int = pp.bounds()
+    free = ~is_int
+    if pp.tf_free:
+        free[len(pp.variables)] = False
+    idx = np.flatnonzero(free)
+    zeta = np.array([t.zeta for t in pp.terminals])
+    width = np.where(hi[idx] > lo[idx], hi[idx] - lo[idx], 1.0)
+    h = settings.fd_step * width
+    n_evals = [0]
+
+    def full(z):
+        X = np.tile(x, (len(z), 1))
+        X[:, idx] = z
+        return X
+
+    def residuals_batch(Z):
+        Yf, status, _, var, tf = pp.final(full(Z))
+        E, _ = pp.errors(Yf, var, tf)
+        n_evals[0] += len(Z)
+        R = E / zeta
+        R[(status < 0) | (status == 2)] = 1e6
+        return R
+
+    def fun(z):
+        return residuals_batch(z[None, :])[0]
+
+    def jac(z):
+        Z = np.vstack([z[None, :], z + np.diag(h)])
+        R = residuals_batch(Z)
+        return ((R[1:] - R[0]) / h[:, None]).T
+
+    z0 = np.clip(x[idx], lo[idx], hi[idx])
+    try:
+        sol = least_squares(fun, z0, jac=jac, bounds=(lo[idx], hi[idx]), x_scale=width,
+                            method="trf", max_nfev=settings.max_iterations)
+        z = sol.x
+        msg = sol.message
+    except Exception as e:  # keep the swarm's best on any failure
+        z, msg = z0, f"polish failed: {e}"
+    out = x.copy()
+    out[idx] = z
+    if pp.fitness(out[None, :])[0] > pp.fitness(x[None, :])[0]:
+        return x, {"polish": "rejected (worse than the swarm's best)", "polish_evaluations": n_evals[0]}
+    return out, {"polish": msg, "polish_evaluations": n_evals[0]}
 
 
 class _Display:

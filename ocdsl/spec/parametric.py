@@ -45,6 +45,7 @@ class SeriesSpec(_Strict):
     order: int = Field(0, description="Fourier order N (a0, a1..aN, b1..bN) or polynomial degree")
     bounds: tuple[float, float] = Field((-1.0, 1.0), description="search box of the coefficients")
     a0: Optional[tuple[float, float]] = Field(None, description="search box of the constant term (default: bounds)")
+    decay: float = Field(0.0, ge=0.0, le=4.0, description="box of the order-n coefficients scaled by n**-decay")
 
     @field_validator("order")
     @classmethod
@@ -122,6 +123,19 @@ class IntegratorSpec(_Strict):
     max_steps: int = Field(200_000, ge=10)
 
 
+class PolishSpec(_Strict):
+    """Optional local polish of the best particle (not in the seed paper; reported apart).
+
+    ``least_squares``: with the integers and tf fixed at the swarm's best, SciPy's
+    trust-region least squares drives the terminal errors / zeta to zero over the
+    continuous coefficients (Jacobian by forward differences, evaluated as one batch).
+    """
+
+    method: Literal["none", "least_squares"] = "none"
+    max_iterations: int = Field(50, ge=1, le=10_000)
+    fd_step: float = Field(1e-6, gt=0.0, le=1e-2, description="forward-difference step, fraction of each box width")
+
+
 class ParametricSpec(_Strict):
     transcription: Literal["parametric"] = "parametric"
     controls: dict[str, SeriesSpec]
@@ -132,6 +146,7 @@ class ParametricSpec(_Strict):
     failure_fitness: float = Field(1e6, description="fitness of a run whose integration failed")
     integrator: IntegratorSpec = Field(default_factory=IntegratorSpec)
     optimizer: PSOSpec = Field(default_factory=PSOSpec)
+    polish: PolishSpec = Field(default_factory=PolishSpec)
     angle_convention: Literal["0_2pi", "atan2"] = "0_2pi"
     output_points: int = Field(2000, ge=10)
     threads: bool = Field(True, description="in-process evaluation over all cores (Numba threads)")
