@@ -335,7 +335,8 @@ def solve_flat(nlp: FlatNLP, tee: bool = False, options: Mapping[str, Any] | Non
     res = solver.solve(nlp.model, tee=tee, load_solutions=False)
     solve_s = time.perf_counter() - t0
     term = str(res.solver.termination_condition)
-    ok = term in ("optimal", "locallyOptimal", "acceptable")
+    # Pyomo maps Ipopt's Solved_To_Acceptable_Level to "feasible"
+    ok = term in ("optimal", "locallyOptimal", "feasible")
     if ok or res.solution:
         try:
             nlp.model.solutions.load_from(res)
@@ -346,7 +347,7 @@ def solve_flat(nlp: FlatNLP, tee: bool = False, options: Mapping[str, Any] | Non
     dense = max([float(np.max(np.abs(v))) for tr in traj.values() for k, v in tr.items()
                  if k.startswith("residual_")] or [0.0])
     return FlatSolution(
-        status=("acceptable" if term == "acceptable" else "optimal") if ok
+        status=("acceptable" if term == "feasible" else "optimal") if ok
         else ("max_iter" if "maxIterations" in term else "error"),
         termination=term, objective=float(pyo.value(nlp.model.obj)), tf=nlp.tf(),
         size=nlp.size(), wall_time_s={"build": nlp.build_time_s, "solve": solve_s},
