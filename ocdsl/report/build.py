@@ -41,6 +41,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ocdsl.result import Result
+from ocdsl.report import derived as D
 from ocdsl.report import figures as F
 from ocdsl.report import tables as T
 
@@ -339,6 +340,9 @@ def _figures_section(doc: Doc, res: Result) -> None:
     if not any(len(p.time) for p in res.phases):
         return
     b = doc.section("trajectory", "Trajectory")
+    if res.status not in GOOD:
+        b.append({"type": "note", "text": f"The run ended with status {res.status}: the figures show the "
+                                          "solver's last iterate, not a verified solution."})
     for what, fn in (("state/control figures", F.fig_states_controls), ("costate figure", F.fig_costates),
                      ("Hamiltonian figures", F.fig_hamiltonian), ("trajectory view", F.fig_positions),
                      ("other time histories", F.fig_other_extra)):
@@ -520,6 +524,9 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
         raise ReportError(f"{run_dir}: not a run folder (no result.json)")
     res, notes = load_run(run_dir)
     doc = Doc()
+    d_notes, d_warnings = doc.guard("derived quantities", lambda: D.complete_from_problem_file(run_dir, res)) or ([], [])
+    doc.warnings += d_warnings
+    notes = notes + d_notes
     if res.status in GOOD:      # the problem first, as a paper would
         _problem_section(doc, res)
         _solution_section(doc, res, notes)

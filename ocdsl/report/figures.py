@@ -102,11 +102,28 @@ def time_label(units: dict[str, str] | None) -> str:
     return axis_label("t", units)
 
 
+PALETTE_COLORS = 128   # figures are line art: an adaptive palette keeps them sharp at ~1/2.5 the size
+
+
 def to_png_data_uri(fig: Figure, dpi: int = DPI) -> str:
     buf = io.BytesIO()
     FigureCanvasAgg(fig)
     fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return "data:image/png;base64," + base64.b64encode(_palette_png(buf.getvalue())).decode("ascii")
+
+
+def _palette_png(data: bytes) -> bytes:
+    """The PNG with an adaptive palette of :data:`PALETTE_COLORS` colours (no dithering);
+    the original when Pillow is missing or the palette version is not smaller."""
+    try:
+        from PIL import Image
+        im = Image.open(io.BytesIO(data)).convert("RGB")
+        q = im.quantize(colors=PALETTE_COLORS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+        out = io.BytesIO()
+        q.save(out, format="PNG", optimize=True)
+    except Exception:  # noqa: BLE001
+        return data
+    return out.getvalue() if out.tell() < len(data) else data
 
 
 def _new_figure(n_panels: int, ncols: int | None = None, height: float | None = None):
@@ -206,6 +223,7 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
                     drew_bound = True
             for tb in boundaries:
                 ax.axvline(tb, color="0.6", linestyle=":", linewidth=0.9)
+            _readable_y(ax, [y for _, _, y in series] + [b for b in (lo, hi) if b is not None])
             ax.set_ylabel(axis_label(name, units, (tex or {}).get(name)))
             ax.set_xlabel(time_label(units))
             if (1 < len(labels_all) <= MAX_LEGEND) or drew_bound:
@@ -215,6 +233,25 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
         suffix = f" ({ci + 1} of {len(chunks)})" if len(chunks) > 1 else ""
         out.append(Fig(f"{key}-{ci}", caption + suffix, fig))
     return out
+
+
+def _readable_y(ax, ys: list) -> None:
+    """No offset notation on the y axis (``1e-12 - 9.99e-1``), and a numerically constant
+    series (spread below 1e-3 of its size) drawn in a band of 2 % of its size (or +-1 at 0)
+    instead of magnifying rounding noise."""
+    try:
+        ax.yaxis.get_major_formatter().set_useOffset(False)
+    except AttributeError:
+        pass
+    vals = np.concatenate([np.ravel(np.asarray(y, float)) for y in ys]) if ys else np.array([])
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return
+    lo, hi = float(vals.min()), float(vals.max())
+    size = max(abs(lo), abs(hi))
+    if hi - lo <= 1e-3 * size or size == 0.0:
+        mid, half = 0.5 * (lo + hi), (0.02 * size if size > 0 else 1.0)
+        ax.set_ylim(mid - half, mid + half)
 
 
 def _bounds_of(problem: dict, names: Iterable[str]) -> dict[str, tuple[float | None, float | None]]:
@@ -270,8 +307,26 @@ def fig_costates(res: Result) -> list[Fig]:
     if not panels:
         return []
     tex = {n: r"\lambda_{%s}" % tex_name(n) for n, _ in panels}
-    return _grid_figures("costates", "Costates (multipliers of the dynamics).", panels, {}, tex=tex,
+    units = _time_units(res)
+    return _grid_figures("costates", "Costates (multipliers of the dynamics).", panels, units, tex=tex,
                          boundaries=_phase_boundaries(res))
+
+
+def _time_units(res: Result) -> dict[str, str]:
+    """Only the unit of time (panels of costates and Hamiltonian quantities have none)."""
+    u = (res.problem.get("units") or {}).get("t")
+    return {"t": u} if u else {}
+
+
+def _expected_hamiltonian(cert: Any) -> float | None:
+    """The certificate's expected H (single phase, or the same in every phase)."""
+    if not isinstance(cert, dict):
+        return None
+    vals = [c.get("hamiltonian", {}).get("expected") for c in
+            ((cert.get("phases") or {}).values() if isinstance(cert.get("phases"), dict) else [cert])
+            if isinstance(c, dict) and isinstance(c.get("hamiltonian"), dict)]
+    vals = [_finite(v) for v in vals]
+    return vals[0] if vals and vals[0] is not None and all(v == vals[0] for v in vals) else None
 
 
 def _controls_of(res: Result) -> list[str]:
@@ -292,9 +347,19 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
 
     series = [(p.name if multi else "solution", p.time, ham(p)) for p in res.phases if ham(p) is not None]
     if series:
-        out += _grid_figures("hamiltonian", "Hamiltonian H along the solution "
-                             "(constant for an autonomous problem, −1 for minimum time with free t_f).",
-                             [("H", series)], {}, tex={"H": "H"}, boundaries=_phase_boundaries(res))
+        hfigs = _grid_figures("hamiltonian", "Hamiltonian H along the solution "
+                              "(constant for an autonomous problem, −1 for minimum time with free t_f).",
+                              [("H", series)], _time_units(res), tex={"H": "H"}, boundaries=_phase_boundaries(res))
+        expected = _expected_hamiltonian(res.certificate)
+        if expected is not None and hfigs and hfigs[0].figure.axes:
+            ax = hfigs[0].figure.axes[0]
+            ax.axhline(expected, color="#c0392b", linestyle="--", linewidth=0.9,
+                       label=f"expected ({expected:g}, certificate)")
+            lo, hi = ax.get_ylim()
+            ax.set_ylim(min(lo, expected - 0.05 * (hi - lo)), max(hi, expected + 0.05 * (hi - lo)))
+            ax.legend(fontsize=7, loc="best", frameon=False)
+            hfigs[0].caption += " Dashed: the value the optimality certificate expects."
+        out += hfigs
     grads: list[tuple[str, Series]] = []
     names: list[str] = []
     for p in res.phases:
@@ -305,7 +370,7 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
     if grads:
         tex = {k: r"\partial H / \partial %s" % tex_name(k[len("dH_d"):]) for k, _ in grads}
         out += _grid_figures("dHdu", "Gradient of the Hamiltonian with respect to each control "
-                             "(zero where the control is interior).", grads, {}, tex=tex,
+                             "(zero where the control is interior).", grads, _time_units(res), tex=tex,
                              boundaries=_phase_boundaries(res))
     sw: list[str] = []
     for p in res.phases:

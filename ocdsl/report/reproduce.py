@@ -1,0 +1,366 @@
+"""Run every example in ``configs/`` and write its reports under ``reports/``.
+
+``python -m ocdsl.report.reproduce [--only NAME ...] [--skip-slow] [--formats html,pdf]
+[--configs DIR] [--out DIR]`` (``make reproduce`` runs it after the slow tests).
+
+For every configuration file ``configs/<stem>.yaml`` (by kind):
+
+* problem files and controller files (``controller:`` block): ``ocdsl.api.run_file`` into
+  the run folder ``reports/<stem>/``, then ``report.html``/``report.pdf`` in it
+  (:func:`ocdsl.report.make_report`);
+* ``pareto:`` files: ``ocdsl.study.pareto_run.run_pareto`` into the study folder
+  ``reports/<stem>/`` (its own ``result.json`` with the set, one run folder per solution),
+  then its report;
+* study files (``study:`` block): ``ocdsl.study.run.run_study`` into ``reports/<stem>/``,
+  then one comparison report over the study (:func:`ocdsl.report.make_comparison_report`).
+
+Each example is made in a scratch folder ``reports/.new/<stem>`` and swapped in only when
+its reports are written, so an interrupted reproduction leaves the previous reports. Last,
+``reports/index.html`` (:func:`ocdsl.report.make_index`) is made from *every* report folder
+under ``reports/`` (also those not re-run this time, e.g. the slow ones with
+``--skip-slow``): one row per paper number (each ``expect`` check of the run folders, and
+the reference tables of :data:`PAPER_TABLES` for studies) with reference, ocdsl value,
+error, pass/fail and a link to the report. ``reports/reproduce.json`` records, per
+example, its kind, status, wall time and the date and commit it was made at.
+
+Slow examples (minutes each) are those in :data:`SLOW` or whose file has a top-level
+comment line ``# reproduce: slow``; ``--skip-slow`` leaves them out.
+
+Exit code: 0 when every example ran, its reports were written and its ``expect`` checks
+passed; 1 otherwise (the reports are still written); 2 for bad options.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+CONFIGS = Path("configs")      # relative to the working directory (the repository root under make)
+REPORTS = Path("reports")
+
+#: Examples that take minutes (multi-start 6-DOF collocation, PSO paper runs, Table 4 study).
+SLOW = frozenset({"seed0_rendezvous", "seed0_exact_euler", "seed0_table4",
+                  "seed1_2N_paper", "seed1_5N_paper", "seed1_10N_paper"})
+SLOW_MARK = re.compile(r"^#\s*reproduce:\s*slow\b", re.M | re.I)
+GOOD = ("optimal", "acceptable", "feasible", "stable")
+
+#: Paper numbers of study files, compared row by row with ``study.csv``: the study stem ->
+#: the quantity of ``study.csv`` compared and, per row (matched on its parameters), the
+#: paper value and the accepted band: ``tol`` (|ocdsl - paper| <= tol) or ``at_most``
+#: (ocdsl <= paper + tol: the problem is multi-modal and better optima exist).
+PAPER_TABLES: dict[str, dict[str, Any]] = {
+    "seed0_table4": {
+        "label": "Seed 0 Table 4 (GPM)",
+        "quantity": "tf",
+        "match": ("x0", "y0", "z0"),
+        "rows": [
+            {"x0": 20, "y0": 0, "z0": 0, "paper": 25.8727, "tol": 5.0e-4},
+            {"x0": 20, "y0": 4, "z0": 0, "paper": 26.1674, "tol": 5.0e-4, "at_most": True},
+            {"x0": 20, "y0": 4, "z0": 4, "paper": 25.9360, "tol": 5.0e-4},
+            {"x0": 20, "y0": 4, "z0": -5, "paper": 25.6607, "tol": 5.0e-4},
+            {"x0": 25, "y0": -5, "z0": -5, "paper": 28.7185, "tol": 5.0e-4, "at_most": True},
+        ],
+    },
+}
+
+
+# ================================================================================ configs
+@dataclass
+class Example:
+    path: Path
+    kind: str            # "problem" | "controller" | "pareto" | "study"
+    slow: bool
+    name: str = ""
+
+    @property
+    def stem(self) -> str:
+        return self.path.stem
+
+
+@dataclass
+class Outcome:
+    stem: str
+    kind: str
+    status: str                         # status of the run, "study", or "error"
+    ok: bool
+    seconds: float
+    files: list[Path] = field(default_factory=list)
+    message: str = ""
+
+
+def classify(path: Path) -> Example:
+    """Kind of a configuration file (from its top-level blocks) and whether it is slow."""
+    from ocdsl.spec.loader import load_yaml
+
+    text = path.read_text()
+    data = load_yaml(path).data
+    if "pareto" in data:
+        kind = "pareto"
+    elif "study" in data:
+        kind = "study"
+    elif "controller" in data:
+        kind = "controller"
+    else:
+        kind = "problem"
+    slow = path.stem in SLOW or bool(SLOW_MARK.search(text))
+    return Example(path, kind, slow, str(data.get("name") or path.stem))
+
+
+def find_examples(configs: Path = CONFIGS, only: Sequence[str] | None = None,
+                  skip_slow: bool = False) -> list[Example]:
+    """The examples of ``configs`` (``*.yaml``, sorted), restricted to ``only`` (stems or
+    file names) and without the slow ones when ``skip_slow``."""
+    files = sorted(Path(configs).glob("*.yaml"))
+    if only:
+        wanted = {Path(o).stem for o in only}
+        unknown = wanted - {f.stem for f in files}
+        if unknown:
+            raise SystemExit(f"reproduce: no such example in {configs}: {', '.join(sorted(unknown))}")
+        files = [f for f in files if f.stem in wanted]
+    out = [classify(f) for f in files]
+    return [e for e in out if not (skip_slow and e.slow)]
+
+
+# ================================================================================== runs
+def _expect_ok(run_dir: Path) -> bool:
+    try:
+        data = json.loads((run_dir / "result.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return all(c.get("passed") for c in data.get("expect") or [])
+
+
+def run_example(ex: Example, out_dir: Path, formats: Sequence[str], *, workers: int | None = None,
+                quiet: bool = True) -> Outcome:
+    """Solve one example into ``out_dir`` (which must not exist yet) and write its reports."""
+    from ocdsl.report.build import make_comparison_report, make_report
+
+    t0 = time.perf_counter()
+    status, ok = "error", False
+    if ex.kind in ("problem", "controller"):
+        from ocdsl.api import run_file
+
+        res = run_file(ex.path, out_dir, quiet=quiet)
+        status = res.status
+        ok = res.status in GOOD and all(c.get("passed") for c in res.expect)
+        files = make_report(out_dir, formats) if formats else []
+    elif ex.kind == "pareto":
+        from ocdsl.study.pareto_run import run_pareto
+
+        results, _ = run_pareto(ex.path, out_dir)
+        status = f"{len(results)} solutions"
+        ok = bool(results) and _expect_ok(out_dir)
+        files = make_report(out_dir, formats) if formats else []
+    elif ex.kind == "study":
+        from ocdsl.study.run import run_study
+
+        res = run_study(ex.path, out_dir, workers=workers, quiet=quiet)
+        status = f"study {res.state}: {res.counts.get('ok', 0)} of {res.counts.get('points', 0)} ok"
+        numbers = study_paper_numbers(out_dir, ex.stem)
+        ok = res.ok and all(n["passed"] for n in numbers)
+        files = make_comparison_report([out_dir], out_dir, formats, title=ex.name) if formats else []
+    else:  # pragma: no cover
+        raise ValueError(f"unknown example kind {ex.kind!r}")
+    return Outcome(ex.stem, ex.kind, status, ok, time.perf_counter() - t0, list(files))
+
+
+def reproduce(examples: Sequence[Example], reports: Path = REPORTS, formats: Sequence[str] = ("html", "pdf"),
+              *, workers: int | None = None, log=print) -> list[Outcome]:
+    """Run ``examples`` into ``reports/<stem>/`` (each swapped in when finished), then write
+    ``reports/index.html`` and ``reports/reproduce.json``. Never raises for a failed example."""
+    reports = Path(reports)
+    reports.mkdir(parents=True, exist_ok=True)
+    outcomes: list[Outcome] = []
+    for ex in examples:
+        final = reports / ex.stem
+        scratch = reports / ".new" / ex.stem      # same name: reports show the run folder's name
+        shutil.rmtree(scratch, ignore_errors=True)
+        scratch.parent.mkdir(exist_ok=True)
+        log(f"[reproduce] {ex.stem} ({ex.kind}{', slow' if ex.slow else ''}) ...")
+        t0 = time.perf_counter()
+        try:
+            out = run_example(ex, scratch, formats, workers=workers)
+            old = reports / ".new" / f"{ex.stem}.old"
+            shutil.rmtree(old, ignore_errors=True)
+            if final.exists():
+                final.rename(old)
+            scratch.rename(final)
+            shutil.rmtree(old, ignore_errors=True)
+            out.files = [final / f.relative_to(scratch) for f in out.files]
+        except Exception as exc:  # noqa: BLE001  (a broken example must not stop the others)
+            shutil.rmtree(scratch, ignore_errors=True)
+            out = Outcome(ex.stem, ex.kind, "error", False, time.perf_counter() - t0,
+                          message=f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=4)}")
+        outcomes.append(out)
+        log(f"[reproduce] {ex.stem}: {out.status}, {'ok' if out.ok else 'NOT OK'}, {out.seconds:.1f} s"
+            + (f"\n{out.message}" if out.message else ""))
+    try:
+        (reports / ".new").rmdir()
+    except OSError:
+        pass
+    write_manifest(reports, outcomes)
+    index = write_index(reports)
+    log(f"[reproduce] wrote {index}")
+    return outcomes
+
+
+def _git_commit() -> str | None:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def write_manifest(reports: Path, outcomes: Sequence[Outcome]) -> Path:
+    """``reports/reproduce.json``: per example kind, status, ok, wall time, date, commit
+    (entries of examples not re-run this time are kept)."""
+    path = Path(reports) / "reproduce.json"
+    try:
+        data = json.loads(path.read_text())
+        if not isinstance(data, dict):
+            data = {}
+    except (OSError, ValueError):
+        data = {}
+    when, commit = time.strftime("%Y-%m-%dT%H:%M:%S"), _git_commit()
+    for o in outcomes:
+        data[o.stem] = {"kind": o.kind, "status": o.status, "ok": o.ok, "wall_time_s": round(o.seconds, 1),
+                        "made": when, "commit": commit,
+                        **({"message": o.message.splitlines()[0][:300]} if o.message else {})}
+    path.write_text(json.dumps(dict(sorted(data.items())), indent=1) + "\n")
+    return path
+
+
+# ================================================================================= index
+def _finite(v: Any) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def expect_numbers(run_dir: Path, study: str, link: Path) -> list[dict[str, Any]]:
+    """Rows of the index for the ``expect`` checks of one run folder."""
+    try:
+        data = json.loads((Path(run_dir) / "result.json").read_text())
+    except (OSError, ValueError):
+        return []
+    rows = []
+    for c in data.get("expect") or []:
+        paper, value = c.get("reference"), c.get("value")
+        if isinstance(paper, (list, tuple)):
+            paper = ", ".join(map(str, paper))
+        if isinstance(value, (list, tuple)):
+            value = ", ".join(map(str, value))
+        rows.append({"study": study, "quantity": str(c.get("name", "")), "paper": paper, "ocdsl": value,
+                     "error": c.get("error"), "passed": c.get("passed"), "report_link": link})
+    return rows
+
+
+def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> list[dict[str, Any]]:
+    """Rows of the index for a study folder: its :data:`PAPER_TABLES` entry against
+    ``study.csv`` (a paper row without a study row counts as failed)."""
+    from ocdsl.report.build import read_study_table
+
+    spec = PAPER_TABLES.get(stem)
+    if not spec:
+        return []
+    rows, _ = read_study_table(Path(folder))
+    q = spec["quantity"]
+    out = []
+    for ref in spec["rows"]:
+        key = tuple(ref[k] for k in spec["match"])
+        hit = next((r for r in rows if all(_finite(r.get(k)) == float(v) for k, v in zip(spec["match"], key))), None)
+        value = _finite(hit.get(q)) if hit and hit.get("status") in GOOD else None
+        paper, tol = float(ref["paper"]), float(ref.get("tol", 0.0))
+        if value is None:
+            err, passed = None, False
+        else:
+            err = value - paper
+            passed = err <= tol if ref.get("at_most") else abs(err) <= tol
+        where = ", ".join(f"{k} = {v:g}" for k, v in zip(spec["match"], key))
+        out.append({"study": spec.get("label", stem),
+                    "quantity": f"{q} at {where}" + (" (at most)" if ref.get("at_most") else ""),
+                    "paper": paper, "ocdsl": value, "error": err, "passed": passed,
+                    "report_link": link or Path(folder) / "report.html"})
+    return out
+
+
+def report_folders(reports: Path) -> list[Path]:
+    """Report folders directly under ``reports`` (run, Pareto and study folders with a report)."""
+    return sorted(d for d in Path(reports).iterdir()
+                  if d.is_dir() and not d.name.startswith(".")
+                  and ((d / "report.html").is_file() or (d / "report.pdf").is_file()))
+
+
+def paper_numbers(reports: Path) -> list[dict[str, Any]]:
+    """Every paper number of every report folder under ``reports``."""
+    out: list[dict[str, Any]] = []
+    for d in report_folders(reports):
+        link = d / "report.html" if (d / "report.html").is_file() else d / "report.pdf"
+        if (d / "result.json").is_file():
+            out += expect_numbers(d, d.name, link)
+        elif (d / "study.csv").is_file() or (d / "study.json").is_file():
+            out += study_paper_numbers(d, d.name, link)
+            points = d / "points"
+            if points.is_dir():
+                for p in sorted(points.iterdir()):
+                    if (p / "result.json").is_file():
+                        out += expect_numbers(p, f"{d.name}/{p.name}", link)
+    return out
+
+
+def write_index(reports: Path = REPORTS) -> Path:
+    from ocdsl.report.build import make_index
+
+    reports = Path(reports)
+    return make_index(report_folders(reports), reports / "index.html", paper_numbers(reports),
+                      title="ocdsl: reproductions of the examples and papers")
+
+
+# =================================================================================== CLI
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m ocdsl.report.reproduce",
+                                 description="Run every example of configs/ and write its reports under reports/.")
+    ap.add_argument("--only", nargs="+", metavar="NAME", help="only these examples (file stems)")
+    ap.add_argument("--skip-slow", action="store_true", help="leave out the examples that take minutes")
+    ap.add_argument("--formats", default="html,pdf", help="comma-separated: html, pdf (default html,pdf)")
+    ap.add_argument("--configs", type=Path, default=CONFIGS, help="folder of the examples (default configs/)")
+    ap.add_argument("--out", type=Path, default=REPORTS, help="reports folder (default reports/)")
+    ap.add_argument("--workers", type=int, default=None, help="worker processes of study files")
+    ap.add_argument("--index-only", action="store_true", help="only rewrite reports/index.html")
+    ap.add_argument("--list", action="store_true", help="list the examples and exit")
+    args = ap.parse_args(argv)
+    formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
+    bad = [f for f in formats if f not in ("html", "pdf")]
+    if bad:
+        ap.error(f"unknown format(s) {bad}; choose from html, pdf")
+    if args.index_only:
+        print(f"[reproduce] wrote {write_index(args.out)}")
+        return 0
+    examples = find_examples(args.configs, args.only, args.skip_slow)
+    if args.list:
+        for e in examples:
+            print(f"{e.stem:28s} {e.kind:10s} {'slow' if e.slow else ''}")
+        return 0
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    outcomes = reproduce(examples, args.out, formats, workers=args.workers)
+    bad_runs = [o.stem for o in outcomes if not o.ok]
+    print(f"[reproduce] {len(outcomes) - len(bad_runs)} of {len(outcomes)} examples ok"
+          + (f"; not ok: {', '.join(bad_runs)}" if bad_runs else ""))
+    return 1 if bad_runs else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
