@@ -165,7 +165,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
             return np.asarray(f(*x, *uclip(t), t, *pvals), float).reshape(-1)
 
         tau_f = np.asarray(legendre_gauss_lobatto(sc.degree + extra_points)[0])
-        t_f = ta + (tau_f + 1.0) * h / 2.0
+        t_f = np.clip(ta + (tau_f + 1.0) * h / 2.0, min(ta, tb), max(ta, tb))
         x_poly = xs(tau_f)
         x_start = x_poly[0]
         if h > 0:
@@ -238,16 +238,107 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
 
 
 # ---------------------------------------------------------------------------------------
-# refinement
+# located nonsmooth points: bang-bang switches (switching function) and control corners
 # ---------------------------------------------------------------------------------------
 
-def _corner(mesh, k, errors, controls, tol):
-    """Where the control has a corner (continuous, kinked) inside segment k, or None.
+def _switching_function(problem, ph, free_syms):
+    """Callable (x, u, t, lam, p) -> H_u per control, or None when it cannot be formed.
 
-    The control polynomials of the two neighbouring segments, when both are smooth and
-    within tolerance-free of switches, are extrapolated into segment k; a sign change of
-    their difference locates the corner (a state-constraint junction, where the control is
-    continuous but its derivative jumps). A jump (bang-bang) gives no crossing: None.
+    H = s * dJ/dI * L + lam . f with L the phase's running costs; s = +1 when minimising.
+    Only the zeros of H_u are used (a bang-bang switch of a control-affine problem), so the
+    overall sign does not matter; the relative sign of the running-cost term follows the
+    costate convention of ``solve.costates`` (tested on minimisation problems only).
+    """
+    from ..symbolic.model import TIME
+
+    lam = sp.symbols(f"_lam0:{len(ph.states)}", real=True)
+    H = sum(l * fi for l, fi in zip(lam, ph.rhs()))
+    sign = 1 if problem.objective.sense == "minimize" else -1
+    for I, L in ph.integrals.items():
+        w = sp.diff(problem.objective.expr, I)
+        if w.free_symbols:
+            return None
+        H = H + sign * float(w) * ph.substitute(L)
+    Hu = [sp.diff(H, u) for u in ph.controls]
+    args = list(ph.states) + list(ph.controls) + [TIME] + list(lam) + list(free_syms)
+    return sp.lambdify(args, Hu, "numpy")
+
+
+def _colloc_costates(tr, pb):
+    """Costates at the collocation points of one phase (as ``solve.costates``), or None (LGL)."""
+    m, lay, ph = tr.model, pb.layout, pb.phase
+    nx = len(ph.states)
+    lam = np.zeros((lay.n_colloc, nx))
+    for k in range(lay.mesh.segments):
+        sc = lay.mesh.scheme(k)
+        if sc.name == "LGL":
+            return None
+        for i, cn in enumerate(lay.colloc[k]):
+            for j in range(nx):
+                nu = m.dual.get(pb.defects[(k, i, j)], 0.0)
+                end = m.dual.get(pb.ends[(k, j)], 0.0) if pb.ends else 0.0
+                lam[cn, j] = -(nu / float(sc.weights[i]) + end)
+    return lam
+
+
+def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
+    """Bang-bang switches of one phase in normalised time, located from the collocated control.
+
+    For a control with two finite bounds, a switch is a run of collocation points at one
+    bound followed (after only interior values) by a run at the other bound. The window is
+    the union of the segments that hold the interior values (or, for a clean jump inside one
+    segment, that segment); if the jump falls between two segments with no interior value,
+    the switch is that breakpoint. Inside the window the switch time t_s is the one for which
+    the bang-bang control delivers the same quadrature of the control as the collocated one
+    (Gauss-Radau weights of each segment):
+        sum_i w_i u_i h_k / 2 = u_A (t_s - a) + u_B (b - t_s).
+    The next solve on a mesh with a breakpoint at t_s shows interior control values near it
+    again only as far as t_s is still off, so the estimate tightens every iteration (to about
+    active_tol times the segment width). The costate-based switching function H_u was tried
+    and not used: the LGR costate estimate is biased near a switch (minimum-time double
+    integrator, 2 x 3 mesh: zero of H_u at t = 1.0327 for the exact switch t = 1).
+    """
+    ph, lay = pb.phase, pb.layout
+    mesh = lay.mesh
+    _, U, _, _ = _solution_arrays(pb)
+    seg = lay.colloc_segment
+    s = lay.s_colloc
+    out = []
+    for j, c in enumerate(ph.controls):
+        lo, hi = ph.bounds_of(c)
+        if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+            continue
+        act = _activity(U[:, j], lo, hi, active_tol)
+        at = [i for i in range(len(act)) if act[i] != 0]
+        for p, q in zip(at, at[1:]):
+            if act[p] == act[q] or act[p + 1:q].any():
+                continue
+            uA, uB = (lo, hi) if act[p] < 0 else (hi, lo)
+            if q == p + 1 and seg[p] != seg[q]:
+                out.append(float(mesh.breakpoints[seg[q]]))
+                continue
+            first = seg[p + 1] if q > p + 1 else seg[p]
+            last = seg[q - 1] if q > p + 1 else seg[q]
+            a, b = float(mesh.breakpoints[first]), float(mesh.breakpoints[last + 1])
+            Q = 0.0
+            for k in range(first, last + 1):
+                sc = mesh.scheme(k)
+                h = mesh.breakpoints[k + 1] - mesh.breakpoints[k]
+                Q += float(np.dot(sc.weights, U[lay.colloc[k], j])) * h / 2
+            ts = a + (Q - uB * (b - a)) / (uA - uB)
+            out.append(float(min(max(ts, a), b)))
+    return sorted(set(out))
+
+
+def _corner(mesh, k, errors, controls, tol):
+    """Where the control has a corner (continuous, kinked) near segment k, or None.
+
+    The control polynomials of the nearest smooth segments on either side (not flagged
+    nonsmooth, at least half as wide as segment k) are extrapolated over the gap between
+    them; a sign change of their difference locates the corner (a state-constraint junction,
+    where the control is continuous but its derivative jumps). The segments in the gap are
+    not used: there the discrete solution smears the corner over the nodes next to
+    whatever breakpoint is nearest. A jump (bang-bang) gives no crossing: None.
     """
     from scipy.optimize import brentq
 
@@ -255,14 +346,15 @@ def _corner(mesh, k, errors, controls, tol):
         return None
     a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
     width = np.diff(mesh.breakpoints)
-    # extrapolating a polynomial far beyond its own segment amplifies its errors: on each
-    # side take the nearest segment at least half as wide as segment k
-    lk = next((q for q in range(k - 1, -1, -1) if width[q] >= 0.5 * (b - a)), None)
-    rk = next((q for q in range(k + 1, mesh.segments) if width[q] >= 0.5 * (b - a)), None)
+    rough = {e.segment for e in errors if e.nonsmooth}
+    ok = lambda q: q not in rough and width[q] >= 0.5 * (b - a)  # noqa: E731
+    lk = next((q for q in range(k - 1, -1, -1) if ok(q)), None)
+    rk = next((q for q in range(k + 1, mesh.segments) if ok(q)), None)
     if lk is None or rk is None:
         return None
     left, right = controls[lk], controls[rk]
-    grid = np.linspace(a, b, 41)
+    ga, gb = float(mesh.breakpoints[lk + 1]), float(mesh.breakpoints[rk])
+    grid = np.linspace(ga, gb, 81)
     best = None
     for j in range(left(grid).shape[1]):
         d = lambda s: float(left(np.array([s]))[0, j] - right(np.array([s]))[0, j])  # noqa: E731
@@ -272,17 +364,43 @@ def _corner(mesh, k, errors, controls, tol):
             if vals[i] == 0.0 or vals[i] * vals[i + 1] < 0:
                 c = brentq(d, grid[i], grid[i + 1], xtol=1e-14) if vals[i] != 0.0 else grid[i]
                 # a jump of the two extrapolations is no corner: they must cross at an angle
-                # small against the control's range over the segment
-                if abs(vals[0]) + abs(vals[-1]) < 0.5 * span and a < c < b:
+                # small against the control's range over the gap
+                if abs(vals[0]) + abs(vals[-1]) < 0.5 * span and ga < c < gb:
                     best = c if best is None else best
                 break
-    if best is None or min(best - a, b - best) < 1e-12:
+    if best is None or min(best - ga, gb - best) < 1e-12:
         return None
     return best
 
 
+def locate_features(tr, pb, errors, params, spec, controls) -> list[float]:
+    """Located nonsmooth points of one phase (normalised time): switches, then corners of
+    nonsmooth segments that hold no located switch."""
+    mesh = pb.layout.mesh
+    # at a bound to 1e-6 (relative): the NLP's bound relaxation and stopping tolerance leave
+    # a bang arc's control ~1e-8 inside its bound
+    feats = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
+    bps = mesh.breakpoints
+    for e in errors:
+        if not e.nonsmooth:
+            continue
+        a, b = float(bps[e.segment]), float(bps[e.segment + 1])
+        if any(a - spec.corner_tolerance <= f <= b + spec.corner_tolerance for f in feats):
+            continue
+        c = _corner(mesh, e.segment, errors, controls, spec.tolerance)
+        if c is not None and all(abs(c - f) > spec.corner_tolerance for f in feats):
+            feats.append(c)
+    return sorted(feats)
+
+
+def misplaced(mesh, features, spec) -> list[float]:
+    """Located features farther than corner_tolerance (normalised time) from every breakpoint."""
+    bps = np.asarray(mesh.breakpoints)
+    return [f for f in features if np.min(np.abs(bps - f)) > spec.corner_tolerance]
+
+
+# kept for callers of the previous interface
 def corners_to_place(mesh, errors, spec, controls) -> list[float]:
-    """Located control corners (normalised time) farther than corner_tolerance from a breakpoint."""
     out = []
     for e in errors:
         if not e.nonsmooth:
@@ -294,33 +412,61 @@ def corners_to_place(mesh, errors, spec, controls) -> list[float]:
     return out
 
 
-def refine(mesh, errors: list[SegmentError], spec, controls=None) -> Any:
+# ---------------------------------------------------------------------------------------
+# refinement
+# ---------------------------------------------------------------------------------------
+
+def _place(segs: list[list], f: float, snap: float, keep: list[float], tol: float) -> None:
+    """Put a breakpoint on f in the segment list [[a, b, N], ...] (in place).
+
+    A breakpoint within ``snap`` of the segment's width from f is moved onto f (no sliver
+    segment is left next to the feature) unless it is 0, 1 or holds another feature (within
+    ``tol`` of one in ``keep``); otherwise the segment is split at f.
+    """
+    k = next((q for q, (a, b, _) in enumerate(segs) if a <= f <= b), None)
+    if k is None:
+        return
+    a, b, N = segs[k]
+    if min(abs(f - a), abs(b - f)) <= tol:
+        return
+    held = lambda x: any(abs(x - g) <= tol for g in keep if g != f)  # noqa: E731
+    w = b - a
+    if f - a <= snap * w and k > 0 and not held(a):
+        segs[k - 1][1] = f
+        segs[k][0] = f
+        return
+    if b - f <= snap * w and k < len(segs) - 1 and not held(b):
+        segs[k][1] = f
+        segs[k + 1][0] = f
+        return
+    segs[k:k + 1] = [[a, f, N], [f, b, N]]
+
+
+def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None) -> Any:
     """The next mesh of one phase (see the module docstring).
 
-    ``controls``: per segment, a callable s -> (len(s), nu) control polynomial of that
-    segment (extrapolated outside it), used to place a breakpoint on control corners.
+    ``features``: located switches and corners (normalised time); each one not already on a
+    breakpoint becomes one (moving a close breakpoint, or splitting), and the segment that
+    held it is otherwise left to the next iteration's estimate. ``controls`` (per segment,
+    s -> control polynomial) is used to locate corners when ``features`` is not given.
     """
     from ..transcribe.mesh import Mesh
 
     tol, nmin, nmax = spec.tolerance, spec.min_degree, spec.max_degree
     pieces = spec.bracket_pieces
-    bps, degs = [0.0], []
+    if features is None:
+        features = corners_to_place(mesh, errors, spec, controls)
+    todo = misplaced(mesh, features, spec)
+    segs: list[list] = []
     for e in errors:
         k = e.segment
         a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
         N = mesh.degrees[k]
-        corner = _corner(mesh, k, errors, controls, tol) if e.nonsmooth else None
-        if corner is not None and min(corner - a, b - corner) <= spec.corner_tolerance:
-            corner = None
-        if not (e.error > tol) and corner is None:
-            bps.append(b)
-            degs.append(N)
+        holds = [f for f in todo if a < f < b]
+        if not (e.error > tol) or holds:
+            segs.append([a, b, N])
             continue
         if e.nonsmooth:
-            if corner is not None:
-                bps.extend([corner, b])
-                degs.extend([nmin, nmin])
-                continue
             cuts = set()
             for lo, hi in e.switches:
                 for q in range(pieces + 1):
@@ -332,25 +478,130 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None) -> Any:
                 if not merged or c - merged[-1] > 1e-6 * width:
                     merged.append(c)
             if merged:
-                for c in merged:
-                    bps.append(c)
-                    degs.append(nmin)
-                bps.append(b)
-                degs.append(nmin)
+                edges = [a, *merged, b]
+                segs.extend([x, y, nmin] for x, y in zip(edges, edges[1:]))
                 continue
         # smooth (or a switch that cannot be bracketed more finely): p, then h
         ratio = e.error / tol if math.isfinite(e.error) else 1e6
         P = max(1, math.ceil(math.log(ratio) / math.log(max(N, 2))))
         if N + P <= nmax:
-            bps.append(b)
-            degs.append(N + P)
+            segs.append([a, b, N + P])
         else:
             B = max(math.ceil((N + P) / nmin), 2)
-            for q in range(1, B + 1):
-                bps.append(a + (b - a) * q / B)
-                degs.append(nmin)
+            edges = [a + (b - a) * q / B for q in range(B + 1)]
+            segs.extend([x, y, nmin] for x, y in zip(edges, edges[1:]))
+    for f in todo:
+        _place(segs, f, spec.snap, features, spec.corner_tolerance)
+    segs = [sg for sg in segs if sg[1] > sg[0]]
+    bps = [0.0] + [sg[1] for sg in segs]
     bps[-1] = 1.0
-    return Mesh(mesh.scheme_name, np.array(bps), tuple(degs))
+    return Mesh(mesh.scheme_name, np.array(bps), tuple(int(sg[2]) for sg in segs))
+
+
+# ---------------------------------------------------------------------------------------
+# coarsening: merge segments and lower degrees where the error is far below tolerance
+# ---------------------------------------------------------------------------------------
+
+def _samples(pb, extra_points: int = 6):
+    """Per segment: normalised times and the (clipped) state and control polynomial values on
+    N + extra_points Lobatto points."""
+    from ..transcribe.nodes import legendre_gauss_lobatto
+
+    ph, lay = pb.phase, pb.layout
+    X, U, _, _ = _solution_arrays(pb)
+    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
+    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
+    out = []
+    for k in range(lay.mesh.segments):
+        a, b = lay.mesh.breakpoints[k], lay.mesh.breakpoints[k + 1]
+        tau = np.asarray(legendre_gauss_lobatto(lay.mesh.degrees[k] + extra_points)[0])
+        xs, us = _seg_polys(lay, k, X, U)
+        out.append((a + (tau + 1) * (b - a) / 2, xs(tau), np.clip(us(tau), ulo, uhi)))
+    xscale = 1.0 + np.max(np.abs(X), axis=0)
+    uscale = 1.0 + (np.max(np.abs(U), axis=0) if U.size else np.zeros(U.shape[1]))
+    return out, xscale, uscale
+
+
+def _fit_degree(samples, xscale, uscale, lowest: int, highest: int, limit: float) -> int | None:
+    """Smallest degree n in [lowest, highest] whose Legendre least-squares fit of degree n to the
+    states (over the union of the samples) is within ``limit`` (relative, as the error
+    estimate), or None. The controls are not fitted: on a constrained arc the collocated
+    control wiggles at the 1e-5 level without moving the state (Bryson-Denham), and a jump
+    or kink of the control shows in the state's fit; the next solve's estimate checks."""
+    from numpy.polynomial import legendre as leg
+
+    s = np.concatenate([q[0] for q in samples])
+    Xs = np.vstack([q[1] for q in samples]) / xscale
+    Us = np.vstack([q[2] for q in samples]) / uscale
+    a, b = s.min(), s.max()
+    z = 2 * (s - a) / (b - a) - 1
+    for n in range(lowest, highest + 1):
+        if len(z) <= n + 1:
+            return None
+        V = leg.legvander(z, n)
+        res = Xs - V @ np.linalg.lstsq(V, Xs, rcond=None)[0]
+        if np.max(np.abs(res), initial=0.0) > limit:
+            continue
+        return n
+    return None
+
+
+def coarsen(pb, errors, spec, features) -> Any:
+    """A smaller mesh of one phase that should still meet the tolerance, or the same mesh.
+
+    Liu, Hager & Rao (2015) reduce the mesh where the error is far below the tolerance; here
+    (our variant) consecutive segments are merged, left to right, while one Legendre
+    polynomial of degree <= max_degree fits the solution over the merged interval to within
+    ``coarsen_margin * tolerance``, and every segment gets the smallest such degree (down to
+    ``lowest_degree``). Breakpoints on located switches/corners are kept. The next solve
+    checks the result with the error estimate.
+    """
+    from ..transcribe.mesh import Mesh
+
+    mesh = pb.layout.mesh
+    samples, xs, us = _samples(pb)
+    limit = spec.coarsen_margin * spec.tolerance
+    lowest = max(spec.lowest_degree, 2 if mesh.scheme_name == "LGL" else 1)
+    bps = np.asarray(mesh.breakpoints)
+    keep = [any(abs(bps[k] - f) <= spec.corner_tolerance for f in features) for k in range(len(bps))]
+    K = mesh.segments
+    # each segment on its own: the smallest degree that fits (segments above tolerance keep theirs)
+    own = []
+    for k in range(K):
+        n = (_fit_degree(samples[k:k + 1], xs, us, lowest, mesh.degrees[k], limit)
+             if errors[k].error <= spec.tolerance else None)
+        own.append((n if n is not None else mesh.degrees[k], n is not None))
+    groups = []
+    i = 0
+    while i < K:
+        best = (i, i, own[i][0])
+        j = i
+        while (j + 1 < K and own[best[1] - 0][1] and own[j + 1][1] and not keep[j + 1]):
+            m = _fit_degree(samples[i:j + 2], xs, us, lowest, spec.max_degree, limit)
+            # merged only when it has fewer nodes than the group and the segment kept apart
+            if m is None or m >= best[2] + own[j + 1][0]:
+                break
+            j += 1
+            best = (i, j, m)
+        groups.append(best)
+        i = best[1] + 1
+    new_bps = [0.0] + [float(bps[g[1] + 1]) for g in groups]
+    # a breakpoint within corner_tolerance of a located feature is put exactly on it
+    for q in range(1, len(new_bps) - 1):
+        near = [f for f in features if abs(f - new_bps[q]) <= spec.corner_tolerance]
+        if near:
+            f = min(near, key=lambda f: abs(f - new_bps[q]))
+            if new_bps[q - 1] < f < new_bps[q + 1]:
+                new_bps[q] = f
+    return Mesh(mesh.scheme_name, np.array(new_bps), tuple(int(g[2]) for g in groups))
+
+
+def _nlp_size(mesh, nx: int, nu: int) -> int:
+    """Unknowns of one phase on ``mesh`` (states on state nodes + controls), for comparisons."""
+    from ..transcribe.mesh import Layout
+
+    lay = Layout.of(mesh)
+    return lay.n_state_nodes * nx + lay.n_colloc * nu
 
 
 # ---------------------------------------------------------------------------------------
@@ -445,6 +696,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     best = None          # (max_error, iteration, tr, info, meshes, errors)
     status, message = None, ""
     last = None
+    converged = []       # iterations within tolerance with every located switch on a breakpoint
+    coarsening = False   # the current mesh came from coarsening a converged one
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
@@ -501,30 +754,72 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             break
         if best is None or max_err < best[0]:
             best = last
-        corners = {pb.phase.name: corners_to_place(meshes[pb.phase.name], errors[pb.phase.name], spec,
-                                                   _control_polys(pb)) for pb in tr.phases}
-        rec["corners_to_place"] = corners
-        if max_err <= spec.tolerance and not any(corners.values()):
-            status = "optimal" if info.status == "optimal" else info.status
-            message = (f"mesh converged in {it} iteration(s): largest estimated error {max_err:.3e} "
-                       f"<= tolerance {spec.tolerance:.1e}")
-            break
+        with timer.measure("mesh"):
+            features = {}
+            for pb in tr.phases:
+                try:
+                    features[pb.phase.name] = locate_features(tr, pb, errors[pb.phase.name], params, spec,
+                                                              _control_polys(pb))
+                except Exception as exc:  # locating is an aid; the estimate still decides
+                    _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
+                    features[pb.phase.name] = []
+        off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
+        rec["features"] = features
+        rec["features_off_breakpoints"] = off
+        if max_err <= spec.tolerance and not any(off.values()):
+            converged.append(last)
+            rec["converged"] = True
+            smaller = None
+            if spec.coarsen and it < spec.max_iterations:
+                with timer.measure("mesh"):
+                    cand = {pb.phase.name: coarsen(pb, errors[pb.phase.name], spec, features[pb.phase.name])
+                            for pb in tr.phases}
+                size = lambda ms: sum(_nlp_size(ms[pb.phase.name], len(pb.phase.states),  # noqa: E731
+                                                len(pb.phase.controls)) for pb in tr.phases)
+                if size(cand) < size(meshes):
+                    smaller = cand
+            if smaller is None:
+                break
+            coarsening = True
+            previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+            meshes = smaller
+            continue
+        if coarsening:
+            # the coarsened mesh missed the tolerance: refine it like any other mesh (the
+            # smallest converged mesh so far is kept for the end)
+            rec["coarsening_rejected"] = True
+            coarsening = False
         if it == spec.max_iterations:
-            status = "mesh_not_converged"
             break
         previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
         meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec,
-                                        _control_polys(pb)) for pb in tr.phases}
-    chosen = last if status != "mesh_not_converged" or best is None else best
+                                        features=features[pb.phase.name]) for pb in tr.phases}
+    if status is None:
+        if converged:
+            chosen = min(converged, key=lambda c: (c[3].nlp.get("variables", 0), c[0]))
+            status = "optimal" if chosen[3].status == "optimal" else chosen[3].status
+            message = (f"mesh converged: iteration {chosen[1]} of {len(history)} is the smallest mesh within "
+                       f"tolerance {spec.tolerance:.1e} (largest estimated error {chosen[0]:.3e}, "
+                       f"{chosen[3].nlp.get('variables', 0)} NLP variables)")
+            rejected = [h["iteration"] for h in history if h.get("coarsening_rejected")]
+            if rejected:
+                message += f"; coarsened meshes that missed it: iteration(s) {rejected}"
+        else:
+            status = "mesh_not_converged"
+            chosen = best
+    else:
+        chosen = last
     max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
     if status == "mesh_not_converged":
         above = [e for es in errors_c.values() for e in es if e.error > spec.tolerance]
-        worst = max(above, key=lambda e: e.error)
+        worst = max(above, key=lambda e: e.error) if above else None
+        off_c = history[it_c - 1].get("features_off_breakpoints", {})
+        where = (f"in phase '{worst.phase}' segment {worst.segment} (t in [{worst.t_start:.6g}, "
+                 f"{worst.t_end:.6g}], state {worst.state}); {len(above)} segment(s) above tolerance"
+                 if worst else f"within tolerance but located switches/corners {off_c} are off the breakpoints")
         message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
                    f"{spec.max_iterations} iterations: best mesh (iteration {it_c}) has largest estimated "
-                   f"error {max_err:.3e} in phase '{worst.phase}' segment {worst.segment} "
-                   f"(t in [{worst.t_start:.6g}, {worst.t_end:.6g}], state {worst.state}); "
-                   f"{len(above)} segment(s) above tolerance. Raise max_iterations or max_degree, "
+                   f"error {max_err:.3e} {where}. Raise max_iterations or max_degree, "
                    "or loosen the tolerance.")
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
