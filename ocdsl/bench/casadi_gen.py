@@ -73,8 +73,14 @@ def _f(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def problem_data(problem: Problem, meshes: dict, guesses: dict) -> tuple[dict, str]:
-    """The numbers and the function sources of the script, from the same pieces ocdsl builds."""
+def problem_data(problem: Problem, meshes: dict, guesses: dict | list[dict]) -> tuple[dict, str]:
+    """The numbers and the function sources of the script, from the same pieces ocdsl builds.
+
+    ``guesses`` is one dict phase name -> PhaseGuess, or a list of them (one per start, as
+    ``method.starts`` does in ocdsl: the script keeps the best converged start).
+    """
+    starts = guesses if isinstance(guesses, list) else [guesses]
+    guesses = starts[0]
     from ..transcribe.mesh import Layout
     from ..transcribe.nodes import lobatto_integration_matrix
 
@@ -115,16 +121,19 @@ def problem_data(problem: Problem, meshes: dict, guesses: dict) -> tuple[dict, s
             sc = mesh.scheme(k)
             half_h = (mesh.breakpoints[k + 1] - mesh.breakpoints[k]) / 2.0
             wq[lay.colloc[k]] = np.asarray(sc.weights) * half_h
-        xg = guess.states_at(lay.s_state)
-        ug = guess.controls_at(lay.s_colloc)
+        per_start = []
+        for gs in starts:
+            gp = gs[ph.name]
+            per_start.append({"xg": gp.states_at(lay.s_state).tolist(), "ug": gp.controls_at(lay.s_colloc).tolist(),
+                              "t0_guess": gp.t0, "tf_guess": gp.tf})
         sb = [[_f(v) for v in ph.state_bounds.get(s, (-math.inf, math.inf))] for s in ph.states]
         cb = [[_f(v) for v in ph.control_bounds.get(c, (-math.inf, math.inf))] for c in ph.controls]
         data["phases"].append({
             "name": ph.name, "nx": len(ph.states), "nu": len(ph.controls), "N": lay.n_state_nodes,
             "C": lay.n_colloc, "cs_all": np.concatenate(lay.colloc_state).tolist(), "s_colloc": lay.s_colloc.tolist(), "segments": segs, "wq": wq.tolist(),
-            "state_bounds": sb, "control_bounds": cb, "xg": xg.tolist(), "ug": ug.tolist(),
+            "state_bounds": sb, "control_bounds": cb, "starts": per_start,
             "t0": ph.t0, "tf": ph.tf, "t0_bounds": [_f(v) for v in ph.t0_bounds],
-            "tf_bounds": [_f(v) for v in ph.tf_bounds], "t0_guess": guess.t0, "tf_guess": guess.tf,
+            "tf_bounds": [_f(v) for v in ph.tf_bounds],
             "path": [[_f(c.lower), _f(c.upper)] for c in ph.path], "n_integrals": len(ph.integrals)})
         scalar_of[ph.t0_symbol] = ("t0", p) if ph.t0 is None else ("const", float(ph.t0))
         scalar_of[ph.tf_symbol] = ("tf", p) if ph.tf is None else ("const", float(ph.tf))
@@ -167,7 +176,7 @@ def _b(v, default):
     return default if v is None else v
 
 
-def build():
+def build(start=0):
     xs, lbx, ubx, x0 = [], [], [], []
     g, lbg, ubg = [], [], []
     phases = []
@@ -189,23 +198,24 @@ def build():
         nx, nu, N, C = ph["nx"], ph["nu"], ph["N"], ph["C"]
         lb = [_b(ph["state_bounds"][j][0], -inf) for j in range(nx) for n in range(N)]
         ub = [_b(ph["state_bounds"][j][1], inf) for j in range(nx) for n in range(N)]
-        xg = [ph["xg"][n][j] for j in range(nx) for n in range(N)]
+        gs = ph["starts"][start]
+        xg = [gs["xg"][n][j] for j in range(nx) for n in range(N)]
         Xv, x_at = var(f"X{p}", N * nx, lb, ub, xg)
         X = reshape(Xv, N, nx)
         lb = [_b(ph["control_bounds"][j][0], -inf) for j in range(nu) for n in range(C)]
         ub = [_b(ph["control_bounds"][j][1], inf) for j in range(nu) for n in range(C)]
-        ug = [ph["ug"][n][j] for j in range(nu) for n in range(C)]
+        ug = [gs["ug"][n][j] for j in range(nu) for n in range(C)]
         Uv, u_at = var(f"U{p}", C * nu, lb, ub, ug)
         U = reshape(Uv, C, nu) if nu else SX(C, 0)
         info = {"x_at": x_at, "N": N, "X": X}
         if ph["t0"] is None:
             t0, info["t0_at"] = var(f"t0_{p}", 1, [_b(ph["t0_bounds"][0], -inf)], [_b(ph["t0_bounds"][1], inf)],
-                                    [ph["t0_guess"]])
+                                    [gs["t0_guess"]])
         else:
             t0 = ph["t0"]
         if ph["tf"] is None:
             tf, info["tf_at"] = var(f"tf_{p}", 1, [_b(ph["tf_bounds"][0], -inf)], [_b(ph["tf_bounds"][1], inf)],
-                                    [ph["tf_guess"]])
+                                    [gs["tf_guess"]])
         else:
             tf = ph["tf"]
         info["t0"], info["tf"] = t0, tf
@@ -266,6 +276,8 @@ def build():
         ph = phases[ref[1]]
         return ph["x_at"] + ref[3] * ph["N"] + ref[2]
 
+    global _INDEX
+    _INDEX = index
     for c in DATA["tighten"]:
         i = index(c["ref"])
         if c["eq"]:
@@ -288,6 +300,26 @@ def build():
     return nlp, lbx, ubx, x0, lbg, ubg
 
 
+def initial_guess(start):
+    """x0 of another start (same variable order as build())."""
+    x0 = [fp["guess"] for fp in DATA["free"]]
+    for ph in DATA["phases"]:
+        gs, nx, nu, N, C = ph["starts"][start], ph["nx"], ph["nu"], ph["N"], ph["C"]
+        x0 += [gs["xg"][n][j] for j in range(nx) for n in range(N)]
+        x0 += [gs["ug"][n][j] for j in range(nu) for n in range(C)]
+        if ph["t0"] is None:
+            x0.append(gs["t0_guess"])
+        if ph["tf"] is None:
+            x0.append(gs["tf_guess"])
+    for c in DATA["tighten"]:
+        if c["eq"]:
+            x0[_INDEX(c["ref"])] = c["lo"]
+    return x0
+
+
+_INDEX = None
+
+
 def main():
     import argparse
     import json
@@ -307,13 +339,20 @@ def main():
     out["variables"], out["constraints"] = nlp["x"].numel(), nlp["g"].numel()
     if not a.no_solve:
         t = _time.perf_counter()
-        sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        best = None
+        for start in range(len(DATA["phases"][0]["starts"])):
+            if start:
+                x0 = initial_guess(start)
+            sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+            st = solver.stats()
+            f = float(sol["f"])
+            ok = st["return_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+            if best is None or (ok and (not best[0] or f < best[1])):
+                best = (ok, f, st["return_status"], st["iter_count"])
         out["solve"] = _time.perf_counter() - t
-        st = solver.stats()
-        out["status"] = st["return_status"]
-        out["iterations"] = st["iter_count"]
-        f = float(sol["f"])
-        out["objective"] = -f if DATA["sense"] == "maximize" else f
+        out["starts"] = len(DATA["phases"][0]["starts"])
+        out["status"], out["iterations"] = best[2], best[3]
+        out["objective"] = -best[1] if DATA["sense"] == "maximize" else best[1]
     out["peak_rss_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     print("CASADI_RESULT " + json.dumps(out))
 
@@ -371,7 +410,9 @@ def write_script(path: str | Path, file, segments: int | None = None,
     problem, method = file.problem, file.method
     segs = segments if segments is not None else method.segments
     meshes = {ph.name: Mesh.uniform(method.transcription, segs, method.degree) for ph in problem.phases}
-    guesses = {ph.name: make_guess(problem, ph, None, seed=None) for ph in problem.phases}
+    starts = getattr(method, "starts", 1)
+    seeds = [None] if starts == 1 else [method.seed + i for i in range(starts)]   # as ocdsl.run does
+    guesses = [{ph.name: make_guess(problem, ph, None, seed=s) for ph in problem.phases} for s in seeds]
     opts = {**ipopt_options(file.spec.solver.options), **(extra_options or {})}
     path = Path(path)
     path.write_text(generate(problem, meshes, guesses, opts))
