@@ -8,7 +8,7 @@ from scipy.optimize import brentq
 
 from ocdsl.result import PhaseTrajectory
 from ocdsl.solve.certificate import (Tolerances, certificate, hamiltonian_arrays,
-                                     symbolic_conditions)
+                                     segment_of_nodes, symbolic_conditions)
 from ocdsl.symbolic.model import TIME, Model, sym, syms
 
 
@@ -76,6 +76,74 @@ def test_linear_control_interpolation_still_small(di_nodes):
     assert cert["reintegration"]["interpolation"] == "linear"
     assert 0 < cert["reintegration"]["local_max_error"] < 1e-3
     assert cert["passed"]
+
+
+def radau_end_nodes(t0, tf, segments, degree):
+    """Flipped LGR (ocdsl's LGR): each segment collocates at its end, not at its start."""
+    tau = np.sort(-np.polynomial.legendre.Legendre.basis(degree - 1).__add__(
+        np.polynomial.legendre.Legendre.basis(degree)).roots().real)
+    edges = np.linspace(t0, tf, segments + 1)
+    t = np.concatenate([(a + b) / 2 + (b - a) / 2 * tau for a, b in zip(edges[:-1], edges[1:])])
+    return t, edges
+
+
+def test_segment_of_nodes_boundary_node_ends_its_segment():
+    edges = np.array([0.0, 1.0, 2.0])
+    assert segment_of_nodes([0.0, 0.5, 1.0, 1.2, 2.0], edges).tolist() == [0, 0, 0, 1, 1]
+    # a boundary node an ulp off its boundary (floating-point node placement) still ends it
+    assert segment_of_nodes([1.0 + 2e-16, 1.0 - 2e-16, 1.0 + 1e-6], edges).tolist() == [0, 0, 1]
+
+
+@pytest.mark.parametrize("degree", [2, 5])
+def test_switch_on_a_boundary_with_end_collocated_nodes(degree):
+    """LGR nodes put a node on every interior boundary: the one at t = 1 (u = +1) ends the
+    first half and must not enter the polynomial of the segment after it (u = -1). With
+    the control owned per segment the re-integration is exact (piecewise-constant u)."""
+    t, edges = radau_end_nodes(0, 2, 10, degree)
+    on = np.isclose(t, 1.0)
+    assert on.sum() == 1                        # the switch sits on a node and a boundary
+    traj = di_solution(t)
+    traj.controls["u"][on] = 1.0                # that node ends the first half: u = +1 there
+    cert = certificate(DI, {}, traj, DI_BOUNDS, 0, "min_tf", segments=edges)
+    assert cert["passed"], cert["failed"]
+    assert cert["reintegration"]["local_max_error"] < 1e-7
+    assert cert["reintegration"]["global_max_error"] < 1e-7
+    # the mixed-up polynomial would have given about 1e-2 (the bug): make sure it is the
+    # segment ownership that fixed it, not a different interpolation
+    assert cert["reintegration"]["interpolation"] == "segment polynomial"
+
+
+def test_switch_inside_a_segment_is_judged_by_the_switch_resolution():
+    """7 x 3 LG on [0, 2]: the switch at t = 1 is inside segment 3, where the nodes carry
+    +1, -1, -1 and no interpolation knows the switch time. The exact states still miss
+    the re-integrated ones there by far more than 1e-2; smooth arcs stay exact."""
+    t, edges = lg_nodes(0, 2, 7, 3)
+    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf", segments=edges)
+    re = cert["reintegration"]
+    assert re["smooth_local_max_error"] < 1e-9
+    assert re["local_max_error"] > 0.1 > Tolerances().reintegration
+    # intervals of segments 2 (its last node to segment 3's first) through 4's first node
+    assert re["switch_intervals"] == 4
+    assert re["switch_local_max_error"] == re["local_max_error"]
+    assert 0 < re["switch_resolution_max_ratio"] < 1 and re["max_excess"] <= 1
+    assert cert["passed"], cert["failed"]
+    # the error is O(h), as the resolution: a 3x finer mesh gives about a third
+    t3, edges3 = lg_nodes(0, 2, 21, 3)
+    fine = certificate(DI, {}, di_solution(t3), DI_BOUNDS, 0, "min_tf", segments=edges3)["reintegration"]
+    assert fine["local_max_error"] < 0.5 * re["local_max_error"]
+
+
+@pytest.mark.parametrize("state,delta", [("v", 0.3), ("x", 0.03)])
+def test_wrong_state_in_a_switching_interval_still_fails(state, delta):
+    """The switch allowance is the state change a switch can make, not a blanket pass:
+    x is not driven by u directly (its allowance is second order in dt)."""
+    t, edges = lg_nodes(0, 2, 7, 3)
+    traj = di_solution(t)
+    k = int(np.flatnonzero(np.isclose(t, 1.0))[0])    # the middle node of the switch segment
+    traj.states[state][k] += delta
+    cert = certificate(DI, {}, traj, DI_BOUNDS, 0, "min_tf", segments=edges)
+    assert "reintegration" in cert["failed"]        # (H = lx v + lv u also sees a wrong v)
+    assert not cert["reintegration"]["passed"] and cert["reintegration"]["max_excess"] > 1
 
 
 def test_sign_flipped_costates_fail(di_nodes):
