@@ -45,3 +45,13 @@ def test_table4_sweep():
         bc = boundary(lf)
         assert (bc["x(t0)"], bc["y(t0)"], bc["z(t0)"]) == row
         assert bc["z(tf)"] == -10
+
+
+def test_fine_mesh_file_is_the_main_problem_on_at_least_100_nodes():
+    main, fine = (compile_file(CONFIGS / f"{n}.yaml") for n in ("seed0_rendezvous", "seed0_fine"))
+    assert boundary(fine) == boundary(main)
+    assert fine.problem.phases[0].model.description == main.problem.phases[0].model.description
+    assert fine.method.transcription == "LG"
+    assert fine.method.segments * fine.method.degree >= 100
+    tf = fine.spec.expect["tf"]
+    assert tf.value - tf.atol == pytest.approx(25.868) and tf.value + tf.atol == pytest.approx(25.873)

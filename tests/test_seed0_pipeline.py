@@ -1,7 +1,7 @@
 """Seed 0 through the product: `configs/seed0_*.yaml` solved by ocdsl's LG transcription.
 
 Paper (Mousavi et al. 2022, digest ../shared/seeds/seed_000.md §7.4): main scenario
-20 x 3 LG t_f = 25.8727 s; exact Euler form 25.8731 s; Table 4 rows [20,4,4] 25.9360 and
+20 x 3 LG t_f = 25.8727 s; warm-started 40 x 3 in [25.868, 25.873]; exact Euler form 25.8731 s; Table 4 rows [20,4,4] 25.9360 and
 [20,4,-5] 25.6607; [20,4,0] and [25,-5,-5] at or below 26.1674 and 28.7185.
 Each solve takes 1-2 minutes with 8 starts: these run in `make reproduce`, not in CI.
 """
@@ -13,8 +13,15 @@ from conftest import CONFIGS
 pytestmark = [pytest.mark.slow, pytest.mark.ipopt]
 
 
-def test_main_scenario_and_certificate():
-    res = ocdsl.load(CONFIGS / "seed0_rendezvous.yaml").solve()
+@pytest.fixture(scope="module")
+def main_run(tmp_path_factory):
+    """The 20 x 3 main scenario, solved once with its run folder (the fine mesh starts from it)."""
+    out = tmp_path_factory.mktemp("seed0") / "main"
+    return ocdsl.load(CONFIGS / "seed0_rendezvous.yaml").solve(out=out), out
+
+
+def test_main_scenario_and_certificate(main_run):
+    res, _ = main_run
     assert res.status == "optimal"
     assert abs(res.tf - 25.8727) <= 5e-4
     cert = res.certificate
@@ -23,6 +30,27 @@ def test_main_scenario_and_certificate():
     assert cert["switching"]["agreement"] >= 0.99
     for u, info in cert["bang_bang"]["per_control"].items():
         assert info["fraction_at_bound"] >= 0.95, u
+    # re-integration: smooth arcs within 1e-2, switching intervals within the switch-time
+    # resolution of the 20 x 3 nodes (about 1.3e-2 measured against a resolution ~4e-2)
+    re = cert["reintegration"]
+    assert re["smooth_local_max_error"] <= 1e-2
+    assert re["switch_intervals"] > 0 and re["max_excess"] <= 1
+    assert cert["passed"], cert["failed"]
+
+
+def test_fine_mesh_warm_start(main_run):
+    """40 x 3 LG (120 nodes) warm-started from the 20 x 3 run folder through the API."""
+    _, folder = main_run
+    res = ocdsl.load(CONFIGS / "seed0_fine.yaml").solve(warm_start=folder)
+    assert res.status == "optimal"
+    assert sum(len(p.time) for p in res.phases) >= 100
+    assert res.method["meshes"]["main"]["segments"] * res.method["meshes"]["main"]["degrees"][0] >= 100
+    assert 25.868 <= res.tf <= 25.873
+    cert = res.certificate
+    assert abs(cert["hamiltonian"]["mean"] + 1) <= 2e-3
+    # the switch-time resolution halves with h, and so does the re-integration error
+    assert cert["reintegration"]["local_max_error"] < main_run[0].certificate["reintegration"]["local_max_error"]
+    assert cert["passed"], cert["failed"]
 
 
 def test_exact_euler_form():
