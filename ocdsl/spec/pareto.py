@@ -141,6 +141,7 @@ class EpsilonSpec(_Strict):
     objective: str                       # the objective turned into a constraint
     values: list[float] | dict[str, Any]  # list, or {from:, to:, num:}
     chains: int = Field(1, ge=1)
+    parameter: str | None = None         # solver nlp: the file's parameter that carries eps
 
     @field_validator("values", mode="before")
     @classmethod
@@ -187,6 +188,16 @@ class ParetoSpec(_Strict):
     solver: Literal["closed_form", "nlp"] = "nlp"
     executor: Literal["serial", "local"] = "serial"
     workers: int | None = Field(None, ge=1)
+    # solver nlp, method enumerate: families as parameter sets of the problem file
+    # ({family: [{param: value, ...}, ...]}), where the starts come from ("window": grid of
+    # the window; "closed_form": the model's closed-form roots, perturbed by `perturbation`,
+    # in time units, each way) and the study's own expect checks (n_solutions, pareto_labels)
+    alternatives: dict[str, list[dict[str, float]]] = Field(default_factory=dict)
+    starts_from: Literal["window", "closed_form"] = "window"
+    perturbation: float = Field(0.05, ge=0)
+    expect: dict[str, Any] = Field(default_factory=dict)
+    family: str | None = None     # family name given to every point (e.g. "unrestricted")
+    dominance_tol: float = Field(0.0, ge=0)   # objectives equal within it are ties (NLP noise)
 
     @field_validator("objectives", mode="before")
     @classmethod

@@ -258,9 +258,16 @@ class ParetoSet:
         """:meth:`table` with numbers only (family as its index in :meth:`families`), for Result.tables."""
         t = self.table()
         fams = self.families()
+        def part(s: str, i: int) -> float:   # "2.11" -> 2, 11; "e.3" (epsilon labels) -> nan, 3
+            parts = s.split(".") if s else []
+            try:
+                return float(parts[i])
+            except (IndexError, ValueError):
+                return math.nan
+
         out = {"family_id": np.array([fams.index(f) for f in t.pop("family")], float),
-               "label_major": np.array([float(s.split(".")[0]) if s else math.nan for s in t["label"]]),
-               "label_minor": np.array([float(s.split(".")[1]) if "." in s else math.nan for s in t["label"]])}
+               "label_major": np.array([part(s, 0) for s in t["label"]]),
+               "label_minor": np.array([part(s, 1) for s in t["label"]])}
         t.pop("label")
         t.pop("status")
         for k, v in t.items():
@@ -344,19 +351,21 @@ def enumerate(solve_task: Callable[[Any], Iterable[ParetoPoint] | ParetoPoint | 
               senses: Sequence[str] | None = None, *, map: MapLike = builtins.map,
               dedup_keys: Sequence[str] | None = None, dedup_tol: float = 1e-6,
               accept: Callable[[ParetoPoint], bool] | None = None,
-              family_prefix: dict[str, str] | None = None) -> ParetoSet:
+              family_prefix: dict[str, str] | None = None, flag_tol: float = 0.0) -> ParetoSet:
     """Multistart enumeration: solve every task, keep accepted roots, de-duplicate, flag.
 
     ``solve_task(task)`` returns the points found from one task (a start point, or a cell
     of several starts: batching keeps the executor's per-task overhead small).
-    ``accept`` filters points (e.g. window membership, residual tolerance).
+    ``accept`` filters points (e.g. window membership, residual tolerance). ``flag_tol``
+    is the dominance filter's tolerance: objectives equal within it count as ties (NLP
+    roots carry solver noise, e.g. t_mot = 0.5 +- 1e-13 for every same-sign programme).
     """
     points = _flatten(map(solve_task, list(tasks)))
     if accept is not None:
         points = [p for p in points if accept(p)]
     points = deduplicate(points, dedup_keys, dedup_tol)
     senses = list(senses or ["minimize"] * len(objectives))
-    return ParetoSet(points, list(objectives), senses, "enumerate").flag().label(family_prefix)
+    return ParetoSet(points, list(objectives), senses, "enumerate").flag(flag_tol).label(family_prefix)
 
 
 enumerate_points = enumerate

@@ -13,8 +13,11 @@ Two kinds of point solvers:
   burn durations come in closed form from the secular conditions, (t0, tp) are roots of
   the two periodic conditions found by multistart (SciPy ``root``) over cells of the
   window; :class:`TwoBurnTask` is one cell of one sign pattern.
-* anything else needs a point solver from the transcription back end (``solve_point``
-  argument); the collocation comparison of the issue is wired there later.
+* ``solver: nlp``: the collocation NLP of the problem file (:mod:`ocdsl.study.pareto_nlp`):
+  ``enumerate`` solves a multi-phase file with fixed controls and free durations from
+  starts (:func:`ocdsl.study.pareto_nlp.nlp_tasks`), ``epsilon`` re-solves the file with
+  the parameter ``epsilon.parameter`` set to each eps (:class:`~ocdsl.study.pareto_nlp.EpsilonSolver`);
+  ``solve_point`` replaces the default callable (``weighted`` needs one).
 """
 from __future__ import annotations
 
@@ -213,7 +216,7 @@ def _two_burn_from_doc(doc: dict[str, Any], spec: ParetoSpec, parameters: dict[s
 def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = None, *,
                parameters: dict[str, float] | None = None, map: Callable | None = None,
                solve_point: Callable | None = None, trajectory: bool = True,
-               ) -> tuple[list[Result], dict[str, list[Any]]]:
+               return_set: bool = False) -> tuple[list[Result], dict[str, list[Any]]]:
     """Run a problem file's ``pareto:`` block; return one Result per solution and the table.
 
     ``problem`` is a path or an already-loaded document; ``parameters`` override the
@@ -222,7 +225,9 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
     is given the study folder is written there: ``result.json`` + ``tables/pareto.csv`` +
     ``pareto.csv`` for the set, ``points/<label>/`` for every solution.
     The table has every solution, its family, the variables, the objectives and the
-    Pareto flag; ``Result.extra['pareto']`` flags each point.
+    Pareto flag; ``Result.extra['pareto']`` flags each point. ``return_set=True`` adds the
+    :class:`~ocdsl.study.pareto.ParetoSet` as a third item (to combine studies in one table,
+    :func:`ocdsl.study.pareto_nlp.combine_sets`).
     """
     t_start = time.perf_counter()
     if isinstance(problem, dict):
@@ -247,20 +252,34 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
                                    residual_tol=spec.residual_tol, dedup_tol=spec.dedup_tol,
                                    trajectory=trajectory)
         else:
-            if solve_point is None:
-                raise NotImplementedError(
-                    "pareto solver 'nlp' needs a point solver from the transcription back end "
-                    "(pass solve_point=...); not wired yet")
+            from ocdsl.study import pareto_nlp
+
             objs, senses = spec.objective_names, spec.senses
             if spec.method == "epsilon":
+                if solve_point is None:
+                    if file is None or not spec.epsilon.parameter:
+                        raise ParetoSpecError("method epsilon with solver nlp needs the problem file's "
+                                              "path and epsilon.parameter (the parameter that carries eps)",
+                                              file)
+                    solve_point = pareto_nlp.EpsilonSolver(
+                        file, spec.epsilon.parameter, {k: o.expr for k, o in spec.objectives.items()},
+                        parameters, family=spec.family or "", trajectory=trajectory)
                 pset = P.epsilon(solve_point, spec.epsilon.values, objs, senses, map=map,
                                  chains=spec.epsilon.chains)
             elif spec.method == "weighted":
+                if solve_point is None:
+                    raise NotImplementedError("method weighted with solver nlp: pass solve_point=...")
                 w = spec.weights.values if spec.weights.values is not None else spec.weights.num
                 pset = P.weighted(solve_point, w, objs, senses, map=map, chains=spec.weights.chains)
             else:
-                raise NotImplementedError("method enumerate with solver nlp: pass tasks through "
-                                          "ocdsl.study.pareto.enumerate directly")
+                if file is None:
+                    raise ParetoSpecError("method enumerate with solver nlp needs the problem file's path")
+                tasks = pareto_nlp.nlp_tasks(file, spec, doc, parameters, trajectory=trajectory)
+                prefix = FAMILY_PREFIX if set(spec.alternatives) <= set(FAMILY_PREFIX) else None
+                pset = P.enumerate(solve_point or pareto_nlp.solve_nlp_task, tasks, objs, senses,
+                                   map=map, dedup_tol=spec.dedup_tol, family_prefix=prefix,
+                                   flag_tol=spec.dominance_tol)
+                pset.info.update({"solver": "nlp", "tasks": len(tasks), "starts_from": spec.starts_from})
     finally:
         shutdown()
     wall = time.perf_counter() - t_start
@@ -275,6 +294,9 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
     for r in results:
         r.wall_time_s = {"total": wall / max(len(results), 1)}
     if out is not None:
-        pset.write(out, name, method, problem_desc, wall_time_s=wall, expect=doc.get("expect"))
+        expect = spec.expect or (doc.get("expect") if spec.solver == "closed_form" else None)
+        pset.write(out, name, method, problem_desc, wall_time_s=wall, expect=expect)
     table = pset.table()
+    if return_set:
+        return results, table, pset
     return results, table

@@ -1,0 +1,178 @@
+"""Pareto studies through the collocation NLP (``pareto: {solver: nlp}``, issue 10).
+
+* the seed-4 two-burn roots found by the pseudospectral NLP of the multi-phase file
+  ``configs/seed4_two_burn_nlp.yaml`` (durations free, controls fixed per phase), against
+  the digest's §5.3 tables (synthetic benchmarks of its reconstruction, not the paper's
+  lost Table 1) within 1e-4, and against the closed-form roots;
+* ``epsilon`` through the real collocation on a problem with an analytic continuous front:
+  the minimum-energy rest-to-rest transfer of a double integrator over a distance d in time
+  T has J = int u^2 dt = 12 d^2 / T^3 (A. E. Bryson, Y.-C. Ho, *Applied Optimal Control*,
+  1975, §2.3 / the standard minimum-energy double-integrator example), so the (J, T) front
+  of "min J with T <= eps" is J = 12/eps^3 for d = 1;
+* the unrestricted bang-off-bang problem ``configs/seed4_unrestricted.yaml`` (|delta| <= 1)
+  whose epsilon front can be no worse than the two-burn set.
+"""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocdsl.spec.pareto import ParetoSpecError, load_pareto
+from ocdsl.study import pareto as P
+from ocdsl.study import pareto_nlp as N
+from ocdsl.study.pareto_run import run_pareto, two_burn_pareto
+
+from test_pareto import CASE_A, CASE_B, Y0_A, Y0_B
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+NLP = CONFIGS / "seed4_two_burn_nlp.yaml"
+UNRESTRICTED = CONFIGS / "seed4_unrestricted.yaml"
+PHASES = ("wait", "burn1", "coast", "burn2")
+TOL_NLP = 1e-4          # the issue's tolerance for roots found through the collocation NLP
+
+
+def test_evaluate_objectives():
+    v = {"wait.duration": 1.0, "burn1.duration": 0.5, "coast.duration": 3.0, "burn2.duration": 0.25,
+         "tf": 7.0}
+    assert N.evaluate("burn1.duration + burn2.duration", v) == 0.75
+    assert N.evaluate("wait.duration + burn1.duration + coast.duration + burn2.duration", v) == 4.75
+    assert N.evaluate("2*tf - pi", v) == 14.0 - math.pi
+    with pytest.raises(ValueError, match="cannot evaluate"):
+        N.evaluate("coast.tf", v)
+    with pytest.raises(ValueError, match="cannot evaluate"):
+        N.evaluate("__import__('os')", v)
+
+
+def test_spec_nlp_keys_and_errors(tmp_path):
+    spec, doc = load_pareto(NLP)
+    assert spec.solver == "nlp" and spec.starts_from == "closed_form"
+    assert spec.alternatives["opposite"] == [{"s1": 1.0, "s2": -1.0}, {"s1": -1.0, "s2": 1.0}]
+    spec, _ = load_pareto(UNRESTRICTED)
+    assert spec.method == "epsilon" and spec.epsilon.parameter == "eps" and spec.family == "unrestricted"
+    bad = NLP.read_text().replace("starts_from: closed_form", "starts_from: guesses")
+    (tmp_path / "bad.yaml").write_text(bad)
+    with pytest.raises(ParetoSpecError) as e:
+        load_pareto(tmp_path / "bad.yaml")
+    assert e.value.line == bad.splitlines().index("  starts_from: guesses") + 1
+
+
+def _roots(pset, family, d1):
+    return sorted((p for p in pset.points if p.family == family and p.variables["s1"] == d1),
+                  key=lambda p: p.objectives["t_sum"])
+
+
+def _check_against(points, reference, closed_form):
+    """Durations within 1e-4 of the digest's table and of the closed-form roots."""
+    ref = sorted(reference, key=lambda r: r[7])
+    cf = sorted(closed_form, key=lambda p: p.objectives["t_sum"])
+    assert len(points) == len(ref) == len(cf)
+    for p, r, q in zip(points, ref, cf):
+        got = np.array([p.variables[f"{ph}.duration"] for ph in PHASES])
+        exact = np.array([q.variables[k] for k in ("t0", "t1", "tp", "t2")])
+        assert np.max(np.abs(got - np.array(r[2:6]))) < TOL_NLP + 5e-7, (got, r)
+        assert np.max(np.abs(got - exact)) < TOL_NLP, (got, exact)
+        assert abs(p.objectives["t_mot"] - r[6]) < TOL_NLP and abs(p.objectives["t_sum"] - r[7]) < TOL_NLP
+        assert p.residual < 1e-8          # the phases integrated (DOP853) reach the zero state
+        assert p.status == "optimal"
+
+
+@pytest.mark.ipopt
+def test_nlp_finds_case_A_opposite_roots():
+    """The five opposite-sign (-1/+1) roots of case A through the NLP, each from a start moved
+    by up to 0.05 in every duration (the same-sign family is in the slow test)."""
+    spec, doc = load_pareto(NLP)
+    spec = spec.model_copy(update={"alternatives": {"opposite": [{"s1": -1, "s2": 1}]}})
+    tasks = N.nlp_tasks(NLP, spec, doc)
+    assert len(tasks) == 5
+    moved = [max(abs(t.starts[0][ph] - t.tag["closed_form_root"][ph]) for ph in PHASES) for t in tasks]
+    assert max(moved) > 0.02               # the starts are not the roots
+    s = P.enumerate(N.solve_nlp_task, tasks, ["t_mot", "t_sum"], dedup_tol=spec.dedup_tol)
+    cf = [p for p in two_burn_pareto(Y0_A, {"opposite": [(-1, 1)]}, trajectory=False).points]
+    _check_against(_roots(s, "opposite", -1), [r for r in CASE_A if r[0] == "opposite"], cf)
+    assert all(p.pareto for p in s.points)   # all five opposite roots are Pareto (digest §5.3)
+    # the NLP root's trajectory is continuous across phases and ends at zero
+    p = s.points[0]
+    assert [q.name for q in p.phases] == list(PHASES)
+    for a, b in zip(p.phases, p.phases[1:]):
+        assert abs(a.time[-1] - b.time[0]) < 1e-12 and abs(a.states["l_x"][-1] - b.states["l_x"][0]) < 1e-12
+    assert max(abs(v[-1]) for v in p.phases[-1].states.values()) < 1e-8
+
+
+@pytest.mark.ipopt
+@pytest.mark.slow
+@pytest.mark.parametrize("case", ["A", "B"])
+def test_nlp_enumerate_study_cases_A_B(case, tmp_path):
+    """run_pareto on the NLP file: same roots, same flags as the digest, durations within 1e-4."""
+    params, ref, y0 = ({}, CASE_A, Y0_A) if case == "A" else ({"L0": 5.0}, CASE_B, Y0_B)
+    results, table = run_pareto(NLP, tmp_path / case, parameters=params)
+    assert len(results) == len(ref) == len(table["label"])
+    spec, doc = load_pareto(NLP)
+    cf = two_burn_pareto(y0, trajectory=False)
+    pset_points = [r.extra for r in results]
+    for fam, d1 in {(r[0], r[1]) for r in ref}:
+        pts = [P.ParetoPoint(r.extra["objectives"], r.parameters, r.extra["family"], status=r.status,
+                             residual=r.extra["residual"], pareto=r.extra["pareto"])
+               for r in results if r.extra["family"] == fam and r.parameters["s1"] == d1]
+        pts.sort(key=lambda p: p.objectives["t_sum"])
+        mine = [r for r in ref if r[0] == fam and r[1] == d1]
+        _check_against(pts, mine, [p for p in cf.points if p.family == fam and p.variables["d1"] == d1])
+        assert [p.pareto for p in pts] == [r[8] for r in sorted(mine, key=lambda r: r[7])]
+    assert len(pset_points) == len(ref)
+
+
+@pytest.mark.ipopt
+def test_epsilon_traces_analytic_energy_time_front(tmp_path):
+    """min int u^2 with T <= eps, rest-to-rest over distance 1: J = 12/eps^3 (Bryson & Ho)."""
+    f = tmp_path / "energy_time.yaml"
+    f.write_text("""
+name: minimum-energy double integrator, energy against time
+model: {use: double_integrator}
+parameters: {Tmax: 2}
+problem:
+  time: {t0: 0, tf: free}
+  constraints:
+    - x(t0) == 0
+    - v(t0) == 0
+    - x(tf) == 1
+    - v(tf) == 0
+    - 0.1 <= tf <= Tmax
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 2, degree: 4}
+solver: {options: {tol: 1.0e-10}}
+pareto:
+  method: epsilon
+  solver: nlp
+  objectives: {J: integral(u**2), T: tf}
+  epsilon: {objective: T, parameter: Tmax, values: [1, 1.5, 2, 3, 4], chains: 2}
+""")
+    results, table = run_pareto(f, tmp_path / "out")
+    assert len(results) == 5 and all(table["pareto"])
+    order = np.argsort(table["Tmax"])
+    eps, T, J = (np.array(table[k])[order] for k in ("Tmax", "T", "J"))
+    assert np.allclose(eps, [1, 1.5, 2, 3, 4])
+    assert np.allclose(T, eps, atol=1e-7)              # the bound is active: more time, less energy
+    assert np.allclose(J, 12 / eps**3, rtol=1e-6)      # on the analytic front
+
+
+@pytest.mark.ipopt
+def test_unrestricted_is_no_worse_than_two_burn(tmp_path):
+    """Two points of the unrestricted epsilon front (eps = 10, 14), warm-started in a chain:
+    t_mot >= |Delta r_av| = 0.5 (int |delta| >= |int delta|) and no worse than the best
+    two-burn programme of case A with t_sum <= eps."""
+    spec, doc = load_pareto(UNRESTRICTED)
+    solve = N.EpsilonSolver(str(UNRESTRICTED), "eps", {k: o.expr for k, o in spec.objectives.items()},
+                            family="unrestricted")
+    s = P.epsilon(solve, [10.0, 14.0], ["t_mot", "t_sum"])
+    assert len(s.points) == 2
+    two_burn = two_burn_pareto(Y0_A, trajectory=False)
+    for p in s.points:
+        eps = p.extra["epsilon"]
+        assert p.objectives["t_sum"] <= eps + 1e-6 and p.objectives["t_mot"] >= 0.5 - 1e-6
+        best = min(q.objectives["t_mot"] for q in two_burn.points if q.objectives["t_sum"] <= eps)
+        assert p.objectives["t_mot"] <= best + 1e-6, (p.objectives, best)
+        ph = p.phases[0]
+        assert max(abs(ph.states[k][-1]) for k in ("r_av", "L_av", "l_x", "l_y")) < 1e-7
+        assert np.all(ph.controls["dp"] > -1e-6) and np.all(ph.controls["dp"] < 1 + 1e-6)
+    a, b = sorted(s.points, key=lambda q: q.extra["epsilon"])
+    assert b.objectives["t_mot"] <= a.objectives["t_mot"] + 1e-6   # more time, no more fuel
