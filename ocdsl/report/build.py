@@ -277,8 +277,15 @@ def _problem_section(doc: Doc, res: Result) -> None:
     doc.table(b, doc.guard("parameters table", lambda: T.parameters_table(res)))
     phases = prob.get("phases") or {}
     multi = len(phases) > 1
+    groups: dict[str, list[str]] = {}      # phases with the same equations are typeset once
     for pname, info in phases.items():
-        where = f" — phase {pname}" if multi else ""
+        key = json.dumps({k: info.get(k) for k in ("dynamics_latex", "expressions_latex", "constraints",
+                                                    "constraints_latex", "t0", "tf")}, sort_keys=True, default=str)
+        groups.setdefault(key, []).append(pname)
+    for names in groups.values():
+        pname, info = names[0], phases[names[0]]
+        where = (f" — phase {pname}" if len(names) == 1 else
+                 " — phases " + ", ".join(names)) if multi else ""
         dyn = [(_dynamics_latex(s, lt), f"d{s}/dt = {lt}", "") for s, lt in (info.get("dynamics_latex") or {}).items()]
         doc.guard("dynamics", lambda: doc.equations(b, "Dynamics" + where, dyn))
         exprs = [(f"{F.tex_name(k)} = {lt}", f"{k} = {lt}", "") for k, lt in (info.get("expressions_latex") or {}).items()]

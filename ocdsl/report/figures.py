@@ -275,10 +275,23 @@ def _phase_series(res: Result, attr: str, prefix: str = "") -> list[tuple[str, S
                           for p in res.phases if n in getattr(p, attr)]) for n in names]
 
 
+def _sequential(res: Result) -> bool:
+    """Phases one after another in time (not alternatives over the same interval, as the
+    controllers of a controller file are)."""
+    ends = [(float(np.nanmin(p.time)), float(np.nanmax(p.time))) for p in res.phases if len(p.time)]
+    return all(b[0] >= a[1] - 1e-9 * max(1.0, abs(a[1])) for a, b in zip(ends, ends[1:]))
+
+
 def _phase_boundaries(res: Result) -> list[float]:
-    if len(res.phases) < 2:
+    if len(res.phases) < 2 or not _sequential(res):
         return []
     return [float(np.asarray(p.time, float)[-1]) for p in res.phases[:-1] if len(p.time)]
+
+
+def _phases_note(res: Result) -> str:
+    if len(res.phases) < 2:
+        return ""
+    return " Phases in colour, phase boundaries dotted." if _sequential(res) else " One line per phase (run)."
 
 
 @_styled
@@ -286,8 +299,7 @@ def fig_states_controls(res: Result) -> list[Fig]:
     """States and controls against time; control (and state) bounds dashed."""
     units = res.problem.get("units") or {}
     out: list[Fig] = []
-    multi = len(res.phases) > 1
-    note = " Phases in colour, phase boundaries dotted." if multi else ""
+    note = _phases_note(res)
     st = _phase_series(res, "states")
     if st:
         out += _grid_figures("states", "State histories." + note + " Dashed: bounds.", st, units,

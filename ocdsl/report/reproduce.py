@@ -23,7 +23,7 @@ the reference tables of :data:`PAPER_TABLES` for studies) with reference, ocdsl 
 error, pass/fail and a link to the report. ``reports/reproduce.json`` records, per
 example, its kind, status, wall time and the date and commit it was made at.
 
-Slow examples (minutes each) are those in :data:`SLOW` or whose file has a top-level
+Slow examples (minutes each) are those in :data:`SLOW`, named ``seed0_*``, or whose file has a top-level
 comment line ``# reproduce: slow``; ``--skip-slow`` leaves them out.
 
 Exit code: 0 when every example ran, its reports were written and its ``expect`` checks
@@ -51,6 +51,8 @@ REPORTS = Path("reports")
 #: Examples that take minutes (multi-start 6-DOF collocation, PSO paper runs, Table 4 study).
 SLOW = frozenset({"seed0_rendezvous", "seed0_exact_euler", "seed0_table4",
                   "seed1_2N_paper", "seed1_5N_paper", "seed1_10N_paper"})
+#: Every seed-0 file is a multi-start 6-DOF collocation (minutes), whatever its name.
+SLOW_PREFIXES = ("seed0_",)
 SLOW_MARK = re.compile(r"^#\s*reproduce:\s*slow\b", re.M | re.I)
 GOOD = ("optimal", "acceptable", "feasible", "stable")
 
@@ -112,7 +114,7 @@ def classify(path: Path) -> Example:
         kind = "controller"
     else:
         kind = "problem"
-    slow = path.stem in SLOW or bool(SLOW_MARK.search(text))
+    slow = path.stem in SLOW or path.stem.startswith(SLOW_PREFIXES) or bool(SLOW_MARK.search(text))
     return Example(path, kind, slow, str(data.get("name") or path.stem))
 
 
@@ -200,7 +202,7 @@ def reproduce(examples: Sequence[Example], reports: Path = REPORTS, formats: Seq
         except Exception as exc:  # noqa: BLE001  (a broken example must not stop the others)
             shutil.rmtree(scratch, ignore_errors=True)
             out = Outcome(ex.stem, ex.kind, "error", False, time.perf_counter() - t0,
-                          message=f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=4)}")
+                          message=f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=-4)}")
         outcomes.append(out)
         log(f"[reproduce] {ex.stem}: {out.status}, {'ok' if out.ok else 'NOT OK'}, {out.seconds:.1f} s"
             + (f"\n{out.message}" if out.message else ""))
