@@ -39,17 +39,35 @@ Refinement rule
       equal pieces, all of degree ``min_degree``. The segment that holds the switch thus
       shrinks by a factor of about 2 * bracket_pieces / N_k per iteration, and the
       segments on either side of it are smooth, so the switch ends up on (or within a tiny
-      segment next to) a segment boundary.
+      segment next to) a segment boundary. Used when the switch cannot be located:
+    - Located switches and corners (``locate_features``): a bound-to-bound switch from the
+      quadrature of the collocated control (``locate_switches``), a corner from the crossing
+      of the neighbouring smooth segments' control polynomials (``_corner``), another jump
+      from the same quadrature with those polynomials in place of the bounds (``_jump``).
+      Each one farther than ``corner_tolerance`` from a breakpoint becomes one: the nearest
+      breakpoint is moved onto it when within ``snap`` of the segment width, else the segment
+      is split there; the mesh is not converged while one is off its breakpoint.
+    - At most ``growth`` times the segments per refinement (largest errors first).
+    - Coarsening (``coarsen``), once a mesh meets the tolerance: Liu, Hager & Rao (2015)
+      reduce degrees and merge segments where the error is far below tolerance; here
+      consecutive segments are merged and every segment gets the smallest degree for which
+      one Legendre polynomial fits the solution's states over it within
+      ``coarsen_margin * tolerance``. The coarse mesh is solved and estimated like any other
+      (refined again if it misses); the smallest mesh that met the tolerance is returned.
 
 Warm start: the states and controls of the previous mesh are sampled from each segment's
 interpolating polynomials and interpolated onto the new mesh (``transcribe.guess``).
-Multipliers are not carried over (see docs/mesh-refinement.md).
+Multipliers are not carried over: Pyomo's cyipopt solver (pynumero
+``algorithms/solvers/cyipopt_solver.py``) calls cyipopt's ``solve(problem.x_init())`` with no
+``lagrange``/``zl``/``zu``, so ``warm_start_init_point`` would start from Ipopt's default duals;
+passing them needs a direct ``cyipopt.Problem`` call in ``solve/ipopt.py``.
 """
 from __future__ import annotations
 
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -78,6 +96,7 @@ class SegmentError:
     state: str                   # state with the largest discrepancy
     nonsmooth: bool
     switches: list[tuple[float, float]] = field(default_factory=list)   # brackets in s
+    smoothed: bool = False       # the error is the one with the smoothed control (see estimate_errors)
 
 
 def _phase_functions(ph, free_syms):
@@ -130,9 +149,39 @@ def _activity(values, lo, hi, tol):
     return out
 
 
+def _zigzag(u) -> bool:
+    """Node-to-node chattering: the significant steps of u alternate in sign at least twice."""
+    d = np.diff(np.asarray(u, float))
+    d = d[np.abs(d) > 1e-6 * (1.0 + np.max(np.abs(u)))]
+    return int(np.sum(np.sign(d[1:]) != np.sign(d[:-1]))) >= 2
+
+
+def _smoothed_control(lay, k, U, ulo, uhi, t0, tf):
+    """t -> control: least-squares quadratic in time through the collocated controls of
+    segment k and its two neighbours (weighted by the quadrature weights), clipped to the
+    bounds."""
+    segs = range(max(0, k - 1), min(lay.mesh.segments, k + 2))
+    nodes = np.concatenate([lay.colloc[q] for q in segs])
+    # weighted by the quadrature weights: the dynamics feel the control through them
+    w = np.concatenate([np.asarray(lay.mesh.scheme(q).weights) * (lay.mesh.breakpoints[q + 1] - lay.mesh.breakpoints[q])
+                        for q in segs])
+    ts = t0 + (tf - t0) * lay.s_colloc[nodes]
+    deg = min(2, len(nodes) - 1)
+    mid, half = 0.5 * (ts.min() + ts.max()), 0.5 * (ts.max() - ts.min()) or 1.0
+    coef = [np.polyfit((ts - mid) / half, U[nodes, j], deg, w=np.sqrt(w)) for j in range(U.shape[1])]
+    return lambda t: np.clip([np.polyval(c, (t - mid) / half) for c in coef], ulo, uhi)
+
+
 def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points: int = 6,
-                    rtol: float = 1e-12) -> list[SegmentError]:
-    """Per-segment error of one solved phase (see the module docstring)."""
+                    rtol: float = 1e-12, smooth_above: float | None = None) -> list[SegmentError]:
+    """Per-segment error of one solved phase (see the module docstring).
+
+    ``smooth_above``: where the error with the collocated control is above it, the dynamics
+    are integrated again with the smoothed control (``_smoothed_control``) and the smaller
+    of the two errors is kept (``SegmentError.smoothed``). Both controls are admissible, so
+    either way the collocated state is that close to a trajectory of the system; the
+    smoothing keeps node-to-node chattering of a weakly determined control (singular arcs)
+    from being taken for a state error and split forever."""
     from scipy.integrate import solve_ivp
 
     from ..transcribe.nodes import legendre_gauss_lobatto
@@ -178,6 +227,21 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
         disc = float(np.nanmax(rel)) if np.isfinite(rel).any() else math.inf
         if not np.isfinite(rel).all():
             disc = math.inf
+        smoothed = False
+        # only where every control is strictly inside its bounds at the segment's nodes and the
+        # neighbours' (a boundary arc), or zigzags from node to node (a singular arc's
+        # chattering): a single jump to or from a bound is a switch, not smoothed away
+        near = np.concatenate([lay.colloc[q] for q in range(max(0, k - 1), min(mesh.segments, k + 2))])
+        inside = all(not _activity(U[near, j], ulo[j], uhi[j], 1e-6).any() or _zigzag(U[near, j])
+                     for j in range(nu))
+        if smooth_above is not None and disc > smooth_above and h > 0 and nu and inside:
+            usm = _smoothed_control(lay, k, U, ulo, uhi, t0, tf)
+            sol2 = solve_ivp(lambda t, x: np.asarray(f(*x, *usm(t), t, *pvals), float).reshape(-1),
+                             (ta, tb), x_start, method="DOP853", t_eval=t_f, rtol=rtol, atol=rtol * scale)
+            if sol2.success and sol2.y.shape[1] == len(t_f):
+                rel2 = np.abs(sol2.y.T - x_poly) / scale
+                if np.isfinite(rel2).all() and float(np.max(rel2)) < disc:
+                    x_int, rel, disc, smoothed = sol2.y.T, rel2, float(np.max(rel2)), True
         which = ph.states[int(np.nanargmax(np.nanmax(rel, axis=0)))].name if np.isfinite(rel).any() else ""
         # violations of state bounds and path constraints by the integrated trajectory
         viol = 0.0
@@ -233,7 +297,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
         switches = sorted(set(switches))
         err = max(disc, viol)
         out.append(SegmentError(ph.name, k, ta, tb, sc.degree, err, disc, viol, which,
-                                bool(switches), switches))
+                                bool(switches), switches, smoothed))
     return out
 
 
@@ -313,6 +377,10 @@ def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
         for p, q in zip(at, at[1:]):
             if act[p] == act[q] or act[p + 1:q].any():
                 continue
+            # a switch ends a run of two nodes at one bound and starts a run at the other
+            # (single nodes at a bound are the chattering of a singular arc)
+            if not (p >= 1 and act[p - 1] == act[p] and q + 1 < len(act) and act[q + 1] == act[q]):
+                continue
             uA, uB = (lo, hi) if act[p] < 0 else (hi, lo)
             if q == p + 1 and seg[p] != seg[q]:
                 out.append(float(mesh.breakpoints[seg[q]]))
@@ -373,10 +441,58 @@ def _corner(mesh, k, errors, controls, tol):
     return best
 
 
+def _jump(mesh, k, errors, controls, U, lay):
+    """Where the control jumps near nonsmooth segment k (a bound-to-interior switch, such as
+    the entry of a first-order state-constraint arc), or None.
+
+    With u_L and u_R the control polynomials of the nearest smooth segments on either side
+    (as in ``_corner``) and [g_a, g_b] the gap between them, t_s solves
+        int_{g_a}^{t_s} u_L + int_{t_s}^{g_b} u_R = sum over the gap's segments of w_i u_i h/2,
+    the quadrature of the collocated control (the same impulse as ``locate_switches``, with
+    the neighbours' controls in place of the bounds), for the control with the largest jump.
+    """
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+
+    if controls is None or k == 0 or k == mesh.segments - 1:
+        return None
+    a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
+    width = np.diff(mesh.breakpoints)
+    rough = {e.segment for e in errors if e.nonsmooth}
+    ok = lambda q: q not in rough and width[q] >= 0.5 * (b - a)  # noqa: E731
+    lk = next((q for q in range(k - 1, -1, -1) if ok(q)), None)
+    rk = next((q for q in range(k + 1, mesh.segments) if ok(q)), None)
+    if lk is None or rk is None:
+        return None
+    ga, gb = float(mesh.breakpoints[lk + 1]), float(mesh.breakpoints[rk])
+    mid = np.array([0.5 * (ga + gb)])
+    jumps = np.abs(controls[lk](mid)[0] - controls[rk](mid)[0])
+    j = int(np.argmax(jumps))
+    scale = 1.0 + np.max(np.abs(U[:, j]))
+    if jumps[j] < 1e-6 * scale:
+        return None
+    Q = 0.0
+    for q in range(lk + 1, rk):
+        sc = mesh.scheme(q)
+        Q += float(np.dot(sc.weights, U[lay.colloc[q], j])) * width[q] / 2
+    uL = lambda s: float(controls[lk](np.array([s]))[0, j])  # noqa: E731
+    uR = lambda s: float(controls[rk](np.array([s]))[0, j])  # noqa: E731
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # quad's round-off notes near the root
+        total_R = quad(uR, ga, gb, epsabs=1e-14)[0]
+        F = lambda ts: quad(lambda s: uL(s) - uR(s), ga, ts, epsabs=1e-14)[0] + total_R - Q  # noqa: E731
+        fa, fb = F(ga), F(gb)
+        if not fa * fb < 0:
+            return None
+        ts = brentq(F, ga, gb, xtol=1e-14)
+    return ts if ga < ts < gb else None
+
+
 def locate_features(tr, pb, errors, params, spec, controls) -> list[float]:
-    """Located nonsmooth points of one phase (normalised time): switches, then corners of
-    nonsmooth segments that hold no located switch."""
+    """Located nonsmooth points of one phase (normalised time): bound-to-bound switches, then,
+    in nonsmooth segments that hold none, corners (``_corner``) or other jumps (``_jump``)."""
     mesh = pb.layout.mesh
+    U = _solution_arrays(pb)[1]
     # at a bound to 1e-6 (relative): the NLP's bound relaxation and stopping tolerance leave
     # a bang arc's control ~1e-8 inside its bound
     feats = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
@@ -388,6 +504,8 @@ def locate_features(tr, pb, errors, params, spec, controls) -> list[float]:
         if any(a - spec.corner_tolerance <= f <= b + spec.corner_tolerance for f in feats):
             continue
         c = _corner(mesh, e.segment, errors, controls, spec.tolerance)
+        if c is None:
+            c = _jump(mesh, e.segment, errors, controls, U, pb.layout)
         if c is not None and all(abs(c - f) > spec.corner_tolerance for f in feats):
             feats.append(c)
     return sorted(feats)
@@ -457,16 +575,16 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None)
     if features is None:
         features = corners_to_place(mesh, errors, spec, controls)
     todo = misplaced(mesh, features, spec)
-    segs: list[list] = []
+    proposals: list[list[list]] = []
     for e in errors:
         k = e.segment
         a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
         N = mesh.degrees[k]
         holds = [f for f in todo if a < f < b]
         if not (e.error > tol) or holds:
-            segs.append([a, b, N])
+            proposals.append([[a, b, N]])
             continue
-        if e.nonsmooth:
+        if e.nonsmooth and not e.smoothed:
             cuts = set()
             for lo, hi in e.switches:
                 for q in range(pieces + 1):
@@ -479,17 +597,29 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None)
                     merged.append(c)
             if merged:
                 edges = [a, *merged, b]
-                segs.extend([x, y, nmin] for x, y in zip(edges, edges[1:]))
+                proposals.append([[x, y, nmin] for x, y in zip(edges, edges[1:])])
                 continue
         # smooth (or a switch that cannot be bracketed more finely): p, then h
         ratio = e.error / tol if math.isfinite(e.error) else 1e6
         P = max(1, math.ceil(math.log(ratio) / math.log(max(N, 2))))
         if N + P <= nmax:
-            segs.append([a, b, N + P])
+            proposals.append([[a, b, N + P]])
         else:
             B = max(math.ceil((N + P) / nmin), 2)
             edges = [a + (b - a) * q / B for q in range(B + 1)]
-            segs.extend([x, y, nmin] for x, y in zip(edges, edges[1:]))
+            proposals.append([[x, y, nmin] for x, y in zip(edges, edges[1:])])
+    # at most growth x the segments: the largest errors are split first, the others wait
+    budget = max(1, int(spec.growth * mesh.segments) - mesh.segments)
+    for k in sorted(range(len(errors)), key=lambda q: -errors[q].error):
+        extra = len(proposals[k]) - 1
+        if extra <= 0:
+            continue
+        if extra <= budget:
+            budget -= extra
+        else:
+            a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
+            proposals[k] = [[a, b, mesh.degrees[k]]]
+    segs = [sg for prop in proposals for sg in prop]
     for f in todo:
         _place(segs, f, spec.snap, features, spec.corner_tolerance)
     segs = [sg for sg in segs if sg[1] > sg[0]]
@@ -709,7 +839,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar)
         with timer.measure("mesh"):
             params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
-            errors = {pb.phase.name: estimate_errors(pb, params, active_tol=max(1e-9, 0.1 * spec.tolerance))
+            errors = {pb.phase.name: estimate_errors(pb, params, active_tol=max(1e-9, 0.1 * spec.tolerance),
+                                                     smooth_above=spec.tolerance if spec.smooth_control else None)
                       if info.status in GOOD else []
                       for pb in tr.phases}
         allerr = [e for es in errors.values() for e in es]

@@ -114,6 +114,11 @@ class MeshSpec(Strict):
     coarsen_margin: float = Field(0.1, gt=0, le=1, description="fit error allowed by coarsening, "
                                   "as a fraction of tolerance")
     lowest_degree: int = Field(1, ge=1, description="coarsening lowers a segment's degree down to this")
+    smooth_control: bool = Field(False, description="where the error with the collocated control is above "
+                                 "tolerance on a chattering or interior arc, also integrate with a smoothed "
+                                 "control and keep the smaller error (docs/mesh-refinement.md: did not help Goddard)")
+    growth: float = Field(3.0, ge=1.0, description="a refinement at most multiplies the segment count by this "
+                          "(the segments with the largest errors are refined first)")
 
     @model_validator(mode="after")
     def _check(self):
