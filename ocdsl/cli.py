@@ -232,5 +232,13 @@ def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
         click.echo(f"wrote {f}")
 
 
+def _register_bench() -> None:
+    from .bench.cli import bench  # imports only click at module level
+
+    main.add_command(bench, "bench")
+
+
+_register_bench()
+
 if __name__ == "__main__":
     main()
