@@ -134,7 +134,14 @@ class _PhaseNLP:
                     b.z[j, i].setub((hi - self.offset[y]) / self.scale[y])
         tf_lo, tf_hi = ph.tf_bounds
         self.tf_ref = float(ph.tf_guess)
-        b.s = pyo.Var(bounds=(tf_lo / self.tf_ref, tf_hi / self.tf_ref), initialize=1.0)
+        if not (np.isfinite(self.tf_ref) and self.tf_ref > 0):
+            raise ValueError(f"phase {ph.name!r}: the duration guess must be positive, got {ph.tf_guess}")
+        # the duration stays positive (derivatives are divided by its powers)
+        s_lo = max(tf_lo / self.tf_ref, 1e-8) if tf_lo is not None and np.isfinite(tf_lo) else 1e-8
+        s_hi = tf_hi / self.tf_ref if tf_hi is not None and np.isfinite(tf_hi) else None
+        b.s = pyo.Var(bounds=(s_lo, s_hi), initialize=1.0)
+        if s_hi is not None and s_hi == s_lo:
+            b.s.fix(s_lo)
         self.tf = self.tf_ref * b.s
         # integration constants (quadrature states): fixed when a boundary value gives them
         b.k = pyo.Var(range(len(fm.constants)), initialize=0.0)

@@ -1,0 +1,365 @@
+"""Runner of ``method: {transcription: flat-bspline}``: a compiled symbolic
+:class:`~ocdsl.symbolic.problem.Problem` -> flat B-spline NLP -> :class:`~ocdsl.result.Result`.
+
+What is mapped, phase by phase
+------------------------------
+* the model (with the phase's constants) is reduced by
+  :func:`ocdsl.symbolic.flatness.flatten` with the method's ``flat_outputs`` (or the
+  automatic search) and the phase's box bounds (which choose solution branches);
+* box bounds on the original states/controls: on a flat output they bound the control
+  points (convex hull), on anything else they are inequalities at the collocation points
+  through the flat map; path constraints likewise;
+* time: the flat back end measures each phase from its start (``t = t0 + d tau``, the
+  duration ``d`` free or fixed); ``t0`` of a phase is a number or an NLP variable;
+  bounds on ``tf`` become bounds on the duration when ``t0`` is fixed, and a boundary
+  constraint ``lo <= tf - t0 <= hi`` becomes the duration's bounds;
+* boundary constraints and links (any relation in boundary values ``x(t0)``, ``x(tf)``,
+  phase times, integrals and free parameters), and the objective, are lambdified into
+  Pyomo with every boundary value rewritten through the flat map; boundary equalities of
+  a single boundary value (``x(t0) == 3``) also shape the guess and fix integration
+  constants (the lander's ``m(t0)``);
+* integrals: composite Gauss-Legendre quadrature over the knot spans (degree + 1 points
+  per span) of the flat expression of the integrand;
+* guess: the core's :func:`ocdsl.transcribe.guess.make_guess` (the file's ``guess:``,
+  linear between fixed boundary values, mid-bounds), fitted by least squares.
+
+Not supported (a clear error): free parameters inside the dynamics or path constraints,
+and explicitly time-dependent dynamics in a phase whose start is not fixed at 0.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+
+import numpy as np
+import sympy as sp
+
+from ..result import PhaseTrajectory, Result
+from ..symbolic.flatness import FlatnessError, flatten
+from ..symbolic.model import TIME
+
+INF = float("inf")
+
+#: Ipopt options of the flat back end (under the file's own ``solver: options``).
+FLAT_SOLVER_DEFAULTS = {"mu_strategy": "monotone", "tol": 1e-9}
+
+
+class FlatProblemError(ValueError):
+    """The problem cannot be mapped onto the flat B-spline back end."""
+
+
+def _is_boundary_symbol(problem, s) -> bool:
+    return s in problem.boundary_values
+
+
+def _phase_flatmap(problem, ph, method):
+    outputs = method.outputs_for(ph.name)
+    bounds = {s.name: b for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
+    rhs_syms = set().union(*(e.free_symbols for e in ph.rhs()))
+    free_in_dyn = rhs_syms & set(problem.free_parameters)
+    if free_in_dyn:
+        raise FlatProblemError(f"phase {ph.name!r}: free parameter(s) {sorted(s.name for s in free_in_dyn)} "
+                               "in the dynamics are not supported by flat-bspline")
+    if TIME in rhs_syms and ph.t0 != 0.0:
+        raise FlatProblemError(f"phase {ph.name!r}: time-dependent dynamics need t0 fixed at 0 "
+                               "with flat-bspline (its phases are measured from their start)")
+    try:
+        return flatten(ph.model, outputs, bounds=bounds, parameter_values=dict(ph.constants))
+    except FlatnessError as e:
+        raise FlatnessError(f"phase {ph.name!r}: {e}") from None
+
+
+def _guess_tables(problem, ph):
+    from .guess import make_guess
+
+    return make_guess(problem, ph)
+
+
+class _Mapped:
+    """The flat phases built from a Problem, plus the bookkeeping of times and symbols."""
+
+    def __init__(self, file):
+        from .flat_bspline import FlatBSplineOptions, FlatPhase
+
+        problem, method = file.problem, file.method
+        self.file, self.problem, self.method = file, problem, method
+        self.opts = FlatBSplineOptions(method.degree, method.control_points, method.collocation_points,
+                                       method.collocation)
+        simple: dict[str, dict] = {ph.name: {} for ph in problem.phases}
+        self.consumed: set[int] = set()
+        self.duration_bounds: dict[str, list[float]] = {}
+        for i, c in enumerate(problem.boundary):
+            if c.is_equality and isinstance(c.expr, sp.Symbol) and c.expr in problem.boundary_values:
+                bv = problem.boundary_values[c.expr]
+                simple[bv.phase][(bv.var.name, bv.which)] = float(c.lower)
+                self.consumed.add(i)
+        for ph in problem.phases:
+            d = [0.0, INF]
+            if ph.t0 is not None:
+                lo, hi = ph.tf_bounds
+                d = [max(0.0, lo - ph.t0), hi - ph.t0]
+            for i, c in enumerate(problem.boundary):
+                if sp.expand(c.expr - (ph.tf_symbol - ph.t0_symbol)) == 0:
+                    d = [max(d[0], c.lower), min(d[1], c.upper)]
+                    self.consumed.add(i)
+            if ph.tf is not None and ph.t0 is not None:
+                d = [ph.tf - ph.t0, ph.tf - ph.t0]
+            self.duration_bounds[ph.name] = d
+        # time guesses, phase after phase: a free start follows the phase before
+        self.t0_guess, self.dur_guess = {}, {}
+        prev_end = 0.0
+        self.phases = []
+        self.flatmaps = {}
+        for ph in problem.phases:
+            g = _guess_tables(problem, ph)
+            t0g = ph.t0 if ph.t0 is not None else (
+                0.5 * sum(ph.t0_bounds) if all(map(math.isfinite, ph.t0_bounds)) else prev_end)
+            tfg = ph.tf if ph.tf is not None else ph.guess.get("tf")
+            lo, hi = self.duration_bounds[ph.name]
+            if tfg is not None and float(tfg) > t0g:
+                dur = float(tfg) - t0g
+            elif math.isfinite(hi):
+                dur = 0.5 * (lo + hi) if lo > 0 else 0.5 * hi
+            else:
+                dur = max(2 * lo, 1.0)
+            self.t0_guess[ph.name], self.dur_guess[ph.name] = t0g, dur
+            prev_end = t0g + dur
+            fm = _phase_flatmap(problem, ph, method)
+            self.flatmaps[ph.name] = fm
+            guess = {}
+            for y in fm.functions:
+                j = g.state_names.index(y.name)
+                guess[y.name] = (lambda tau, j=j, g=g: float(g.states_at(np.array([tau]))[0, j]))
+            for c, x in fm.constants.items():
+                guess[f"{x.name}_t0"] = float(g.states_at(np.array([0.0]))[0, g.state_names.index(x.name)])
+            bounds = {s.name: b for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
+            self.phases.append(FlatPhase(ph.name, ph.model, simple[ph.name], (lo, hi), dur, None,
+                                         bounds, guess, {}, self.opts, flatmap=fm))
+
+    def build(self):
+        """The Pyomo model: the flat back end's phases, then times, general boundary
+        constraints, links, path constraints and the objective of the Problem."""
+        import pyomo.environ as pyo
+
+        from .flat_bspline import build_flat_bspline
+
+        t = _time.perf_counter()
+        nlp = build_flat_bspline(self.phases, (), objective="tf")
+        m = nlp.model
+        m.del_component(m.obj)
+        problem = self.problem
+        self.nlp = nlp
+        # phase start times
+        m.t0 = pyo.Var([ph.name for ph in problem.phases])
+        self.t0 = {}
+        for ph in problem.phases:
+            if ph.t0 is not None:
+                self.t0[ph.name] = float(ph.t0)
+                m.t0[ph.name].fix(float(ph.t0))
+            else:
+                v = m.t0[ph.name]
+                v.set_value(self.t0_guess[ph.name])
+                lo, hi = ph.t0_bounds
+                v.setlb(lo if math.isfinite(lo) else None)
+                v.setub(hi if math.isfinite(hi) else None)
+                self.t0[ph.name] = v
+        m.times = pyo.ConstraintList()
+        for ph in problem.phases:
+            if ph.t0 is None:   # a fixed tf, or tf bounds, on t0 + duration
+                lo, hi = (ph.tf, ph.tf) if ph.tf is not None else ph.tf_bounds
+                tf = self.t0[ph.name] + nlp.phases[ph.name].tf
+                if lo == hi:
+                    m.times.add(tf == lo)
+                    continue
+                if math.isfinite(lo):
+                    m.times.add(tf >= lo)
+                if math.isfinite(hi):
+                    m.times.add(tf <= hi)
+        # free parameters
+        self.free = {}
+        if problem.free_parameters:
+            m.p = pyo.Var([s.name for s in problem.free_parameters])
+            for s, fp in problem.free_parameters.items():
+                v = m.p[s.name]
+                v.set_value(fp.guess)
+                v.setlb(fp.lower if math.isfinite(fp.lower) else None)
+                v.setub(fp.upper if math.isfinite(fp.upper) else None)
+                self.free[s] = v
+        # path constraints (general relations in states/controls/t)
+        from .flat_bspline import PYOMO_FUNCTIONS
+
+        for ph in problem.phases:
+            p = nlp.phases[ph.name]
+            fm = self.flatmaps[ph.name]
+            sub = {**fm.states, **fm.controls}
+            blk = p.block
+            blk.general_path = pyo.ConstraintList()
+            for c in ph.path:
+                if c.expr.free_symbols & set(problem.free_parameters):
+                    raise FlatProblemError(f"path constraint {c.text!r}: free parameters in path "
+                                           "constraints are not supported by flat-bspline")
+                # TIME in the flat map is the time since the phase start
+                start = sp.Symbol("__phase_t0")
+                e = c.expr.xreplace({TIME: TIME + start}).xreplace(sub)
+                f = sp.lambdify(p.args + [start], e, modules=[PYOMO_FUNCTIONS])
+                for tau in self.opts.points():
+                    _add(blk.general_path, f(*p.values_at(float(tau)), self.t0[ph.name]), c.lower, c.upper)
+        # integrals
+        self.integral_expr = {}
+        for s, (phase_name, integrand) in problem.integrals.items():
+            self.integral_expr[s] = self._quadrature(phase_name, integrand)
+        # boundary constraints and links
+        m.general_boundary = pyo.ConstraintList()
+        for i, c in enumerate(problem.boundary):
+            if i in self.consumed:
+                continue
+            _add(m.general_boundary, self.scalar(c.expr), c.lower, c.upper)
+        obj = self.scalar(problem.objective.expr)
+        sense = pyo.minimize if problem.objective.sense == "minimize" else pyo.maximize
+        m.obj = pyo.Objective(expr=obj, sense=sense)
+        nlp.build_time_s = _time.perf_counter() - t
+        return nlp
+
+    def _quadrature(self, phase_name, integrand):
+        from .flat_bspline import PYOMO_FUNCTIONS
+
+        p = self.nlp.phases[phase_name]
+        fm = self.flatmaps[phase_name]
+        e = integrand.xreplace({**fm.states, **fm.controls})
+        if e.free_symbols & set(self.problem.free_parameters):
+            raise FlatProblemError("free parameters inside an integral are not supported by flat-bspline")
+        n = self.opts.degree + 1
+        x, w = np.polynomial.legendre.leggauss(n)
+        knots = np.linspace(0.0, 1.0, self.opts.n_ctrl - self.opts.degree + 1)
+        f = sp.lambdify(p.args, e, modules=[PYOMO_FUNCTIONS])
+        total = 0
+        for a, b in zip(knots[:-1], knots[1:]):
+            for xi, wi in zip(x, w):
+                tau = 0.5 * (a + b) + 0.5 * (b - a) * xi
+                total = total + float(0.5 * (b - a) * wi) * f(*p.values_at(float(tau)))
+        return total * p.tf
+
+    def pyomo_of(self, s):
+        """Pyomo expression (or number) of a scalar symbol of the Problem."""
+        problem = self.problem
+        if s in problem.boundary_values:
+            bv = problem.boundary_values[s]
+            return self.nlp.phases[bv.phase].at(bv.var.name, 0.0 if bv.which == "t0" else 1.0)
+        for ph in problem.phases:
+            if s == ph.t0_symbol:
+                return self.t0[ph.name]
+            if s == ph.tf_symbol:
+                return self.t0[ph.name] + self.nlp.phases[ph.name].tf
+        if s in self.free:
+            return self.free[s]
+        if s in self.integral_expr:
+            return self.integral_expr[s]
+        if s.name in self.file.parameters:
+            return float(self.file.parameters[s.name])
+        raise FlatProblemError(f"'{s}' in a boundary constraint or the objective is not a boundary value, "
+                               "phase time, integral or parameter")
+
+    def scalar(self, expr: sp.Expr):
+        from .flat_bspline import PYOMO_FUNCTIONS
+
+        syms = sorted(expr.free_symbols, key=lambda s: s.name)
+        if not syms:
+            return float(expr)
+        return sp.lambdify(syms, expr, modules=[PYOMO_FUNCTIONS])(*[self.pyomo_of(s) for s in syms])
+
+
+def _add(clist, e, lo: float, hi: float) -> None:
+    if lo == hi:
+        clist.add(e == lo)
+        return
+    if math.isfinite(lo):
+        clist.add(e >= lo)
+    if math.isfinite(hi):
+        clist.add(e <= hi)
+
+
+def build_from_problem(file):
+    """(mapping, Pyomo NLP) of a compiled problem file whose method is flat-bspline."""
+    mp = _Mapped(file)
+    return mp, mp.build()
+
+
+def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
+    """``fn(file, timer, ...) -> Result`` of :func:`ocdsl.methods.register_runner`."""
+    import pyomo.environ as pyo
+
+    from ..run import check_expectations
+    from ..solve import ipopt
+
+    ipopt.check_available()
+    problem, method = file.problem, file.method
+    if problem is None:
+        raise FlatProblemError("flat-bspline needs a `problem:` or `phases:` block")
+    if warm_start is not None:
+        raise FlatProblemError("flat-bspline does not take a warm start yet")
+    with timer.measure("symbolic"):
+        mp = _Mapped(file)
+    with timer.measure("build"):
+        nlp = mp.build()
+    with timer.measure("solve"):
+        # monotone barrier by default: with the core's adaptive strategy Ipopt reached poor
+        # local optima of the seed-2 flat NLPs (e.g. 112.4 kg instead of 150.39 kg on the
+        # 2 km strategy-3 row, depending on round-off); the file's options still win
+        options = {**FLAT_SOLVER_DEFAULTS, **file.spec.solver.options}
+        info = ipopt.solve(nlp.model, options, verbose=verbose,
+                           progress=ipopt.Progress(progress))
+    with timer.measure("post"):
+        tau = np.linspace(0.0, 1.0, method.dense_points)
+        phases, dense = [], {}
+        for ph in problem.phases:
+            p = nlp.phases[ph.name]
+            num = p.numeric(tau)
+            t0 = float(pyo.value(mp.t0[ph.name]))
+            traj = PhaseTrajectory(ph.name, num["t"] + t0,
+                                   {s.name: num[s.name] for s in ph.states},
+                                   {c.name: num[c.name] for c in ph.controls},
+                                   extra={k: v for k, v in num.items() if k.startswith("residual_")})
+            dense[ph.name] = max([float(np.max(np.abs(v))) for v in traj.extra.values()] or [0.0])
+            phases.append(traj)
+        values: dict[sp.Symbol, float] = {}
+        for s in problem.boundary_values:
+            values[s] = float(pyo.value(mp.pyomo_of(s)))
+        tf = {}
+        for ph in problem.phases:
+            values[ph.t0_symbol] = float(pyo.value(mp.t0[ph.name]))
+            values[ph.tf_symbol] = tf[ph.name] = float(pyo.value(mp.pyomo_of(ph.tf_symbol)))
+        for s, v in mp.free.items():
+            values[s] = float(pyo.value(v))
+        for s, e in mp.integral_expr.items():
+            values[s] = float(pyo.value(e))
+        for name, v in file.parameters.items():
+            values.setdefault(sp.Symbol(name, real=True), float(v))
+        reduction = {}
+        for ph in problem.phases:
+            fm = mp.flatmaps[ph.name]
+            n_bc = sum(1 for c in problem.boundary if any(
+                problem.boundary_values.get(s) is not None and problem.boundary_values[s].phase == ph.name
+                for s in c.expr.free_symbols))
+            n_bc -= sum(1 for v in nlp.phases[ph.name].block.k.values() if v.fixed)
+            red = fm.reduction(method.control_points, method.collocation_points, n_bc,
+                               free_tf=ph.tf is None or ph.t0 is None)
+            reduction[ph.name] = {**red.as_dict(), "outputs": [y.name for y in fm.outputs],
+                                  "functions": [y.name for y in fm.functions],
+                                  "residuals": [str(r.expr) for r in fm.residuals]}
+        reduction["total"] = {k: sum(reduction[ph.name][k] for ph in problem.phases)
+                              for k in ("variables_flat", "constraints_flat", "variables_full",
+                                        "constraints_full")}
+        objective = info.objective
+        result = Result(
+            name=file.spec.name, status=info.status, message=info.message, objective=objective,
+            tf=tf["main"] if len(tf) == 1 and "main" in tf else tf,
+            iterations=info.iterations, nlp=info.nlp, method=method.model_dump(),
+            parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
+            phases=phases, problem=problem.description)
+        result.extra["flat_reduction"] = reduction
+        result.extra["flat_map"] = {ph.name: mp.flatmaps[ph.name].summary() for ph in problem.phases}
+        result.extra["max_residual_dense"] = dense
+        result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
+        result.expect = check_expectations(file, values, objective)
+    result.wall_time_s = timer.breakdown()
+    return result

@@ -1,0 +1,65 @@
+"""``method: {transcription: flat-bspline, ...}``: flat outputs + B-spline collocation.
+
+Example (seed 2, the lunar lander)::
+
+    method:
+      transcription: flat-bspline
+      flat_outputs: [r, theta]      # or per phase {braking: [r, theta], descent: [r]};
+                                    # omitted: ocdsl searches small sets of states
+      degree: 5                     # spline degree (order 6)
+      control_points: 15            # per unknown function (10 pieces + degree)
+      collocation_points: 15        # where the residual equations are enforced
+      collocation: uniform          # or interior (ends excluded)
+
+Registered with :mod:`ocdsl.methods`; the runner lives in
+:mod:`ocdsl.transcribe.flat_bspline_problem` (imported only when a file is solved, so
+that ``ocdsl check`` stays free of Pyomo). See docs/flatness.md.
+"""
+from __future__ import annotations
+
+from typing import Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from ..methods import register_method, register_runner
+
+
+class FlatBSplineMethod(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    transcription: Literal["flat-bspline"] = "flat-bspline"
+    degree: int = Field(5, ge=1, le=15, description="B-spline degree p (order p + 1)")
+    control_points: int = Field(15, ge=2, le=2000, description="control points per unknown function")
+    collocation_points: int = Field(15, ge=1, le=20000, description="collocation points of the residuals")
+    collocation: Literal["uniform", "interior"] = Field(
+        "uniform", description="uniform points with both ends, or uniform interior points")
+    flat_outputs: Union[list[str], dict[str, list[str]], None] = Field(
+        None, description="flat outputs (state names): one list for every phase, or per phase; "
+                          "omitted: searched automatically")
+    dense_points: int = Field(201, ge=2, le=100000,
+                              description="points per phase of the reconstructed trajectory")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.control_points < self.degree + 1:
+            raise ValueError(f"control_points = {self.control_points} must be at least degree + 1 = "
+                             f"{self.degree + 1}")
+        if isinstance(self.flat_outputs, list) and not self.flat_outputs:
+            raise ValueError("flat_outputs: give at least one state (or omit it for the search)")
+        return self
+
+    def outputs_for(self, phase: str) -> list[str] | None:
+        if self.flat_outputs is None or isinstance(self.flat_outputs, list):
+            return self.flat_outputs
+        return self.flat_outputs.get(phase)
+
+
+def _run(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False):
+    from .flat_bspline_problem import run_flat_file
+
+    return run_flat_file(file, timer, seed=seed, warm_start=warm_start, verbose=verbose,
+                         progress=progress)
+
+
+register_method("flat-bspline", FlatBSplineMethod)
+register_runner("flat-bspline", _run)

@@ -1,0 +1,234 @@
+"""`transcription: flat-bspline` in the problem language: spec, mapping of the symbolic
+Problem (boundary values, links, phase times, path bounds, integrals, objective) onto the
+flat B-spline back end, the Result it returns, and the seed-2 problem files (Hohmann burn
+written as named expressions of the parameters in the file)."""
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import ocdsl
+from conftest import CONFIGS, write
+from models.lunar_lander import TABLE2, constants, hohmann_entry, mass_flow
+from ocdsl.spec.errors import SpecError
+from ocdsl.symbolic.flatness import FlatnessError
+from ocdsl.symbolic.registry import build_model
+
+C = constants("km")
+S1, S2, S3 = (CONFIGS / f"seed2_strategy{i}.yaml" for i in (1, 2, 3))
+
+DI = """
+name: minimum-energy double integrator
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
+  objective: minimize integral(u**2)
+method: {transcription: flat-bspline, degree: 5, control_points: 8, collocation_points: 8%s}
+expect:
+  objective: {value: 12, rtol: 1.0e-8}
+"""
+
+
+# ------------------------------------------------------------------ no solver
+def test_method_spec_validated(tmp_path):
+    from ocdsl.transcribe.flat_bspline_spec import FlatBSplineMethod
+
+    f = ocdsl.load(S2).file
+    assert isinstance(f.method, FlatBSplineMethod)
+    assert (f.method.degree, f.method.control_points, f.method.collocation_points) == (5, 15, 15)
+    assert f.method.outputs_for("main") == ["r", "theta"]
+    assert ocdsl.load(S3).file.method.outputs_for("descent") == ["r"]
+    with pytest.raises(SpecError, match="contol_points"):
+        ocdsl.load(write(tmp_path, DI % ", contol_points: 9"))
+    with pytest.raises(SpecError, match="at least degree \\+ 1"):
+        ocdsl.load(write(tmp_path, (DI % "").replace("control_points: 8", "control_points: 5")))
+
+
+@pytest.mark.parametrize("path", [S1, S2, S3], ids=["s1", "s2", "s3"])
+def test_file_dynamics_are_the_registered_lander(path):
+    """The inline models of the files are lunar_lander_polar / the vertical descent."""
+    ref = build_model("lunar_lander_polar")
+    refv = build_model("lunar_lander_vertical")
+    for ph in ocdsl.load(path).problem.phases:
+        target = ref if len(ph.states) == 5 else refv
+        assert [s.name for s in ph.states] == [s.name for s in target.states]
+        got = ph.rhs()
+        want = target.rhs(target.default_parameters())
+        for a, b in zip(got, want):
+            assert sp.simplify(a - b) == 0
+
+
+@pytest.mark.parametrize("h_i", sorted(TABLE2))
+def test_hohmann_burn_written_in_the_file(h_i):
+    """u(t0) and m(t0) of the file (vis-viva + rocket equation as named expressions of the
+    parameters) equal models.lunar_lander.hohmann_entry; h_i = h_p is strategy 1."""
+    pb = ocdsl.load(S2, parameters={"h_i": float(h_i)}).problem
+    fixed = {pb.boundary_values[c.expr].var.name: c.lower for c in pb.boundary
+             if c.is_equality and c.expr in pb.boundary_values and pb.boundary_values[c.expr].which == "t0"}
+    e = hohmann_entry(float(h_i))
+    assert fixed["r"] == pytest.approx(C["R"] + h_i, rel=1e-15)
+    assert fixed["u"] == pytest.approx(e["u0"], rel=1e-13)
+    assert fixed["m"] == pytest.approx(e["m0"], rel=1e-13)
+    if h_i == 100:
+        s1 = ocdsl.load(S1).problem
+        fixed1 = {s1.boundary_values[c.expr].var.name: c.lower for c in s1.boundary
+                  if c.is_equality and c.expr in s1.boundary_values
+                  and s1.boundary_values[c.expr].which == "t0"}
+        assert fixed1["u"] == pytest.approx(fixed["u"], rel=1e-13)
+        assert fixed1["m"] == pytest.approx(fixed["m"], rel=1e-13) == 300.0
+
+
+def test_table_studies_have_every_row():
+    from models.lunar_lander import TABLE3
+    from ocdsl.study.spec import load_study
+
+    s2 = load_study(S2)
+    assert sorted(p.parameters["h_i"] for p in s2.points) == sorted(map(float, TABLE2))
+    for p in s2.points:
+        h = int(p.parameters["h_i"])
+        assert p.parameters["m_ref"] == TABLE2[h][1]
+        if h != 100:   # the strategy-1 time is the one the printed mass implies
+            assert p.parameters["t_ref"] == TABLE2[h][0]
+        else:
+            assert p.parameters["t_ref"] == pytest.approx((C["M"] - TABLE2[100][1]) / mass_flow(), abs=1e-3)
+    s3 = load_study(S3)
+    assert sorted(p.parameters["h_v"] for p in s3.points) == sorted(map(float, TABLE3))
+    two = next(p for p in s3.points if p.parameters["h_v"] == 2.0)
+    assert two.parameters["m_ref"] == TABLE3[2][3]
+    assert two.parameters["t_ref"] == pytest.approx(TABLE3[2][1] + TABLE3[2][2], abs=1e-9)
+
+
+# ------------------------------------------------------------------ Ipopt
+@pytest.mark.ipopt
+def test_integral_objective_exact_cubic(tmp_path):
+    """min int u^2 of the double integrator: the optimal x is a cubic, which a degree-5
+    spline holds exactly, so the flat NLP (output x, u = x'') gives 12 to 1e-8."""
+    res = ocdsl.load(write(tmp_path, DI % "")).solve()
+    assert res.status == "optimal"
+    assert res.objective == pytest.approx(12.0, rel=1e-8)
+    assert all(c["passed"] for c in res.expect)
+    tr = res.phase()
+    np.testing.assert_allclose(tr.states["x"], 3 * tr.time ** 2 - 2 * tr.time ** 3, atol=1e-8)
+    np.testing.assert_allclose(tr.controls["u"], 6 - 12 * tr.time, atol=1e-6)
+    red = res.extra["flat_reduction"]["main"]
+    assert red["outputs"] == ["x"] and red["residuals"] == []
+    assert res.nlp["variables"] == 8       # control points of x only; tf fixed
+
+
+@pytest.mark.ipopt
+def test_two_phases_free_start_linked(tmp_path):
+    """Two linked phases, the second with a free start: same cubic optimum (12), the switch
+    time where the link puts it, path bound on a non-output through the flat map."""
+    text = """
+name: two-phase minimum-energy double integrator
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+phases:
+  a:
+    time: {t0: 0, tf: 0.4}
+    constraints: [x(t0) == 0, v(t0) == 0]
+  b:
+    time: {t0: free, tf: 1}
+    constraints: [x(tf) == 1, v(tf) == 0, u >= -6.5]
+links:
+  - a.x(tf) == b.x(t0)
+  - a.v(tf) == b.v(t0)
+  - a.tf == b.t0
+objective: minimize integral_a + integral_b
+method: {transcription: flat-bspline, degree: 5, control_points: 8, collocation_points: 8,
+         flat_outputs: [x]}
+"""
+    text = text.replace("objective: minimize integral_a + integral_b",
+                        "objective: minimize 0")
+    text = text.replace("    constraints: [x(t0) == 0, v(t0) == 0]",
+                        "    constraints: [x(t0) == 0, v(t0) == 0]\n    objective: integral(u**2)")
+    text = text.replace("    constraints: [x(tf) == 1, v(tf) == 0, u >= -6.5]",
+                        "    constraints: [x(tf) == 1, v(tf) == 0, u >= -6.5]\n    objective: integral(u**2)")
+    res = ocdsl.load(write(tmp_path, text)).solve()
+    assert res.status == "optimal"
+    # u = 6 - 12 t reaches -6 >= -6.5: the bound is inactive and the optimum is 12
+    assert res.objective == pytest.approx(12.0, rel=1e-7)
+    b = res.phase("b")
+    assert b.time[0] == pytest.approx(0.4, abs=1e-9) and b.time[-1] == pytest.approx(1.0)
+    np.testing.assert_allclose(b.states["x"], 3 * b.time ** 2 - 2 * b.time ** 3, atol=1e-7)
+    # a tighter bound becomes active (at the collocation points)
+    res2 = ocdsl.load(write(tmp_path, text.replace("u >= -6.5", "u >= -5"), "p2.yaml")).solve()
+    assert res2.status == "optimal" and res2.objective > 12.0 + 1e-3
+    u = res2.phase("b").controls["u"]
+    assert u[-1] == pytest.approx(-5.0, abs=1e-6)       # active at the last collocation point
+
+
+def test_not_reducible_names_the_equation(tmp_path):
+    text = """
+name: not flat
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u + exp(u)*sin(u)}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, x(tf) == 1]
+  objective: minimize integral(u**2)
+method: {transcription: flat-bspline}
+"""
+    with pytest.raises(FlatnessError, match=r"(?s)phase 'main'.*x' = u \+ exp\(u\)\*sin\(u\)"):
+        ocdsl.load(write(tmp_path, text)).solve()
+    # through run_file: a run folder with status error and the same message
+    res = ocdsl.api.run_file(write(tmp_path, text, "b.yaml"), tmp_path / "run")
+    assert res.status == "error" and "exp(u)*sin(u)" in res.message
+
+
+@pytest.mark.ipopt
+def test_strategy2_15km_from_the_problem_file():
+    """Table 2, 15 km row through the problem file: Result with every state and control
+    reconstructed, the seed's NLP size, expect checks (0.1 kg, 0.5 %) passing."""
+    t_paper, m_paper, beta_paper = TABLE2[15]
+    res = ocdsl.load(S2).solve()
+    assert res.status in ("optimal", "acceptable")
+    tr = res.phase("main")
+    assert set(tr.states) == {"r", "theta", "u", "v", "m"} and set(tr.controls) == {"beta"}
+    assert tr.states["m"][-1] == pytest.approx(m_paper, abs=0.1)
+    assert res.tf == pytest.approx(t_paper, rel=5e-3)
+    assert res.objective == pytest.approx(tr.states["m"][-1], abs=1e-9)
+    assert [c["passed"] for c in res.expect] == [True, True]
+    e = hohmann_entry(15.0)
+    assert tr.states["m"][-1] == pytest.approx(e["m0"] - mass_flow() * res.tf, abs=1e-9)
+    assert tr.states["u"][0] == pytest.approx(e["u0"], rel=1e-10)
+    assert tr.states["r"][-1] == pytest.approx(C["R"], abs=1e-8)
+    assert tr.states["v"][-1] == pytest.approx(-0.005, abs=1e-10)
+    assert tr.states["u"][-1] == pytest.approx(0.0, abs=1e-10)
+    assert math.degrees(tr.controls["beta"][-1]) == pytest.approx(beta_paper, abs=0.3)
+    # the seed's NLP: 2 N_con + 1 variables, N_col + 7 constraints (5 N_con + 1, 4 N_col + 7 full)
+    assert res.nlp["variables"] == 31 and res.nlp["constraints"] == 22
+    red = res.extra["flat_reduction"]
+    assert red["main"]["variables_flat"] == 31 and red["main"]["constraints_flat"] == 22
+    assert red["main"]["variables_full"] == 76 and red["main"]["constraints_full"] == 67
+    assert red["main"]["outputs"] == ["r", "theta"] and len(red["main"]["residuals"]) == 1
+
+
+@pytest.mark.ipopt
+def test_strategy3_2km_row_from_the_problem_file():
+    """Table 3, 2 km row (the one printed row that can be right): two linked phases."""
+    from models.lunar_lander import TABLE3
+
+    v12, tb, td, mf = TABLE3[2]
+    res = ocdsl.load(S3).solve()
+    assert res.status in ("optimal", "acceptable")
+    assert [c["passed"] for c in res.expect] == [True, True]
+    br, de = res.phase("braking"), res.phase("descent")
+    assert de.states["m"][-1] == pytest.approx(mf, abs=0.1)
+    assert res.tf["descent"] == pytest.approx(tb + td, rel=5e-3)
+    assert de.time[0] == pytest.approx(res.tf["braking"], abs=1e-9)
+    assert de.states["m"][0] == pytest.approx(br.states["m"][-1], abs=1e-9)
+    assert de.states["v"][0] == pytest.approx(br.states["v"][-1], abs=1e-9)
+    assert br.states["u"][-1] == pytest.approx(0.0, abs=1e-10)
+    assert br.states["r"][-1] == pytest.approx(C["R"] + 2.0, abs=1e-9)
+    assert res.nlp["variables"] == 2 * 15 + 1 + 15 + 1 + 1 + 1   # braking, descent, m_t0, t0
+    assert res.extra["flat_reduction"]["descent"]["outputs"] == ["r"]
