@@ -155,7 +155,6 @@ def test_goddard_ends_honestly(goddard):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured: 7 iterations end with r(tf) 3.1e-6 (best mesh) and 1.0e-6 (last) "
-                   "from the reference; the singular arc's collocated state zigzags at 1e-3")
 def test_goddard_r_tf(goddard):
+    # measured 9.7e-7 from the reference on the returned (not converged) mesh: close to the limit
     assert abs(goddard.objective - 1.0125762700748699) <= 1e-6, (goddard.status, goddard.objective)
