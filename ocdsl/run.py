@@ -121,7 +121,10 @@ def check_expectations(file: LoadedFile, values: dict[sp.Symbol, float], objecti
     checks = []
     for key, item in file.spec.expect.items():
         expr = file.expect.get(key)
-        subs = dict(values)
+        # constants first (multi-phase expectations are parsed outside any phase, so they keep
+        # parameter names), then the solution's values
+        subs = {sp.Symbol(k, real=True): v for k, v in file.parameters.items()}
+        subs.update(values)
         subs[sp.Symbol("objective", real=True)] = objective if objective is not None else math.nan
         try:
             value = float(expr.xreplace({k: sp.Float(v) for k, v in subs.items()}))

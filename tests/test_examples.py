@@ -76,3 +76,12 @@ def test_resolve_with_other_parameters(configs):
     other = handle.solve(parameters={"g": 9.81})
     assert other.tf == pytest.approx(base.tf * (9.80665 / 9.81) ** 0.5, rel=1e-7)
     assert handle.solve().tf == pytest.approx(base.tf, rel=1e-12)   # the handle is unchanged
+
+
+@pytest.mark.ipopt
+def test_multi_phase_expect_uses_constants():
+    """A multi-phase expectation may name a constant parameter (it was NaN before)."""
+    from pathlib import Path
+
+    res = ocdsl.load(Path(__file__).parent / "data" / "two_phase_expect_parameter.yaml").solve()
+    assert res.expect[0]["passed"], res.expect
