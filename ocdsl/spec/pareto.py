@@ -142,6 +142,8 @@ class EpsilonSpec(_Strict):
     values: list[float] | dict[str, Any]  # list, or {from:, to:, num:}
     chains: int = Field(1, ge=1)
     parameter: str | None = None         # solver nlp: the file's parameter that carries eps
+    seed_study: str | None = None        # solver nlp: a problem file (path relative to this one)
+                                         # whose Pareto points seed a second start of every solve
 
     @field_validator("values", mode="before")
     @classmethod

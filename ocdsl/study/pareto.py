@@ -401,7 +401,7 @@ def epsilon(solve_constrained: Callable[[float, Any], ParetoPoint | None],
             eps_values: Sequence[float], objectives: Sequence[str],
             senses: Sequence[str] | None = None, *, map: MapLike = builtins.map,
             chains: int = 1, warm: Any = None, dedup_keys: Sequence[str] | None = None,
-            dedup_tol: float = 0.0) -> ParetoSet:
+            dedup_tol: float = 0.0, flag_tol: float = 0.0) -> ParetoSet:
     """Epsilon-constraint sweep.
 
     ``solve_constrained(eps, warm)`` optimises the first objective subject to the
@@ -417,7 +417,7 @@ def epsilon(solve_constrained: Callable[[float, Any], ParetoPoint | None],
         points = deduplicate(points, dedup_keys, dedup_tol)
     senses = list(senses or ["minimize"] * len(objectives))
     s = ParetoSet(points, list(objectives), senses, "epsilon", info={"chains": len(chunks)})
-    s.flag()
+    s.flag(flag_tol)
     for i, p in builtins.enumerate(sorted(s.points, key=lambda q: q.extra.get("epsilon", 0.0))):
         p.label = p.label or f"e.{i + 1}"
     return s

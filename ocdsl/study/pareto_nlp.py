@@ -40,7 +40,7 @@ from ocdsl.result import PhaseTrajectory
 from ocdsl.study import pareto as P
 
 __all__ = ["NLPTask", "solve_nlp_task", "solve_durations", "integrated_residual", "nlp_tasks",
-           "EpsilonSolver", "evaluate", "compiled", "combine_sets"]
+           "EpsilonSolver", "seeds_from", "evaluate", "compiled", "combine_sets", "write_comparison"]
 
 GOOD = ("optimal", "acceptable")
 
@@ -312,6 +312,10 @@ class EpsilonSolver:
     parameters: dict[str, float] = field(default_factory=dict)
     family: str = ""
     trajectory: bool = True
+    # (constrained objective, first objective, label, trajectories) of solutions of another
+    # study (e.g. the two-burn roots); for each eps the seed with the best first objective
+    # within the bound is a second start, and the better of the two solves is kept
+    seeds: list[tuple[float, float, str, list[PhaseTrajectory]]] = field(default_factory=list)
 
     def __call__(self, eps: float, warm: Any = None) -> P.ParetoPoint | None:
         import pyomo.environ as pyo
@@ -321,12 +325,24 @@ class EpsilonSolver:
 
         file = compiled(self.path, {**self.parameters, self.parameter: float(eps)})
         problem = file.problem
-        previous = {p.name: p for p in warm} if isinstance(warm, list) else {}
-        guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name)) for ph in problem.phases}
+        starts = [("warm" if isinstance(warm, list) else "default", warm if isinstance(warm, list) else None)]
+        fit = [sd for sd in self.seeds if sd[0] <= eps]
+        if fit:
+            best = min(fit, key=lambda sd: sd[1])
+            starts.append((f"seed {best[2]}", best[3]))
+        tr = info = None
         t = time.perf_counter()
-        tr, info = _solve(file, guesses)
+        tried = []
+        for tag, traj in starts:
+            previous = {p.name: p for p in traj} if traj else {}
+            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name)) for ph in problem.phases}
+            tr_i, info_i = _solve(file, guesses)
+            tried.append({"start": tag, "status": info_i.status, "objective": info_i.objective,
+                          "iterations": info_i.iterations})
+            if info_i.status in GOOD and (info is None or info_i.objective < info.objective):
+                tr, info, start_tag = tr_i, info_i, tag
         secs = time.perf_counter() - t
-        if info.status not in GOOD:
+        if info is None:
             return None
         phases = extract(tr)
         names = {"objective": info.objective}
@@ -342,8 +358,32 @@ class EpsilonSolver:
             objectives=objs, variables={**{k: v for k, v in names.items() if k != "objective"},
                                         self.parameter: float(eps)},
             family=self.family, status=info.status,
-            extra={"iterations": info.iterations, "solve_time_s": secs, "nlp": info.nlp},
+            extra={"iterations": info.iterations, "solve_time_s": secs, "nlp": info.nlp,
+                   "start": start_tag, "starts": tried},
             phases=phases if self.trajectory else [], warm=phases)
+
+
+def seeds_from(points: list[P.ParetoPoint], constrained: str, first: str,
+               phase: str = "main") -> list[tuple[float, float, str, list[PhaseTrajectory]]]:
+    """Seeds for :class:`EpsilonSolver` from the points of another study (with trajectories).
+
+    The phases of each point are joined into one phase ``phase`` on their common clock; a
+    control ``delta`` is also given as its positive and negative parts ``dp``, ``dm`` (the
+    smooth |delta| = dp + dm of ``configs/seed4_unrestricted.yaml``).
+    """
+    out = []
+    for p in points:
+        if not p.phases:
+            continue
+        t = np.concatenate([q.time for q in p.phases])
+        states = {k: np.concatenate([q.states[k] for q in p.phases]) for k in p.phases[0].states}
+        controls = {k: np.concatenate([q.controls[k] for q in p.phases]) for k in p.phases[0].controls}
+        if "delta" in controls:
+            controls["dp"] = np.maximum(controls["delta"], 0.0)
+            controls["dm"] = np.maximum(-controls["delta"], 0.0)
+        out.append((float(p.objectives[constrained]), float(p.objectives[first]), p.label or p.family,
+                    [PhaseTrajectory(phase, t, states=states, controls=controls)]))
+    return out
 
 
 # ---------------------------------------------------------------------------------------

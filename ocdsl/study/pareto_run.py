@@ -261,11 +261,17 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
                         raise ParetoSpecError("method epsilon with solver nlp needs the problem file's "
                                               "path and epsilon.parameter (the parameter that carries eps)",
                                               file)
+                    seeds = []
+                    if spec.epsilon.seed_study:
+                        seed_path = Path(file).parent / spec.epsilon.seed_study
+                        seed_pars = {k: v for k, v in parameters.items() if k != spec.epsilon.parameter}
+                        _, _, seed_set = run_pareto(seed_path, parameters=seed_pars, return_set=True)
+                        seeds = pareto_nlp.seeds_from(seed_set.points, spec.epsilon.objective, objs[0])
                     solve_point = pareto_nlp.EpsilonSolver(
                         file, spec.epsilon.parameter, {k: o.expr for k, o in spec.objectives.items()},
-                        parameters, family=spec.family or "", trajectory=trajectory)
+                        parameters, family=spec.family or "", trajectory=trajectory, seeds=seeds)
                 pset = P.epsilon(solve_point, spec.epsilon.values, objs, senses, map=map,
-                                 chains=spec.epsilon.chains)
+                                 chains=spec.epsilon.chains, flag_tol=spec.dominance_tol)
             elif spec.method == "weighted":
                 if solve_point is None:
                     raise NotImplementedError("method weighted with solver nlp: pass solve_point=...")
