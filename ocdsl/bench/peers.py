@@ -213,7 +213,9 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             "lazy imports inside it (Pyomo, cyipopt); hand-over = solve stage minus Ipopt's own total "
             "(PyNumero NL writer + ASL + cyipopt set-up); post includes costates, certificate and expect "
             "checks. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
-            "Ratios are ocdsl/CasADi.\n\n" + table(cases) + "\n")
+            "Ratios are ocdsl/CasADi. With `method.starts` > 1 both run every start, but Ipopt rewrites its "
+            "output file per solve, so the Ipopt columns are the last start's and the other starts' "
+            "Ipopt time falls into hand-over.\n\n" + table(cases) + "\n")
     if scale_text:
         text += f"\n## Scaling: build time against segments ({Path(scaling_file).stem}, no solve)\n\n" + scale_text + "\n"
     if out is not None:
