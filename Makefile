@@ -19,6 +19,13 @@ test:
 bench: setup
 	$(PY) -m ocdsl.bench
 
+bench-peers: setup
+	$(PY) -m pip install -q casadi
+	$(PY) -c "from ocdsl.bench.cli import bench; bench()" configs/double_integrator.yaml \
+	  configs/minimal_double_integrator.yaml configs/brachistochrone.yaml configs/bryson_denham.yaml \
+	  configs/moon_landing.yaml configs/goddard.yaml configs/seed0_rendezvous.yaml \
+	  --scaling configs/brachistochrone.yaml --series-solve 100
+
 reproduce: setup
 	$(PY) -m pytest -q -m slow --timeout 3600
 
