@@ -1,6 +1,7 @@
 """The compiled DOP853 layer: accuracy, dense output/events, batches, Sundman form.
 
-Cold compile of one model's kernel: ~10-20 s; from Numba's disk cache: < 1 s.
+Cold compile of one model's kernel: ~17-30 s (see ocdsl/simulate/__init__.py); from
+Numba's disk cache: ~1 s.
 """
 import math
 

@@ -11,9 +11,10 @@ Design choice: Numba, not C through SymPy code generation.
   bisection on the dense polynomial followed by an exact landing step, batched runs
   serial or over Numba threads). Putting RHS and kernel in one file makes every call a
   plain global call that LLVM inlines, and keeps the whole thing cacheable.
-- Compile time: a cold compile of the kernel for one model takes ~10-20 s (first call of
-  each entry point; measured in tests/test_simulate.py's docstring); afterwards Numba's
-  on-disk cache (``cache=True``) loads it in well under a second. The generated module is
+- Compile time (measured, 7-state CR3BP, load average ~3.5 on 2 cores): cold compile
+  16.5 s for the single-run entry point, +5 s for the serial batch, +8 s for the
+  threaded batch (several times that on a saturated machine); afterwards Numba's
+  on-disk cache (``cache=True``) loads a model's kernel in ~1 s. The generated module is
   written to ``$OCDSL_CACHE/simulate/ocdsl_sim_<hash>.py`` (default ``~/.cache/ocdsl``)
   with the hash of its own text, atomically, so concurrent processes (pytest-xdist
   workers, study executors, dask workers on one machine) share both the file and its
