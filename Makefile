@@ -28,6 +28,7 @@ bench-peers: setup
 
 reproduce: setup
 	$(PY) -m pytest -q -m slow --timeout 3600
+	$(PY) -m ocdsl.report.reproduce
 
 clean:
 	rm -rf runs .pytest_cache
