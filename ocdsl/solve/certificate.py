@@ -49,8 +49,8 @@ Checks and their measured numbers (see :func:`certificate` for the dict):
   (about ``dt |df/du| (hi - lo)``, O(h); see
   ``_switch_resolution``), and the error must stay below it. Reported apart:
   ``smooth_local_max_error``, ``switch_intervals``, ``switch_local_max_error``,
-  ``switch_resolution_max_ratio`` (error / resolution), ``max_excess`` (error /
-  allowance, pass when <= 1).
+  ``switch_max_excess`` (error / allowance on those intervals), ``max_excess`` (error /
+  allowance everywhere, pass when <= 1).
 """
 from __future__ import annotations
 
@@ -587,12 +587,11 @@ def _reintegration(num, model, t, X, U, bounds, segments, tol: Tolerances) -> di
     worst = max(per, key=lambda k: per[k]["local"])
     smooth = ~switching
     smooth[0] = False                  # node 0 ends no interval
-    ratio = np.where(resolution > 0, local / np.where(resolution > 0, resolution, 1.0), 0.0)
     res.update(local_max_error=float(local.max()), global_max_error=float(glob.max()),
                smooth_local_max_error=float(local[smooth].max()) if smooth.any() else 0.0,
                switch_intervals=int(switching.sum()),
                switch_local_max_error=float(local[switching].max()) if switching.any() else 0.0,
-               switch_resolution_max_ratio=float(ratio[switching].max()) if switching.any() else 0.0,
+               switch_max_excess=float(excess[switching].max()) if switching.any() else 0.0,
                max_excess=float(excess.max()),
                per_state=per, worst_state=worst, passed=bool(excess.max() <= 1.0))
     return res
