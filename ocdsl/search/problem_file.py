@@ -9,8 +9,12 @@ def run_parametric_file(file, timer, *, seed=None, warm_start=None, verbose=Fals
     from ..run import check_expectations
     from .run import run
 
+    from ..spec.schema import ParameterSpec
+
+    integers = [n for n, p in file.spec.parameters.items() if isinstance(p, ParameterSpec) and p.integer]
     with timer.measure("solve"):
-        result = run(file.problem, file.method, progress=progress, seed=seed, name=file.spec.name)
+        result = run(file.problem, file.method, progress=progress, seed=seed, name=file.spec.name,
+                     integer_parameters=integers)
     values = {}
     for s, bv in file.problem.boundary_values.items():
         traj = next((p for p in result.phases if p.name == bv.phase), None)

@@ -134,7 +134,7 @@ class _Compiler:
     # -- top level ----------------------------------------------------------------
     def compile(self) -> LoadedFile:
         spec = self.spec
-        method = self.guarded(("method",), _validate_method, spec.method)
+        method = self.validated_method(spec.method)
         problem = None
         if spec.problem is not None or spec.phases is not None:
             problem = self.build_problem()
@@ -158,6 +158,17 @@ class _Compiler:
             raise SpecError(self.issues)
         return LoadedFile(self.path, self.located, spec, problem, method, expect,
                           getattr(self, "constants_in_force", {}), model, controller)
+
+    def validated_method(self, data: dict):
+        """The method block, validated by its back end's spec; errors at their own lines."""
+        try:
+            return _validate_method(data)
+        except pydantic.ValidationError as e:
+            for err in e.errors():
+                self.issues.append(_issue_from_pydantic(self.located, dict(err, loc=("method",) + tuple(err["loc"]))))
+        except (ValueError, KeyError) as e:
+            self.issue(("method", "transcription") if "transcription" in data else ("method",), str(e).strip("'\""))
+        return None
 
     def guarded_pydantic(self, loc: tuple, module: str, cls: str, data):
         """Validate a block with a back end's pydantic class, errors at their file lines."""
