@@ -17,6 +17,10 @@ _PATTERNS = {
     "jac_eq_nnz": r"Number of nonzeros in equality constraint Jacobian\.*:\s*(\d+)",
     "jac_ineq_nnz": r"Number of nonzeros in inequality constraint Jacobian\.*:\s*(\d+)",
 }
+# print_timing_statistics: "Name....: <cpu> (sys: <sys> wall: <wall>)"; CPU = user + sys. On a loaded
+# machine Ipopt's "Total seconds" (wall) mostly measures the other processes; CPU does not.
+_CPU = {"ipopt_cpu_s": "OverallAlgorithm", "ipopt_fe_cpu_s": "Function Evaluations"}
+_CPU_RE = r"{}\.*:\s*([0-9.eE+-]+)\s*\(sys:\s*([0-9.eE+-]+)"
 
 
 def options(path: str | Path) -> dict:
@@ -35,6 +39,12 @@ def parse(path: str | Path) -> dict[str, float]:
         hits = re.findall(pat, text)
         if hits:
             out[key] = float(hits[-1])
+    for key, name in _CPU.items():
+        hits = re.findall(_CPU_RE.format(name), text)
+        if hits:
+            out[key] = float(hits[-1][0]) + float(hits[-1][1])
+    if "ipopt_cpu_s" in out:
+        out["ipopt_wo_fe_cpu_s"] = out["ipopt_cpu_s"] - out.get("ipopt_fe_cpu_s", 0.0)
     if "ipopt_total_s" not in out and "ipopt_wo_fe_s" in out:
         out["ipopt_total_s"] = out["ipopt_wo_fe_s"] + out.get("ipopt_fe_s", 0.0)
     if "equalities" in out:

@@ -91,7 +91,7 @@ def _med(values):
 def summarize(runs: list[dict], who: str) -> dict:
     s = {"wall": _med([r["wall"] for r in runs]), "cpu": _med([r["cpu"] for r in runs]),
          "rss_mb": _med([r["rss_mb"] for r in runs]), "rc": [r["rc"] for r in runs]}
-    for key in ("ipopt_wo_fe_s", "ipopt_fe_s", "iterations", "variables", "constraints"):
+    for key in ("ipopt_wo_fe_s", "ipopt_fe_s", "ipopt_wo_fe_cpu_s", "iterations", "variables", "constraints"):
         s[key] = _med([r["ipopt"].get(key) for r in runs])
     ip = [(r["ipopt"].get("ipopt_wo_fe_s") or 0) + (r["ipopt"].get("ipopt_fe_s") or 0) for r in runs]
     if who == "ocdsl":
@@ -121,7 +121,7 @@ def _f(v, nd=3):
 
 
 def table(cases: list[dict]) -> str:
-    head = ("| problem | tool | vars | cons | iter | Ipopt w/o f-eval | f-eval | start-up+imports | parse | "
+    head = ("| problem | tool | vars | cons | iter | Ipopt w/o f-eval | Ipopt CPU w/o f-eval | f-eval | start-up+imports | parse | "
             "symbolic | build | hand-over | post | peak MB | wall (median) | CPU | ratio wall | ratio CPU | objective |")
     lines = [head, "|" + "---|" * head.count("|")[:-1] if False else "|" + "---|" * (head.count("|") - 1)]
     for c in cases:
@@ -132,7 +132,7 @@ def table(cases: list[dict]) -> str:
             obj = "-" if s["objective"] is None else f"{s['objective']:.10g}"
             lines.append(
                 f"| {c['name']} | {who} | {_f(s['variables'], 0)} | {_f(s['constraints'], 0)} | "
-                f"{_f(s['iterations'], 0)} | {_f(s['ipopt_wo_fe_s'])} | {_f(s['ipopt_fe_s'])} | "
+                f"{_f(s['iterations'], 0)} | {_f(s['ipopt_wo_fe_s'])} | {_f(s['ipopt_wo_fe_cpu_s'])} | {_f(s['ipopt_fe_s'])} | "
                 f"{_f((s['startup'] or 0) + (s['lazy_imports'] or 0))} | {_f(s['parse'])} | {_f(s['symbolic'])} | "
                 f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s['rss_mb'], 0)} | "
                 f"{_f(s['wall'])} | {_f(s['cpu'])} | {ratio_w} | {ratio_c} | {obj} ({s['status']}) |")
@@ -213,7 +213,8 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             "lazy imports inside it (Pyomo, cyipopt); hand-over = solve stage minus Ipopt's own total "
             "(PyNumero NL writer + ASL + cyipopt set-up); post includes costates, certificate and expect "
             "checks. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
-            "Ratios are ocdsl/CasADi. With `method.starts` > 1 both run every start, but Ipopt rewrites its "
+            "Ipopt CPU = user + sys seconds from Ipopt's timing statistics (the wall columns "
+            "mostly measure the machine's other load). Ratios are ocdsl/CasADi. With `method.starts` > 1 both run every start, but Ipopt rewrites its "
             "output file per solve, so the Ipopt columns are the last start's and the other starts' "
             "Ipopt time falls into hand-over.\n\n" + table(cases) + "\n")
     if scale_text:

@@ -18,7 +18,21 @@ STATUS_MAP = {
     "Algorithm converged to a point of local infeasibility. Problem may be infeasible.": "infeasible",
 }
 
-DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8}
+# mumps_permuting_scaling 0 (MUMPS ICNTL(6) = 0, no maximum-weight matching): with Ipopt's
+# default (7, automatic) MUMPS computes its scaling once, in the analysis phase (ICNTL(8)
+# effectively -2), from the KKT matrix at the starting point, and Ipopt analyses only once
+# because the structure never changes. With the bundled MUMPS 5.5.1 (cyipopt-wheels) that
+# stale scaling gave wrong-looking inertia: on the brachistochrone at 16 segments, for the
+# same KKT matrix (iterates equal to 7 digits with CasADi's Ipopt 3.14.19 / MUMPS 5.8.2),
+# MUMPS 5.5.1 counted 242 negative pivots where 5.8.2 counted 240 (= constraints), and from
+# then on Ipopt regularised the Hessian at almost every iteration (221 of 230 at 64 segments).
+# With 0, MUMPS scales each factorisation afresh (ICNTL(8) = 7); measured (CPU, brachistochrone
+# LGR degree 5; reports/bench/levers.md section 8): 16/64/100/500 segments 56/229/231/251 ->
+# 21/29/24/23 iterations (CasADi: 19/32/33/41), Ipopt CPU per iteration at 500 segments
+# 0.05 s (CasADi 0.04 s); the configs/ examples take the same iterations as before and every
+# optimum is unchanged (tests/test_examples.py, test_costates.py, test_fast_paths.py).
+# User options still override it.
+DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mumps_permuting_scaling": 0}
 
 
 class SolverUnavailable(RuntimeError):
