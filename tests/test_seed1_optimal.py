@@ -1,0 +1,185 @@
+"""Seed 1 optimal mode: a paper-mode trajectory warm-starts LGR collocation (Cartesian, Sundman
+variable) through ocdsl.search.refine_optimal.
+
+The fast test builds its own short "paper-mode" run (transverse thrust for 0.05 TU from the
+GTO perigee), aims the optimal-mode file at that run's end point on a coarse mesh and checks
+the conversion, the solve, the re-integration and the side-by-side table. The slow tests run
+the paper-mode files first (``ocdsl.api.run_file``) and refine their best particle.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.integrate import solve_ivp
+
+from ocdsl.result import PhaseTrajectory, Result
+from ocdsl.search import refine_optimal as R
+from ocdsl.symbolic import frames
+from ocdsl.symbolic.registry import build_model
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+MU = 0.0121506683
+T_MAX = {10: 2.4476474, 5: 1.2238237, 2: 0.4895295}
+C = 28.751961
+PAPER_X0 = dict(r=0.017632822153718267, theta=-2.0, z=0.0, rdot=0.0, thetadot=556.2661398665742,
+                zdot=0.0, m=1.0)
+POLAR = ("r", "theta", "z", "rdot", "thetadot", "zdot", "m")
+
+
+def _short_paper_run(folder: Path, horizon: float) -> Result:
+    """A paper-mode-like run folder: polar trajectory under a slowly turning thrust direction."""
+
+    model = build_model("cr3bp_polar", {})
+    f = sp.lambdify(list(model.states) + list(model.controls), list(model.rhs(model.default_parameters())), "numpy")
+
+    def angles(t):
+        return 0.2 * np.sin(2 * np.pi * t / horizon), np.pi / 2 - 0.1 * t / horizon
+
+    def rhs(t, x):
+        return np.array(f(*x, *angles(t)), float)
+
+    t = np.linspace(0.0, horizon, 400)
+    sol = solve_ivp(rhs, (0, horizon), [PAPER_X0[n] for n in POLAR], method="DOP853",
+                    rtol=1e-12, atol=1e-13, t_eval=t)
+    assert sol.success
+    d, p = angles(t)
+    states = {n: sol.y[i] for i, n in enumerate(POLAR)}
+    res = Result(name="short paper", status="feasible", tf=horizon, wall_time_s={"total": 1.0},
+                 phases=[PhaseTrajectory("main", t, states=states, controls={"delta": d, "phi": p})],
+                 problem={"phases": {"main": {"states": list(POLAR), "controls": ["delta", "phi"]}}},
+                 extra={"N_rev": 0})
+    res.write(folder)
+    return res
+
+
+def _retarget(text: str, end: dict, segments: int, degree: int) -> str:
+    """The 10 N optimal-mode file aimed at ``end`` (synodic state) on a coarse mesh."""
+    out = []
+    for line in text.splitlines():
+        s = line.strip()
+        for n in ("x", "y", "z", "vx", "vy", "vz"):
+            if s.startswith(f"- {n}(tf) =="):
+                line = f"    - {n}(tf) == {float(end[n])!r}"
+        if s.startswith("segments:"):
+            line = f"  segments: {segments}"
+        if s.startswith("degree:"):
+            line = f"  degree: {degree}"
+        if s.startswith("- 1 <= tf <= 1000"):
+            line = "    - 0.01 <= tf <= 1000"
+        if s.startswith("time(tf):") or s == "expect:":
+            continue
+        out.append(line)
+    return "\n".join(out) + "\n"
+
+
+@pytest.mark.ipopt
+def test_refine_machinery_short_horizon(tmp_path):
+    horizon = 0.05
+    paper = _short_paper_run(tmp_path / "paper", horizon)
+    fin = {n: float(paper.phase().states[n][-1]) for n in POLAR}
+    end = dict(zip(("x", "y", "z", "vx", "vy", "vz"),
+                   frames.ecrf_to_synodic(*(fin[n] for n in POLAR[:6]), MU)))
+    cfg = tmp_path / "short_optimal.yaml"
+    cfg.write_text(_retarget((CONFIGS / "seed1_10N_optimal.yaml").read_text(), end, 12, 5))
+
+    # conversion: the warm start starts at the initial state, ends at the paper's end at its tf
+    import ocdsl
+
+    loaded = ocdsl.load(cfg).file
+    warm = R.paper_to_warm_start(tmp_path / "paper", loaded, tmp_path / "warm", points=500)
+    w = warm.phase()
+    assert w.states["time"][0] == 0.0
+    assert w.states["time"][-1] == pytest.approx(horizon, abs=1e-9)
+    assert np.all(np.diff(w.time) > 0) and np.all(np.diff(w.states["time"]) > 0)
+    x0 = frames.ecrf_to_synodic(*(PAPER_X0[n] for n in POLAR[:6]), MU)
+    for n, v in zip(("x", "y", "z", "vx", "vy", "vz"), x0):
+        assert w.states[n][0] == pytest.approx(v, abs=1e-12)
+    for n in ("x", "y", "z", "vx", "vy", "vz"):   # re-integrated in s: same end point
+        assert w.states[n][-1] == pytest.approx(end[n], abs=1e-6)
+    u = np.sqrt(w.controls["ux"] ** 2 + w.controls["uy"] ** 2 + w.controls["uz"] ** 2)
+    assert np.allclose(u, 1.0, atol=1e-12)
+
+    res = R.refine(cfg, tmp_path / "paper", tmp_path / "opt")
+    assert res.status == "optimal", res.message
+    tr = res.phase()
+    t_opt = res.extra["tf_physical"]
+    # the paper trajectory is feasible, so the minimum time is not later than its t_f
+    assert 0 < t_opt <= horizon + 1e-6
+    assert res.extra["m_p"] == pytest.approx(T_MAX[10] * t_opt / C, abs=1e-8)
+    col = tr.extra["collocated"] > 0
+    norm = tr.controls["ux"] ** 2 + tr.controls["uy"] ** 2 + tr.controls["uz"] ** 2
+    assert np.allclose(norm[col], 1.0, atol=1e-7)
+    # the collocated control, re-integrated, reaches the target
+    reint = res.extra["reintegration"]
+    assert reint["passed"], reint
+    assert reint["position_error_LU"] < 1e-3 and reint["velocity_error_VU"] < 1e-3
+    assert reint["arrival_time"] == pytest.approx(t_opt, abs=1e-6)
+    # side by side, and the run folder round-trips
+    back = Result.read(tmp_path / "opt")
+    table = back.tables["paper_vs_optimal"]
+    assert list(table["mode"]) == [0.0, 1.0]
+    assert table["tf"][0] == pytest.approx(horizon) and table["tf"][1] == pytest.approx(t_opt)
+    assert table["position_error_LU"][0] < 1e-9        # the paper run ends on its own target
+    assert back.extra["side_by_side"]["optimal"]["N_rev"] == 0
+    assert "convert_guess" in back.wall_time_s and "reintegrate" in back.wall_time_s
+
+
+def test_refuses_a_non_polar_run(tmp_path):
+    import ocdsl
+
+    res = Result(name="x", status="optimal", tf=1.0,
+                 phases=[PhaseTrajectory("main", np.linspace(0, 1, 3), states={"x": np.zeros(3)})],
+                 problem={"phases": {"main": {"states": ["x"], "controls": []}}})
+    res.write(tmp_path / "run")
+    loaded = ocdsl.load(CONFIGS / "seed1_10N_optimal.yaml").file
+    with pytest.raises(ValueError, match="not a polar paper-mode trajectory"):
+        R.paper_to_warm_start(tmp_path / "run", loaded, tmp_path / "warm")
+
+
+def test_revolutions_of_a_cartesian_trajectory():
+    """N_rev of a Cartesian trajectory from the unwrapped atan2 angle (paper-mode convention)."""
+    import ocdsl
+
+    num = R._Numeric(ocdsl.load(CONFIGS / "seed1_10N_optimal.yaml").file)
+    for end, n_rev in [(10 * np.pi + 0.3, 5), (8 * np.pi + 0.3, 4), (8 * np.pi - 0.3, 3)]:
+        th = np.linspace(-2.0, end, 3000)
+        r = np.linspace(0.02, 0.8, th.size)
+        tr = PhaseTrajectory("main", th, states={"x": r * np.cos(th) - MU, "y": r * np.sin(th)})
+        theta = R.unwrapped_angle(tr, num)
+        assert theta[0] == pytest.approx(-2.0) and theta[-1] == pytest.approx(end)
+        assert frames.revolutions(theta[-1]) == n_rev
+
+
+# ---------------------------------------------------------------------------------------
+# the full cases: paper mode first, then optimal mode from its best particle
+def _paper_then_optimal(n: int, tmp_path: Path) -> tuple[Result, Result]:
+    from ocdsl.api import run_file
+
+    paper = run_file(CONFIGS / f"seed1_{n}N_paper.yaml", tmp_path / "paper")
+    assert paper.phases, paper.message
+    opt = R.refine(CONFIGS / f"seed1_{n}N_optimal.yaml", tmp_path / "paper", tmp_path / "optimal")
+    assert opt.status == "optimal", opt.message
+    tf = opt.extra["tf_physical"]
+    assert opt.extra["m_p"] == pytest.approx(T_MAX[n] * tf / C, abs=1e-8)
+    reint = opt.extra["reintegration"]
+    assert reint["position_error_LU"] <= 1e-3 and reint["velocity_error_VU"] <= 1e-3, reint
+    return paper, opt
+
+
+@pytest.mark.slow
+@pytest.mark.ipopt
+def test_optimal_10N(tmp_path):
+    paper, opt = _paper_then_optimal(10, tmp_path)
+    tf = opt.extra["tf_physical"]
+    assert tf <= 1.8065                     # the paper's indirect reference
+    assert tf <= paper.tf
+    assert all(c["passed"] for c in opt.expect)
+
+
+@pytest.mark.slow
+@pytest.mark.ipopt
+@pytest.mark.parametrize("n", [5, 2])
+def test_optimal_5N_2N(n, tmp_path):
+    paper, opt = _paper_then_optimal(n, tmp_path)
+    assert opt.extra["tf_physical"] <= paper.tf
