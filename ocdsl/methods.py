@@ -17,12 +17,10 @@ def register_method(name: str, spec_class) -> None:
 def method_spec(name: str, data: dict) -> Any:
     _load()
     if name not in _SPECS:
-        import difflib
+        from .hints import did_you_mean
 
         known = ["LG", "LGR", "LGL", "LGR-start"] + sorted(_SPECS)
-        close = difflib.get_close_matches(str(name), known, n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        raise ValueError(f"unknown transcription '{name}'{hint}; known: {', '.join(known)}")
+        raise ValueError(f"unknown transcription '{name}'{did_you_mean(name, known)}; known: {', '.join(known)}")
     return _SPECS[name].model_validate(data)
 
 

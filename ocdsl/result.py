@@ -123,7 +123,7 @@ class Result:
             for fname, text in (extra_files or {}).items():
                 (tmp / fname).write_text(text)
             (tmp / "result.json").write_text(json.dumps(self.to_json(), indent=2))
-            _replace_dir(tmp, run_dir)
+            replace_dir(tmp, run_dir)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
@@ -157,7 +157,8 @@ def _trajectory_file(phase: str, n_phases: int) -> str:
     return "trajectory.csv" if n_phases == 1 else f"trajectory_{phase}.csv"
 
 
-def _replace_dir(new: Path, dest: Path) -> None:
+def replace_dir(new: Path, dest: Path) -> None:
+    """Move the folder ``new`` to ``dest``, replacing an existing ``dest`` as one rename."""
     if dest.exists():
         old = Path(tempfile.mkdtemp(prefix=f".{dest.name}.old.", dir=dest.parent))
         os.replace(dest, old / "x")

@@ -14,6 +14,7 @@ from typing import Any
 import pydantic
 import sympy as sp
 
+from ..hints import did_you_mean
 from ..symbolic.model import TIME, Model, sym
 from ..symbolic.problem import (INF, BoundaryValue, Constraint, FreeParameter, Objective, Phase,
                                 Problem)
@@ -65,11 +66,7 @@ def _issue_from_pydantic(located: Located, err: dict) -> Issue:
             parent = parent.get(p, {}) if isinstance(parent, dict) else {}
         msg = f"unknown key '{loc[-1]}'"
         if isinstance(parent, dict):
-            import difflib
-            known = _known_keys(loc[:-1])
-            close = difflib.get_close_matches(str(loc[-1]), known, n=1)
-            if close:
-                msg += f" (did you mean '{close[0]}'?)"
+            msg += did_you_mean(loc[-1], _known_keys(loc[:-1]))
     elif err["type"] == "missing":
         msg = f"missing required key '{loc[-1]}'"
     where = ".".join(str(p) for p in loc) or "top level"
@@ -321,7 +318,7 @@ class _Compiler:
         for name, text in m.dynamics.items():
             if name not in m.states:
                 self.issue(loc + ("dynamics", name), f"dynamics given for '{name}', which is not a state"
-                           + _did_you_mean(name, m.states))
+                           + did_you_mean(name, m.states))
                 ok = False
                 continue
             e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope)
@@ -358,7 +355,7 @@ class _Compiler:
         known = {s.name for s in model.states + model.controls} | {p.name for p in self.free}
         for k in guess_items:
             if k not in known:
-                self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + _did_you_mean(k, known))
+                self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + did_you_mean(k, known))
         guess_dict = {"values": guess_items, "tf": guess.tf, "from": guess.from_, "random": guess.random,
                       "seed": guess.seed}
         return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
@@ -385,7 +382,7 @@ class _Compiler:
                 raise ExprError(f"name the phase of {var}({which}), e.g. {phases[0].name}.{var}({which})")
             if var not in {s.name for s in target.states}:
                 raise ExprError(f"'{var}' is not a state of phase '{target.name}'" +
-                                _did_you_mean(var, [s.name for s in target.states]))
+                                did_you_mean(var, [s.name for s in target.states]))
             label = f"{target.name}.{var}({which})" if self.spec.phases is not None else f"{var}({which})"
             s = sym(label)
             self.boundary_values[s] = BoundaryValue(target.name, target.model.symbol(var), which)
@@ -548,10 +545,3 @@ def _midpoint(lo, hi) -> float:
     if lo is not None and hi is not None:
         return 0.5 * (lo + hi)
     return lo if lo is not None else (hi if hi is not None else 0.0)
-
-
-def _did_you_mean(name, choices) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(str(name), [str(c) for c in choices], n=1)
-    return f" (did you mean '{close[0]}'?)" if close else ""

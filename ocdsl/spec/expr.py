@@ -14,6 +14,7 @@ from typing import Callable
 
 import sympy as sp
 
+from ..hints import did_you_mean
 from .errors import ExprError
 
 FUNCTIONS: dict[str, tuple[Callable, int]] = {
@@ -122,7 +123,7 @@ class _Builder:
             return CONSTANTS[node.id]
         if node.id in FUNCTIONS or node.id == "integral":
             raise self.fail(f"'{node.id}' is a function and needs arguments")
-        raise self.fail(f"unknown name '{node.id}'{_did_you_mean(node.id, self.scope.names)}")
+        raise self.fail(f"unknown name '{node.id}'{did_you_mean(node.id, self.scope.names)}")
 
     def _UnaryOp(self, node: ast.UnaryOp) -> sp.Expr:
         if isinstance(node.op, ast.USub):
@@ -172,7 +173,7 @@ class _Builder:
             return f(*[self.build(a) for a in node.args])
         if name in self.scope.names:
             return self._boundary(None, name, node)
-        raise self.fail(f"unknown function '{name}'{_did_you_mean(name, FUNCTIONS)}")
+        raise self.fail(f"unknown function '{name}'{did_you_mean(name, FUNCTIONS)}")
 
     def _Attribute(self, node: ast.Attribute) -> sp.Expr:
         # phase.tf, phase.t0 or a phase's parameter, in links
@@ -189,15 +190,8 @@ class _Builder:
         if len(node.args) != 1 or not isinstance(node.args[0], ast.Name) or node.args[0].id not in ("t0", "tf"):
             raise self.fail(f"'{ast.unparse(node)}': a boundary value is written {var}(t0) or {var}(tf)")
         if phase is not None and phase not in self.scope.phases:
-            raise self.fail(f"unknown phase '{phase}'{_did_you_mean(phase, self.scope.phases)}")
+            raise self.fail(f"unknown phase '{phase}'{did_you_mean(phase, self.scope.phases)}")
         try:
             return self.scope.boundary(phase, var, node.args[0].id)
         except ExprError as e:
             raise self.fail(e.message) from None
-
-
-def _did_you_mean(name: str, choices) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(name, list(choices), n=1)
-    return f" (did you mean '{close[0]}'?)" if close else ""

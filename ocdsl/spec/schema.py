@@ -163,14 +163,12 @@ class SolverSpec(Strict):
     @classmethod
     def _known_options(cls, v):
         # a misspelt option is an error now, not a warning at solve time
-        import difflib
+        from ..hints import did_you_mean
 
         known = ipopt_option_names()
         for name in v:
             if name not in known:
-                close = difflib.get_close_matches(name, known, n=1)
-                hint = f" (did you mean '{close[0]}'?)" if close else ""
-                raise ValueError(f"unknown Ipopt option '{name}'{hint}")
+                raise ValueError(f"unknown Ipopt option '{name}'{did_you_mean(name, known)}")
         return v
 
 

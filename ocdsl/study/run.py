@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from ocdsl.result import Result
+from ocdsl.result import Result, replace_dir
 
 from .executor import Executor, WorkerLost, worker_cache, worker_info
 from .spec import Point, StudyError, load_study
@@ -193,22 +193,12 @@ def _atomic_write(path: Path, text: str) -> None:
         raise
 
 
-def _replace_dir(new: Path, dest: Path) -> None:
-    if dest.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{dest.name}.old.", dir=dest.parent))
-        os.replace(dest, old / "x")
-        os.replace(new, dest)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(new, dest)
-
-
 def _install_point(points_dir: Path, point: Point, files: dict[str, bytes], meta: dict) -> None:
     tmp = Path(tempfile.mkdtemp(prefix=f".{point.id}.", dir=points_dir))
     try:
         _write_files(tmp, files)
         (tmp / POINT_FILE).write_text(json.dumps(meta, indent=2))
-        _replace_dir(tmp, points_dir / point.id)
+        replace_dir(tmp, points_dir / point.id)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -64,11 +64,9 @@ def model_names() -> list[str]:
 def registered(name: str) -> RegisteredModel:
     _load_all()
     if name not in _REGISTRY:
-        import difflib
+        from ..hints import did_you_mean
 
-        close = difflib.get_close_matches(name, _REGISTRY, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise KeyError(f"unknown model {name!r}{hint}; known: {', '.join(sorted(_REGISTRY))}")
+        raise KeyError(f"unknown model {name!r}{did_you_mean(name, _REGISTRY)}; known: {', '.join(sorted(_REGISTRY))}")
     return _REGISTRY[name]
 
 
