@@ -53,8 +53,18 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
                         for ph in problem.phases}
     previous = {}
     if warm_start is not None:
-        prev = Result.read(warm_start)
-        previous = {p.name: p for p in prev.phases}
+        previous = {p.name: p for p in Result.read(warm_start).phases}
+    else:
+        # `guess: {from: RUN_DIR}` in the file (relative to the file), phase by phase
+        for ph in problem.phases:
+            source = ph.guess.get("from")
+            if source:
+                folder = (file.path.parent / source) if not Path(source).is_absolute() else Path(source)
+                prev = {p.name: p for p in Result.read(folder).phases}
+                if ph.name in prev:
+                    previous[ph.name] = prev[ph.name]
+                elif len(prev) == 1:
+                    previous[ph.name] = next(iter(prev.values()))
     starts = method.starts
     best = best_tr = None
     records = []

@@ -85,3 +85,18 @@ def test_multi_phase_expect_uses_constants():
 
     res = ocdsl.load(Path(__file__).parent / "data" / "two_phase_expect_parameter.yaml").solve()
     assert res.expect[0]["passed"], res.expect
+
+
+@pytest.mark.ipopt
+def test_guess_from_a_run_folder(configs, tmp_path):
+    """`guess: {from: RUN}` starts from a previous run: same optimum, fewer iterations."""
+    from ocdsl.api import run_file
+
+    cold = run_file(configs / "brachistochrone.yaml", tmp_path / "first")
+    text = (configs / "brachistochrone.yaml").read_text().replace(
+        "  objective: minimize tf", "  objective: minimize tf\n  guess: {from: first}")
+    p = tmp_path / "again.yaml"
+    p.write_text(text)
+    warm = ocdsl.load(p).solve()
+    assert warm.tf == pytest.approx(cold.tf, rel=1e-9)
+    assert warm.iterations < cold.iterations

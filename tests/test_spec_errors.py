@@ -49,6 +49,8 @@ CASES = [
     ("empty range", ("0.1 <= tf <= 10", "10 <= tf <= 0.1"), 16, "empty range"),
     ("unknown transcription", ("transcription: LGR", "transcription: LGRR"), 18, "did you mean 'LGR'"),
     ("reserved name", ("states: [x, v]", "states: [x, sin]"), 3, "not a valid state name"),
+    ("guess from a missing run", ("objective: minimize tf", "objective: minimize tf\n  guess: {from: no/such/run}"),
+     18, "no run folder there"),
     ("bad method value", ("segments: 4, degree: 3", "segments: 4, degree: 0"), 18, "degree must be between"),
     ("misspelt Ipopt option", ("method: {", "solver: {options: {max_itr: 5}}\nmethod: {"), 18,
      "did you mean 'max_iter'"),

@@ -356,6 +356,11 @@ class _Compiler:
         for k in guess_items:
             if k not in known:
                 self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + did_you_mean(k, known))
+        if guess.from_ is not None:
+            folder = Path(guess.from_) if Path(guess.from_).is_absolute() else self.path.parent / guess.from_
+            if not (folder / "result.json").exists():
+                self.issue(loc + ("guess", "from"), f"guess from '{guess.from_}': no run folder there "
+                           f"(looked for {folder / 'result.json'})")
         guess_dict = {"values": guess_items, "tf": guess.tf, "from": guess.from_, "random": guess.random,
                       "seed": guess.seed}
         return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
