@@ -89,3 +89,81 @@ def test_paper_mode_reproduction(n):
     assert res.extra["N_rev"] == nrev
     assert abs(res.tf - tf) / tf < 0.02
     assert abs(res.extra["m_p"] - T_MAX[n] * res.tf / C) < 1e-6
+
+
+TOY = """\
+name: toy minimum-time double integrator, parametric
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics:
+    x: v
+    v: u
+problem:
+  time: {t0: 0, tf: free}
+  constraints:
+    - x(t0) == 0
+    - v(t0) == 0
+    - x(tf) == 1
+    - v(tf) == 0
+    - 1.0 <= tf <= 4.0
+  objective: minimize tf
+method:
+  transcription: parametric
+  controls:
+    u: {series: fourier, order: 1, bounds: [-1.0, 1.0], a0: [-1.0, 1.0]}
+  tolerances: {default: 1.0e-3}
+  integrator: {rtol: 1.0e-10, atol: 1.0e-12}
+  polish: {method: least_squares, max_iterations: 200}
+  continuation: {enabled: true, step: 0.05, min_step: 1.0e-3, max_steps: 60}
+  optimizer: {particles: 6, iterations: 2, seed: 0}
+"""
+
+
+def _lp_tf_min(zeta):
+    """Independent bound: with u = a0/2 + a1 cos(pi t/tf) + b1 sin(pi t/tf),
+    v(tf) = tf (a0/2 + 2 b1/pi) and x(tf) = tf^2 (a0/4 + 2 a1/pi^2 + b1/pi), so the
+    smallest tf reaching x = 1 +- zeta, v = 0 +- zeta over the coefficient box is an LP
+    in the coefficients (for a given tf) -- bisection on tf."""
+    from scipy.optimize import linprog
+
+    def reach(tf):   # max x(tf)/tf^2 with |v(tf)| <= zeta
+        c = -np.array([1 / 4, 2 / np.pi ** 2, 1 / np.pi])
+        A = np.array([[1 / 2, 0, 2 / np.pi], [-1 / 2, 0, -2 / np.pi]])
+        r = linprog(c, A_ub=A, b_ub=[zeta / tf, zeta / tf], bounds=[(-1, 1)] * 3)
+        return -r.fun
+    lo, hi = 1.0, 4.0
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if mid ** 2 * reach(mid) >= 1 - zeta else (mid, hi)
+    return hi
+
+
+def test_continuation_in_tf_reaches_the_lp_minimum(tmp_path):
+    from ocdsl.search.run import continue_tf
+
+    p = tmp_path / "toy.yaml"
+    p.write_text(TOY)
+    lf = load(p)
+    pp = build(lf.problem, lf.method)
+    assert pp.names() == ["tf", "u_a0", "u_a1", "u_b1"]
+    x0 = np.array([3.0, 0.0, np.pi ** 2 / (2 * 9.0), 0.0])     # exactly on target at tf = 3
+    assert pp.details(x0)["ratio"].max() < 1e-6
+    x, info, table = continue_tf(pp, x0, lf.method.polish, lf.method.continuation)
+    det = pp.details(x)
+    assert np.all(det["ratio"] <= 1.0)                          # every accepted point inside zeta
+    assert info["tf_end"] == det["tf"] == x[0] and info["tf_start"] == 3.0
+    tf_min = _lp_tf_min(1e-3)                                   # pi/sqrt(2) up to the zeta slack
+    assert abs(tf_min - np.pi / np.sqrt(2)) < 0.01
+    assert tf_min - 1e-9 <= det["tf"] <= tf_min * 1.01, (det["tf"], tf_min)
+    acc = table["accepted"].astype(bool)
+    assert np.all(np.diff(table["tf"]) <= 0) and table["tf"][-1] == det["tf"]
+    assert np.all(table["max_error_over_zeta"][acc] <= 1.0)
+    # the runner keeps the swarm's and the polish's numbers apart from the continued ones
+    res = run(lf.problem, lf.method, progress=False)
+    c = res.extra["continuation"]
+    if c["continuation"].startswith("skipped"):
+        assert res.tf == res.extra["pso_only"]["tf"]
+    else:
+        assert res.tf == c["tf_end"] <= c["polished"]["tf"] == res.extra["pso_only"]["tf"]
+        assert res.status == "feasible" and "continuation" in res.tables

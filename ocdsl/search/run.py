@@ -199,6 +199,14 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         x_best, pinfo = polish(pp, res.x, spec.polish)
         pso_only.update(pinfo)
         timings["polish"] = time.perf_counter() - t0
+    continuation = None
+    if spec.continuation.enabled and pso_only is not None:
+        t0 = time.perf_counter()
+        d1 = pp.details(x_best)
+        polished = {"tf": d1["tf"], "max_error_over_zeta": float(d1["ratio"].max()), "fitness": d1["fitness"]}
+        x_best, cinfo, ctable = continue_tf(pp, x_best, spec.polish, spec.continuation)
+        continuation = {"polished": polished, **cinfo}
+        timings["continuation"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     det = pp.details(x_best)
     tr, U = pp.trajectory(x_best)
@@ -221,6 +229,8 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         extra[n] = int(round(det["variables"][n]))
     if pso_only is not None:
         extra["pso_only"] = pso_only
+    if continuation is not None:
+        extra["continuation"] = continuation
     if "m" in cm.state_names:
         mf = float(det["final"][cm.state_names.index("m")])
         extra["m_f"] = mf
@@ -228,8 +238,13 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
     timings["post"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     hist = dict(res.history)
+    tables = {"history": hist}
+    if continuation is not None and ctable:
+        tables["continuation"] = ctable
     status = "feasible" if feasible else "infeasible"
     polished = " and least-squares polish" if pso_only is not None else ""
+    if continuation is not None:
+        polished += (f" and continuation in tf ({continuation['continuation']}; swarm tf {pso_only['tf']:.6g})")
     msg = (f"PSO{polished} stopped ({res.stop_reason}) after {res.iterations} iterations, {res.n_evals} evaluations; "
            f"best fitness {res.f:.6g}, tf {det['tf']:.6g}; terminal errors "
            f"{'inside' if feasible else 'NOT inside'} the tolerances (max |e|/zeta {det['ratio'].max() if len(det['ratio']) else 0:.3g})")
@@ -238,11 +253,76 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
     return Result(name or problem.name, status, message=msg, objective=det["objective"], tf=det["tf"],
                   iterations=res.iterations, wall_time_s=timings,
                   method=spec.model_dump(mode="json"), parameters=params, phases=[phase],
-                  problem=problem.description, extra=extra, tables={"history": hist})
+                  problem=problem.description, extra=extra, tables=tables)
 
 
-def polish(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, dict]:
-    """Drive the terminal errors / zeta to zero from ``x`` (integers and tf fixed)."""
+def _inside(det: dict) -> bool:
+    return bool(np.all(det["ratio"] <= 1.0)) and det["status"] >= 0 and det["status"] != 2
+
+
+def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings) -> tuple[np.ndarray, dict, dict]:
+    """Lower tf from ``x`` (inside the zeta box) while the polish keeps it inside.
+
+    Integers stay fixed; see :class:`ocdsl.spec.parametric.ContinuationSpec`. Returns the
+    last point inside the box, a summary, and the table of every attempt.
+    """
+    if not pp.tf_free:
+        return x, {"continuation": "skipped: tf is fixed"}, {}
+    itf = len(pp.variables)
+    lo, _, _ = pp.bounds()
+    det = pp.details(x)
+    if not _inside(det):
+        return x, {"continuation": "skipped: the polished best is not inside the zeta box",
+                   "max_error_over_zeta": float(det["ratio"].max())}, {}
+    tf0 = tf = float(x[itf])
+    step = settings.step * tf
+    rows = {k: [] for k in ("attempt", "tf_tried", "accepted", "max_error_over_zeta", "evaluations", "tf")}
+    evals = 0
+    for k in range(1, settings.max_steps + 1):
+        if step < settings.min_step * tf:
+            reason = f"step below {settings.min_step:g} tf"
+            break
+        tf_try = max(tf - step, lo[itf])
+        if tf_try >= tf:
+            reason = "tf at its lower bound"
+            break
+        xt = x.copy()
+        xt[itf] = tf_try
+        xn, info = polish(pp, xt, polish_settings, stop_ratio=settings.target_ratio,
+                          max_evaluations=settings.evaluations_per_step)
+        dn = pp.details(xn)
+        ok = _inside(dn)
+        evals += info["polish_evaluations"]
+        for key, val in (("attempt", k), ("tf_tried", tf_try), ("accepted", float(ok)),
+                         ("max_error_over_zeta", float(dn["ratio"].max())),
+                         ("evaluations", info["polish_evaluations"])):
+            rows[key].append(val)
+        if ok:
+            x, tf = xn, tf_try
+            step *= settings.grow
+        else:
+            step *= 0.5
+        rows["tf"].append(tf)
+    else:
+        reason = f"max_steps {settings.max_steps}"
+    summary = {"continuation": reason, "tf_start": tf0, "tf_end": tf, "attempts": len(rows["attempt"]),
+               "accepted": int(sum(rows["accepted"])), "evaluations": evals}
+    return x, summary, {k: np.asarray(v, float) for k, v in rows.items()}
+
+
+class _Reached(Exception):
+    def __init__(self, z):
+        self.z = z
+
+
+def polish(pp: ParametricProblem, x: np.ndarray, settings, stop_ratio: float | None = None,
+           max_evaluations: int | None = None) -> tuple[np.ndarray, dict]:
+    """Drive the terminal errors / zeta to zero from ``x`` (integers and tf fixed).
+
+    ``stop_ratio``: stop as soon as every |error|/zeta is at or below it (the continuation
+    in tf needs points inside the box, not errors at zero). ``max_evaluations`` caps the
+    integrations (function and Jacobian) of this call.
+    """
     from scipy.optimize import least_squares
 
     lo, hi, is_int = pp.bounds()
@@ -261,6 +341,8 @@ def polish(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, 
         return X
 
     def residuals_batch(Z):
+        if max_evaluations is not None and n_evals[0] >= max_evaluations:
+            raise _Reached(None)
         Yf, status, _, var, tf = pp.final(full(Z))
         E, _ = pp.errors(Yf, var, tf)
         n_evals[0] += len(Z)
@@ -269,7 +351,11 @@ def polish(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, 
         return R
 
     def fun(z):
-        return residuals_batch(z[None, :])[0]
+        r = residuals_batch(z[None, :])[0]
+        if stop_ratio is not None and np.all(np.abs(r) <= stop_ratio):
+            raise _Reached(z.copy())
+        best[0] = (float(np.max(np.abs(r))), z.copy()) if float(np.max(np.abs(r))) < best[0][0] else best[0]
+        return r
 
     def jac(z):
         Z = np.vstack([z[None, :], z + np.diag(h)])
@@ -277,11 +363,17 @@ def polish(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, 
         return ((R[1:] - R[0]) / h[:, None]).T
 
     z0 = np.clip(x[idx], lo[idx], hi[idx])
+    best = [(np.inf, z0)]
     try:
         sol = least_squares(fun, z0, jac=jac, bounds=(lo[idx], hi[idx]), x_scale=width,
                             method="trf", max_nfev=settings.max_iterations)
         z = sol.x
         msg = sol.message
+    except _Reached as r:
+        if r.z is not None:
+            z, msg = r.z, f"every |error|/zeta <= {stop_ratio:g}"
+        else:
+            z, msg = best[0][1], f"evaluation budget {max_evaluations} used"
     except Exception as e:  # keep the swarm's best on any failure
         z, msg = z0, f"polish failed: {e}"
     out = x.copy()

@@ -136,6 +136,34 @@ class PolishSpec(_Strict):
     fd_step: float = Field(1e-6, gt=0.0, le=1e-2, description="forward-difference step, fraction of each box width")
 
 
+class ContinuationSpec(_Strict):
+    """Optional continuation in tf after the polish (not in the seed paper; reported apart).
+
+    The swarm's fitness tf + sum of normalised penalties is dominated by the penalties, so
+    the swarm's tf is only loosely determined. From the polished best (inside the zeta
+    box), with the integers fixed, tf is lowered by ``step`` (fraction of tf) and the
+    least-squares polish restores every |error|/zeta <= ``target_ratio`` from the previous
+    coefficients (the series are in t/tf, so the same coefficients give the same angle
+    history in normalised time); a success keeps the point and multiplies the step by
+    ``grow``, a failure halves it; it stops below ``min_step`` or after ``max_steps``
+    polishes. Each polish may use ``evaluations_per_step`` integrations.
+    """
+
+    enabled: bool = False
+    step: float = Field(0.02, gt=0.0, le=0.5, description="first decrease of tf, fraction of tf")
+    min_step: float = Field(1e-3, gt=0.0, le=0.5, description="stop when the step falls below this fraction of tf")
+    grow: float = Field(1.5, ge=1.0, le=4.0)
+    target_ratio: float = Field(0.5, gt=0.0, le=1.0, description="each polish stops once every |error|/zeta is at or below this")
+    max_steps: int = Field(40, ge=1, le=10_000)
+    evaluations_per_step: int = Field(2000, ge=10, le=10_000_000)
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.min_step > self.step:
+            raise ValueError(f"min_step {self.min_step} exceeds step {self.step}")
+        return self
+
+
 class ParametricSpec(_Strict):
     transcription: Literal["parametric"] = "parametric"
     controls: dict[str, SeriesSpec]
@@ -147,6 +175,7 @@ class ParametricSpec(_Strict):
     integrator: IntegratorSpec = Field(default_factory=IntegratorSpec)
     optimizer: PSOSpec = Field(default_factory=PSOSpec)
     polish: PolishSpec = Field(default_factory=PolishSpec)
+    continuation: ContinuationSpec = Field(default_factory=ContinuationSpec)
     angle_convention: Literal["0_2pi", "atan2"] = "0_2pi"
     output_points: int = Field(2000, ge=10)
     threads: bool = Field(True, description="in-process evaluation over all cores (Numba threads)")
@@ -173,6 +202,12 @@ class ParametricSpec(_Strict):
         if not v:
             raise ValueError("at least one control must be given as a series")
         return v
+
+    @model_validator(mode="after")
+    def _continuation_needs_polish(self):
+        if self.continuation.enabled and self.polish.method == "none":
+            raise ValueError("continuation in tf needs polish: {method: least_squares}")
+        return self
 
 
 try:  # register with the lead's method registry when it is there
