@@ -90,14 +90,18 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
 def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
     import pyomo.environ as pyo
 
-    from .solve.costates import costates
+    from .solve.costates import costates, path_multipliers
     from .transcribe.solution import extract
 
     problem = file.problem
     phases = extract(tr)
+    texts = {}
     if info.status in ("optimal", "acceptable"):
-        for traj, lam in zip(phases, costates(tr)):
+        for traj, lam, mu, ph in zip(phases, costates(tr), path_multipliers(tr), problem.phases):
             traj.costates = lam
+            traj.extra.update(mu)       # mu_<k>: multiplier of phase.path[k] (costates.py)
+            if mu:
+                texts[ph.name] = {f"mu_{k}": c.text for k, c in enumerate(ph.path)}
     values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
     tf = {ph.name: float(pyo.value(pb.block.tf)) for ph, pb in zip(problem.phases, tr.phases)}
     result = Result(
@@ -108,6 +112,8 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
         parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
         phases=phases, problem=problem.description)
     result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
+    if texts:
+        result.extra["path_multipliers"] = texts     # phase -> {mu_<k>: constraint text}
     result.expect = check_expectations(file, values, info.objective)
     _certify(file, result)
     return result

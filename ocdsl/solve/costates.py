@@ -7,6 +7,30 @@ returns for defect i; Pyomo's sign convention). For LG the end constraint's mult
 nu_F is added: lambda_i = -(nu_i / w_i + nu_F) (Benson's Gauss costate mapping; the end
 state enters through the quadrature). LGL is written in integral form (Lobatto IIIA,
 X_i = X_0 + (h/2) sum_j A_ij F_j), so there lambda_j = -(A^T nu)_j / w_j. The mapping is tested against analytic costates.
+
+Path-constraint multipliers (:func:`path_multipliers`). Continuous conditions, in the
+augmented Hamiltonian ``H_aug = L + lambda^T f + sum_k mu_k g_k``: ``dH_aug/du = 0``.
+In the NLP, write ``s = (tf - t0) h/2`` (h the segment's width in normalised time, the
+factor of F in the defects) and let nu_i be the defect multipliers of collocation node i,
+nu^g_ik the multiplier of path row (i, k), ``g_k(X_i, U_i)`` in [lo_k, hi_k], which enters
+the NLP Lagrangian *unscaled*. With Pyomo's signs the Lagrangian is
+``J + sum nu_i . (D_i X - s F_i) + sum nu^g_ik g_k(X_i, U_i) + ...`` with
+``J = ... + sum_i s w_i L_i``; its derivative in U_i is::
+
+    s w_i L_u - s nu_i^T F_u + sum_k nu^g_ik g_k,u = 0
+    => L_u + (-nu_i / w_i)^T F_u + sum_k (nu^g_ik / (s w_i)) g_k,u = 0.
+
+The first factor is the costate above (lambda_i = -nu_i / w_i), so the same equation is
+``dH_aug/du = 0`` with::
+
+    mu_k(t_i) = nu^g_ik / (w_i * h/2 * (tf - t0)).
+
+The LG end constraint and the LGL integral form only change which multipliers make
+lambda (the F_u term); the path row of node i still carries only ``s w_i`` from the
+objective's quadrature, so the formula holds for LG, LGR and LGL alike. In the
+minimisation convention mu_k >= 0 at an active upper bound, <= 0 at an active lower bound
+and of free sign for an equality. Checked against the analytic multiplier of
+``min int u^2/2`` with ``u - 1/2 <= 0`` active on an arc (tests/test_path_multipliers.py).
 """
 from __future__ import annotations
 
@@ -41,4 +65,43 @@ def costates(tr: Transcription) -> list[dict[str, np.ndarray]]:
                     lam_c[cn, j] = -(nu / float(sc.weights[i]) + end)
         on_nodes = control_on_state_nodes(pb, lam_c)
         out.append({s.name: on_nodes[:, j] for j, s in enumerate(ph.states)})
+    return out
+
+
+def path_multipliers(tr: Transcription) -> list[dict[str, np.ndarray]]:
+    """Per phase: ``mu_<k>`` (k the index in ``phase.path``) -> multiplier on the state
+    nodes, NaN on state nodes that are not collocation nodes (see the module doc).
+
+    The path rows are built node by node along the collocation nodes, constraint by
+    constraint, so row ``cn * n_path + k`` is constraint k at collocation node cn.
+    """
+    import pyomo.environ as pyo
+
+    m = tr.model
+    out = []
+    for pb in tr.phases:
+        lay, ph, b = pb.layout, pb.phase, pb.block
+        npath = len(ph.path)
+        if not npath or not hasattr(b, "path"):
+            out.append({})
+            continue
+        if len(b.path) != lay.n_colloc * npath:
+            raise ValueError(f"phase {ph.name}: {len(b.path)} path rows, expected "
+                             f"{lay.n_colloc} nodes x {npath} constraints")
+        duration = float(pyo.value(b.tf)) - float(pyo.value(b.t0))
+        mu_c = np.zeros((lay.n_colloc, npath))
+        for k in range(lay.mesh.segments):
+            sc = lay.mesh.scheme(k)
+            half_h = (lay.mesh.breakpoints[k + 1] - lay.mesh.breakpoints[k]) / 2.0
+            for i, cn in enumerate(lay.colloc[k]):
+                scale = float(sc.weights[i]) * half_h * duration
+                for q in range(npath):
+                    nu = m.dual.get(b.path[int(cn) * npath + q], 0.0)
+                    mu_c[cn, q] = nu / scale
+        on_nodes = control_on_state_nodes(pb, mu_c)   # exact at collocation nodes
+        collocated = np.zeros(lay.n_state_nodes, bool)
+        for k in range(lay.mesh.segments):
+            collocated[lay.colloc_state[k]] = True
+        on_nodes[~collocated] = np.nan
+        out.append({f"mu_{q}": on_nodes[:, q] for q in range(npath)})
     return out
