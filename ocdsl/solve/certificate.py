@@ -18,6 +18,14 @@ Conventions (the minimisation form of the problem; maximise ``J`` by minimising 
 * PMP minimises ``H`` over the admissible controls: on interior arcs ``dH/du = 0``; at an
   upper bound ``dH/du < 0`` and at a lower bound ``dH/du > 0`` (``dH/du`` is the switching
   function).
+* path constraints ``lo_k <= g_k(x, u, t) <= hi_k`` with multipliers ``mu_k(t)`` (given,
+  e.g. from the NLP duals, ``ocdsl.solve.costates.path_multipliers``) enter the augmented
+  Hamiltonian ``H_aug = L + lambda^T f + sum_k mu_k (g_k - b_k)`` (b_k the active bound):
+  stationarity and the switching functions use ``dH_aug/du = dH/du + sum_k mu_k dg_k/du``;
+  the Hamiltonian check uses ``H``, since ``mu_k (g_k - b_k) = 0`` by complementarity
+  (measured apart); ``mu_k >= 0`` where ``g_k`` is at its upper bound, ``<= 0`` at its
+  lower bound, free for an equality (the sign of ``mu_k`` selects b_k: an upper-only
+  constraint with ``mu_k < 0`` has no bound to be active at).
 
 Checks and their measured numbers (see :func:`certificate` for the dict):
 
@@ -51,6 +59,13 @@ Checks and their measured numbers (see :func:`certificate` for the dict):
   ``smooth_local_max_error``, ``switch_intervals``, ``switch_local_max_error``,
   ``switch_max_excess`` (error / allowance on those intervals), ``max_excess`` (error /
   allowance everywhere, pass when <= 1).
+* ``path_multipliers`` (only with path constraints): per constraint the complementarity
+  ``max |mu_k (g_k - b_k)|`` (b_k the bound the sign of mu_k points to; for an equality
+  its value), relative to the Hamiltonian's term scale, and the sign condition: a
+  multiplier of the wrong sign (no finite bound on that side) is measured as
+  ``|mu_k| G_k`` relative to the same scale, G_k the size of g_k (its range over the nodes
+  or its largest finite bound, at least 1e-12). Passes when both stay below
+  ``Tolerances.complementarity`` and ``Tolerances.stationarity`` respectively.
 """
 from __future__ import annotations
 
@@ -79,6 +94,7 @@ class Tolerances:
     hamiltonian_mean: float = 2e-3   # |mean(H) - expected| / scale
     hamiltonian_max: float = 3e-2    # max |H - expected| / scale
     stationarity: float = 1e-2       # max |dH/du| / term size on interior nodes
+    complementarity: float = 1e-3    # max |mu_k (g_k - b_k)| / Hamiltonian term scale
     sign_agreement: float = 0.99     # fraction of saturated nodes
     saturation: float = 0.01         # "at a bound": within this fraction of the bound range
     bang_bang: float = 0.95          # fraction of nodes at a bound to call a control bang-bang
@@ -151,16 +167,17 @@ def symbolic_conditions(model: Model, lagrange: sp.Expr | float = 0,
 class _Numeric:
     """Lambdified f, df/dx, df/du, L, dL/du, df/dt, dL/dt of a model at fixed parameters."""
 
-    def __init__(self, model: Model, parameter_values: Mapping | None, lagrange):
+    def __init__(self, model: Model, parameter_values: Mapping | None, lagrange, path=()):
         subs = _param_subs(model, parameter_values)
         self.model = model
         x, u = list(model.states), list(model.controls)
         f = model.rhs().xreplace(subs)
         L = sp.Matrix([model.expand(sp.sympify(lagrange)).xreplace(subs)])
-        left = (f.free_symbols | L.free_symbols) - set(x) - set(u) - {TIME}
+        G = sp.Matrix([model.expand(sp.sympify(g)).xreplace(subs) for g in path])
+        left = (f.free_symbols | L.free_symbols | G.free_symbols) - set(x) - set(u) - {TIME}
         if left:
             raise ValueError(f"certificate: no value for {sorted(s.name for s in left)}")
-        self.time_dependent = TIME in (f.free_symbols | L.free_symbols)
+        self.time_dependent = TIME in (f.free_symbols | L.free_symbols | G.free_symbols)
         args = (TIME, x, u)
         mk = lambda e: sp.lambdify(args, list(e), "numpy", cse=True)  # noqa: E731  flat entries
         self._f = mk(f)
@@ -170,7 +187,11 @@ class _Numeric:
         self._Lu = mk(L.jacobian(u))
         self._ft = mk(f.diff(TIME))
         self._Lt = mk(L.diff(TIME))
-        self.n, self.m = len(x), len(u)
+        self.n, self.m, self.p = len(x), len(u), len(path)
+        if self.p:
+            self._g = mk(G)
+            self._gu = mk(G.jacobian(u))
+            self._gt = mk(G.diff(TIME))
 
     @staticmethod
     def _nodes(fun, t, X, U, shape):
@@ -194,10 +215,19 @@ class _Numeric:
     def Lu_nodes(self, t, X, U):
         return self._nodes(self._Lu, t, X, U, (self.m,))
 
-    def Ht_nodes(self, t, X, U, Lam):
+    def g_nodes(self, t, X, U):
+        return self._nodes(self._g, t, X, U, (self.p,))
+
+    def gu_nodes(self, t, X, U):
+        return self._nodes(self._gu, t, X, U, (self.p, self.m))
+
+    def Ht_nodes(self, t, X, U, Lam, Mu=None):
         ft = self._nodes(self._ft, t, X, U, (self.n,))
         Lt = self._nodes(self._Lt, t, X, U, (1,))[:, 0]
-        return Lt + np.einsum("ki,ki->k", Lam, ft)
+        Ht = Lt + np.einsum("ki,ki->k", Lam, ft)
+        if Mu is not None and self.p:     # dH_aug/dt|explicit
+            Ht = Ht + np.einsum("kq,kq->k", Mu, self._nodes(self._gt, t, X, U, (self.p,)))
+        return Ht
 
     def f_point(self, t, x, u):
         return np.asarray(self._f(t, list(x), list(u)), float).reshape(self.n)
@@ -206,7 +236,9 @@ class _Numeric:
         return np.asarray(self._fx(t, list(x), list(u)), float).reshape(self.n, self.n)
 
 
-def _arrays(model: Model, trajectory, return_mask: bool = False):
+def _arrays(model: Model, trajectory, return_mask: bool = False, multipliers=None):
+    """Node arrays (rows with a NaN left out). With ``multipliers`` ((N, p) array) their
+    rows count too and the filtered array is returned last."""
     get = (lambda k: trajectory[k]) if isinstance(trajectory, Mapping) else (lambda k: getattr(trajectory, k))
     t = np.asarray(get("time"), float).ravel()
     states, controls = get("states"), get("controls")
@@ -224,18 +256,23 @@ def _arrays(model: Model, trajectory, return_mask: bool = False):
         Lam = np.column_stack([np.asarray(costates[s.name], float) for s in model.states])
     if not (len(t) == len(X) == len(U)) or (Lam is not None and len(Lam) != len(t)):
         raise ValueError("certificate: time, states, controls and costates differ in length")
+    if multipliers is not None and len(multipliers) != len(t):
+        raise ValueError("certificate: path multipliers and time differ in length")
     # keep the collocation nodes: rows where everything is defined (a back end may also
     # list non-collocated points, e.g. segment ends, with NaN controls or costates)
     keep = np.isfinite(t) & np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1)
     if Lam is not None:
         keep &= np.isfinite(Lam).all(axis=1)
+    if multipliers is not None:
+        keep &= np.isfinite(multipliers).all(axis=1)
     t, X, U = t[keep], X[keep], U[keep]
     Lam = Lam[keep] if Lam is not None else None
+    more = (multipliers[keep],) if multipliers is not None else ()
     if return_mask:
-        return t, X, U, Lam, keep
+        return (t, X, U, Lam, keep) + more
     if len(t) < 2 or np.any(np.diff(t) <= 0):
         raise ValueError("certificate: node times must be strictly increasing (at least 2 nodes)")
-    return t, X, U, Lam
+    return (t, X, U, Lam) + more
 
 
 def hamiltonian_arrays(model: Model, parameter_values: Mapping | None, trajectory,
@@ -407,7 +444,9 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                 expected_hamiltonian: float | None = None,
                 segments: Sequence[float] | None = None,
                 tolerances: Tolerances | None = None,
-                include_symbolic: bool = False) -> dict[str, Any]:
+                include_symbolic: bool = False,
+                path_constraints: Sequence[tuple] | None = None,
+                multipliers: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Check the first-order optimality conditions of a collocated solution.
 
     Parameters
@@ -428,6 +467,13 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         each segment's polynomial (otherwise piecewise linear through the nodes).
     tolerances : :class:`Tolerances`.
     include_symbolic : add LaTeX of H and dH/du under ``symbolic``.
+    path_constraints : ``[(g_expr, lo, hi), ...]`` (SymPy ``g`` of states, controls,
+        parameters, ``TIME``; None or +-inf for a missing bound; an optional 4th item is
+        the constraint's text, reported); needs ``multipliers``.
+    multipliers : ``{"mu_<k>": array (N,)}`` for every path constraint k, indexed like
+        ``time`` (NaN rows are left out like the costates'), in the convention of
+        ``H_aug = L + lambda^T f + sum_k mu_k g_k``. Without path constraints the result
+        is as before (no ``path_multipliers`` check).
 
     Returns
     -------
@@ -449,13 +495,29 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
          "reintegration": {"method": "Radau", "rtol", "interpolation", "local_max_error",
                            "global_max_error", "per_state": {x: {"local", "global",
                            "range"}}, "worst_state", "passed"},
+         "path_multipliers" (with path constraints): {"complementarity",
+                      "complementarity_relative", "max_wrong_sign_relative", "scale",
+                      "per_constraint": [{"index", "text", "kind", "lower", "upper",
+                      "active_nodes", "wrong_sign_nodes", "max_wrong_sign_relative",
+                      "complementarity", "complementarity_relative", "mu_min",
+                      "mu_max"}], "passed"},
          "tolerances": {...}, "symbolic": {...} (when asked)}
     """
     if objective not in OBJECTIVE_KINDS:
         raise ValueError(f"certificate: objective must be one of {OBJECTIVE_KINDS}, got {objective!r}")
     tol = tolerances or Tolerances()
-    num = _Numeric(model, parameter_values, lagrange)
-    t, X, U, Lam = _arrays(model, trajectory)
+    path = [_path_item(c) for c in (path_constraints or [])]
+    num = _Numeric(model, parameter_values, lagrange, [g for g, *_ in path])
+    if path:
+        missing = [f"mu_{k}" for k in range(len(path)) if f"mu_{k}" not in (multipliers or {})]
+        if missing:
+            raise ValueError(f"certificate: no multipliers {missing} for the path constraints")
+        Mu_all = np.column_stack([np.asarray(multipliers[f"mu_{k}"], float).ravel()
+                                  for k in range(len(path))])
+        t, X, U, Lam, Mu = _arrays(model, trajectory, multipliers=Mu_all)
+    else:
+        t, X, U, Lam = _arrays(model, trajectory)
+        Mu = None
     if Lam is None:
         raise ValueError("certificate: the trajectory has no costates")
     bounds = _bounds(model, control_bounds)
@@ -463,11 +525,15 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     out: dict[str, Any] = {"objective": objective, "nodes": N}  # nodes with every value defined
 
     H, dHdu, H_terms, dHdu_terms = _hamiltonian_nodes(num, t, X, U, Lam)
+    if path:    # dH_aug/du = dH/du + sum_k mu_k dg_k/du (stationarity, switching functions)
+        gu = num.gu_nodes(t, X, U)                       # (N, p, m)
+        dHdu = dHdu + np.einsum("kq,kqj->kj", Mu, gu)
+        dHdu_terms = dHdu_terms + np.einsum("kq,kqj->kj", np.abs(Mu), np.abs(gu))
 
     # ---- Hamiltonian ---------------------------------------------------------------
     Hc = H.copy()
     if num.time_dependent:   # H(t) + int_t^tf dH/dt|explicit is constant (= H(tf))
-        Ht = num.Ht_nodes(t, X, U, Lam)
+        Ht = num.Ht_nodes(t, X, U, Lam, Mu)
         seg = 0.5 * (Ht[1:] + Ht[:-1]) * np.diff(t)
         Hc = H + np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
     expected = EXPECTED_H[objective] if expected_hamiltonian is None else float(expected_hamiltonian)
@@ -535,12 +601,63 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     out["reintegration"] = _reintegration(num, model, t, X, U, bounds, segments, tol)
 
     checks = ("hamiltonian", "stationarity", "switching", "reintegration")
+    if path:
+        out["path_multipliers"] = _path_check(num, path, t, X, U, Mu, term_scale, tol)
+        checks += ("path_multipliers",)
     out["failed"] = [k for k in checks if not out[k]["passed"]]
     out["passed"] = not out["failed"]
     out["tolerances"] = asdict(tol)
     if include_symbolic:
         out["symbolic"] = symbolic_conditions(model, lagrange, parameter_values).latex()
     return out
+
+
+def _path_item(c) -> tuple:
+    g, lo, hi, *rest = c
+    lo = -math.inf if lo is None else float(lo)
+    hi = math.inf if hi is None else float(hi)
+    if lo > hi:
+        raise ValueError(f"certificate: bounds of path constraint {g} are reversed: {lo} > {hi}")
+    return sp.sympify(g), lo, hi, (str(rest[0]) if rest else str(g))
+
+
+def _path_check(num, path, t, X, U, Mu, scale, tol: Tolerances) -> dict[str, Any]:
+    """Complementarity and sign conditions of the path multipliers (see the module doc)."""
+    G = num.g_nodes(t, X, U)                             # (N, p)
+    per = []
+    comp_abs = comp_rel = wrong_rel = 0.0
+    ok_scale = scale > 0
+    for k, (g, lo, hi, text) in enumerate(path):
+        mu, gk = Mu[:, k], G[:, k]
+        finite = [b for b in (lo, hi) if math.isfinite(b)]
+        size = max([float(np.ptp(gk))] + [abs(b) for b in finite] + [1e-12])
+        # the bound the multiplier's sign points to (an equality: its value)
+        b = np.where(mu > 0, hi, lo) if lo != hi else np.full(len(mu), lo)
+        wrong = ~np.isfinite(b) & (mu != 0)
+        comp = np.where(np.isfinite(b), np.abs(mu * (gk - np.where(np.isfinite(b), b, 0.0))), 0.0)
+        band = tol.saturation * size
+        active = np.zeros(len(mu), bool)
+        if math.isfinite(hi):
+            active |= gk >= hi - band
+        if math.isfinite(lo):
+            active |= gk <= lo + band
+        wrong_mag = np.abs(mu[wrong]) * size
+        ca = float(comp.max()) if len(comp) else 0.0
+        cr = ca / scale if ok_scale else (0.0 if ca == 0 else math.inf)
+        wa = float(wrong_mag.max()) if wrong.any() else 0.0
+        wr = wa / scale if ok_scale else (0.0 if wa == 0 else math.inf)
+        kind = ("equality" if lo == hi else "range" if len(finite) == 2
+                else "upper" if math.isfinite(hi) else "lower" if math.isfinite(lo) else "free")
+        per.append({"index": k, "text": text, "kind": kind, "lower": _f(lo), "upper": _f(hi),
+                    "active_nodes": int(active.sum()),
+                    "wrong_sign_nodes": int(np.sum(np.abs(mu[wrong]) * size > tol.stationarity * scale)),
+                    "max_wrong_sign_relative": _f(wr), "complementarity": ca,
+                    "complementarity_relative": _f(cr), "mu_min": float(mu.min()),
+                    "mu_max": float(mu.max())})
+        comp_abs, comp_rel, wrong_rel = max(comp_abs, ca), max(comp_rel, cr), max(wrong_rel, wr)
+    return {"complementarity": comp_abs, "complementarity_relative": _f(comp_rel),
+            "max_wrong_sign_relative": _f(wrong_rel), "scale": scale, "per_constraint": per,
+            "passed": bool(comp_rel <= tol.complementarity and wrong_rel <= tol.stationarity)}
 
 
 def _reintegration(num, model, t, X, U, bounds, segments, tol: Tolerances) -> dict[str, Any]:

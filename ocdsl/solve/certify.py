@@ -3,6 +3,8 @@
 Turns the Problem's objective into the minimisation form the certificate expects:
 ``L`` is the integrand weighted by the objective's derivative in each integral, and for a
 free final time the expected Hamiltonian is ``-dPhi/dtf`` (``-1`` for ``minimize tf``).
+A phase's path constraints enter with their multipliers (``PhaseTrajectory.extra``
+``mu_<k>``, see ``costates.path_multipliers``) when the back end gave them.
 """
 from __future__ import annotations
 
@@ -50,6 +52,11 @@ def certify_result(problem: Problem, result: Result) -> dict:
         if mesh:
             t0, tf = float(traj.time[0]), float(traj.time[-1])
             segments = [t0 + (tf - t0) * b for b in mesh["breakpoints"]]
+        # path constraints with their multipliers (costates.path_multipliers): H_aug
+        mus = {f"mu_{k}": traj.extra.get(f"mu_{k}") for k in range(len(ph.path))}
+        if ph.path and all(v is not None for v in mus.values()):
+            kw["path_constraints"] = [(c.expr, c.lower, c.upper, c.text) for c in ph.path]
+            kw["multipliers"] = {k: np.asarray(v, float) * nan for k, v in mus.items()}
         per_phase[ph.name] = certificate(ph.model, params, arrays, bounds, L, kind, segments=segments, **kw)
     if len(per_phase) == 1:
         return next(iter(per_phase.values()))
