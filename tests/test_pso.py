@@ -76,3 +76,17 @@ def test_fourier_parametrisation_and_penalty():
     zeta = np.array([1e-3, 2e-3])
     assert penalty(np.array([5e-4, -1e-3]), zeta) == 0.0
     assert np.isclose(penalty(np.array([3e-3, -4e-3]), zeta), 2.0 + 1.0)
+
+
+def test_ring_topology_finds_known_minima():
+    lo, hi = [-10, -10, -3, -3], [10, 10, 3, 3]
+    r = pso(rastrigin_mixed, lo, hi, [True, True, False, False],
+            PSOSettings(particles=40, iterations=400, seed=5, topology="ring"))
+    assert np.array_equal(r.x[:2], [3, -2])
+    assert np.allclose(r.x[2:], [0.5, -1.0], atol=1e-3)
+    assert np.all(np.diff(r.history["best_f"]) <= 0)
+    g = pso(rastrigin_mixed, lo, hi, [True, True, False, False],
+            PSOSettings(particles=40, iterations=400, seed=5))
+    assert not np.array_equal(r.history["mean_f"], g.history["mean_f"])   # a different search
+    r = pso(sphere, [-5] * 4, [5] * 4, settings=PSOSettings(particles=30, iterations=300, seed=0, topology="ring"))
+    assert r.f < 1e-6

@@ -22,6 +22,11 @@ Integer coordinates (``discrete``):
 
 A problem without integer coordinates is plain continuous PSO either way.
 
+Topology (``topology``): ``"global"`` (default) attracts every particle to the swarm's
+best; ``"ring"`` (local-best PSO) attracts particle i to the best personal best among
+particles i-1, i, i+1 (indices modulo the swarm size), which spreads information slowly
+and keeps several basins alive longer. The reported best is the swarm's best either way.
+
 The objective is evaluated a batch at a time: ``fitness(X) -> f`` with X of shape
 (n, d). ``executor`` is a ``map``-like callable (``executor(fn, chunks)`` returning an
 iterable of results, as ``concurrent.futures.Executor.map`` or the builtin ``map``); the
@@ -54,6 +59,7 @@ class PSOSettings:
     target: float | None = None
     seed: int = 0
     chunks: int = 0
+    topology: str = "global"
 
     @classmethod
     def from_spec(cls, spec) -> "PSOSettings":
@@ -103,6 +109,8 @@ def pso(fitness: Fitness, lower: Sequence[float], upper: Sequence[float],
     is_int = np.zeros(d, bool) if integer is None else np.asarray(integer, bool)
     if s.discrete not in ("jin", "round"):
         raise ValueError(f"pso: discrete must be 'jin' or 'round', not {s.discrete!r}")
+    if s.topology not in ("global", "ring"):
+        raise ValueError(f"pso: topology must be 'global' or 'ring', not {s.topology!r}")
     rng = np.random.default_rng(s.seed)
     n = s.particles
     width = hi - lo
@@ -154,7 +162,12 @@ def pso(fitness: Fitness, lower: Sequence[float], upper: Sequence[float],
         w = s.inertia[0] + (s.inertia[1] - s.inertia[0]) * frac
         r1 = rng.random((n, d))
         r2 = rng.random((n, d))
-        V = w * V + s.c1 * r1 * (P - X) + s.c2 * r2 * (G - X)
+        if s.topology == "ring":
+            nb = np.stack([np.roll(np.arange(n), 1), np.arange(n), np.roll(np.arange(n), -1)])
+            L = P[nb[np.argmin(PF[nb], axis=0), np.arange(n)]]
+        else:
+            L = G
+        V = w * V + s.c1 * r1 * (P - X) + s.c2 * r2 * (L - X)
         V = np.clip(V, -vmax, vmax)
         if s.discrete == "jin" and np.any(is_int):
             step = V.copy()

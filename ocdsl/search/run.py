@@ -327,7 +327,7 @@ def polish(pp: ParametricProblem, x: np.ndarray, settings, stop_ratio: float | N
 
     lo, hi, is_int = pp.bounds()
     free = ~is_int
-    if pp.tf_free:
+    if pp.tf_free and not getattr(settings, "free_tf", False):
         free[len(pp.variables)] = False
     idx = np.flatnonzero(free)
     zeta = np.array([t.zeta for t in pp.terminals])

@@ -98,6 +98,7 @@ class PSOSpec(_Strict):
     target: Optional[float] = Field(None, description="stop when the best fitness is at or below this")
     seed: int = 0
     chunks: int = Field(0, ge=0, description="batches per iteration given to the executor (0: one per worker)")
+    topology: Literal["global", "ring"] = Field("global", description="social attractor: swarm best (global) or best of i-1, i, i+1 (ring)")
 
     @field_validator("inertia")
     @classmethod
@@ -134,6 +135,7 @@ class PolishSpec(_Strict):
     method: Literal["none", "least_squares"] = "none"
     max_iterations: int = Field(50, ge=1, le=10_000)
     fd_step: float = Field(1e-6, gt=0.0, le=1e-2, description="forward-difference step, fraction of each box width")
+    free_tf: bool = Field(False, description="let the polish move tf too (default: tf stays at the swarm's value)")
 
 
 class ContinuationSpec(_Strict):
