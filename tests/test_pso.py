@@ -90,3 +90,16 @@ def test_ring_topology_finds_known_minima():
     assert not np.array_equal(r.history["mean_f"], g.history["mean_f"])   # a different search
     r = pso(sphere, [-5] * 4, [5] * 4, settings=PSOSettings(particles=30, iterations=300, seed=0, topology="ring"))
     assert r.f < 1e-6
+
+
+def test_restarts_keep_the_best_of_independent_swarms():
+    lo, hi, integer = [-10, -10, -3, -3], [10, 10, 3, 3], [True, True, False, False]
+    s = PSOSettings(particles=8, iterations=15, seed=3)
+    singles = [pso(rastrigin_mixed, lo, hi, integer, PSOSettings(particles=8, iterations=15, seed=3 + k)) for k in range(3)]
+    r = pso(rastrigin_mixed, lo, hi, integer, PSOSettings(particles=8, iterations=15, seed=3, restarts=3))
+    k = int(np.argmin([x.f for x in singles]))
+    assert r.f == min(x.f for x in singles) and np.array_equal(r.x, singles[k].x)
+    assert r.n_evals == sum(x.n_evals for x in singles) and len(r.restarts) == 3
+    assert [d["seed"] for d in r.restarts] == [3, 4, 5]
+    assert np.array_equal(r.history["best_f"], singles[k].history["best_f"])
+    assert s.restarts == 1

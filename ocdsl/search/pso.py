@@ -27,6 +27,10 @@ best; ``"ring"`` (local-best PSO) attracts particle i to the best personal best 
 particles i-1, i, i+1 (indices modulo the swarm size), which spreads information slowly
 and keeps several basins alive longer. The reported best is the swarm's best either way.
 
+Restarts (``restarts`` > 1): independent swarms with seeds seed, seed+1, ...; the one
+with the lowest best fitness is returned (its history and swarm), with the evaluations,
+iterations and wall time of all of them summed and a summary of each in ``restarts``.
+
 The objective is evaluated a batch at a time: ``fitness(X) -> f`` with X of shape
 (n, d). ``executor`` is a ``map``-like callable (``executor(fn, chunks)`` returning an
 iterable of results, as ``concurrent.futures.Executor.map`` or the builtin ``map``); the
@@ -60,6 +64,7 @@ class PSOSettings:
     seed: int = 0
     chunks: int = 0
     topology: str = "global"
+    restarts: int = 1
 
     @classmethod
     def from_spec(cls, spec) -> "PSOSettings":
@@ -79,6 +84,7 @@ class PSOResult:
     wall_time_s: float
     swarm_x: np.ndarray = field(repr=False, default=None)
     swarm_f: np.ndarray = field(repr=False, default=None)
+    restarts: list = field(default_factory=list)
 
 
 def _evaluate(fitness: Fitness, X: np.ndarray, executor: MapLike | None, chunks: int) -> np.ndarray:
@@ -101,6 +107,17 @@ def pso(fitness: Fitness, lower: Sequence[float], upper: Sequence[float],
     Reproducible: the same ``settings.seed`` gives the same swarm and result.
     """
     s = settings or PSOSettings()
+    if s.restarts > 1:
+        from dataclasses import replace
+        runs = [pso(fitness, lower, upper, integer, replace(s, restarts=1, seed=s.seed + k), executor,
+                    callback, initial) for k in range(s.restarts)]
+        best = min(range(len(runs)), key=lambda k: runs[k].f)
+        out = runs[best]
+        summary = [{"seed": s.seed + k, "best_f": r.f, "iterations": r.iterations, "evaluations": r.n_evals,
+                    "stop_reason": r.stop_reason, "x": r.x.tolist()} for k, r in enumerate(runs)]
+        return PSOResult(out.x, out.f, sum(r.iterations for r in runs), sum(r.n_evals for r in runs),
+                         out.history, out.stop_reason, sum(r.wall_time_s for r in runs),
+                         out.swarm_x, out.swarm_f, summary)
     lo = np.asarray(lower, float)
     hi = np.asarray(upper, float)
     d = len(lo)

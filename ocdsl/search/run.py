@@ -12,6 +12,14 @@ spec layer builds (single phase, t0 = 0) and a validated
   (integers when flagged ``integer``; they must have finite bounds);
 - tf is free within the phase's tf bounds (which must be finite) or fixed.
 
+After the swarm (all optional, none in the seed paper, each reported apart):
+``polish`` (least squares on the terminal errors / zeta with tf and integers fixed; the
+swarm's own numbers in ``extra.pso_only``) and ``continuation`` (:func:`continue_tf`:
+tf lowered with the integers fixed while the polish keeps every terminal error inside
+zeta; the polished point's numbers in ``extra.continuation.polished``, every attempt in
+``tables.continuation``). ``optimizer.restarts`` runs independent swarms and keeps the
+lowest swarm fitness (``extra.restarts``).
+
 The Result has the best particle's trajectory (states and controls), ``tables.history``
 (the convergence history), and ``extra``: N_rev (any integer parameters), terminal
 errors and error/zeta, m_p = 1 - m(tf) when the model has a mass state ``m``, evaluations
@@ -227,6 +235,8 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
     }
     for n in int_names:
         extra[n] = int(round(det["variables"][n]))
+    if res.restarts:
+        extra["restarts"] = res.restarts
     if pso_only is not None:
         extra["pso_only"] = pso_only
     if continuation is not None:
@@ -271,9 +281,19 @@ def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings)
     itf = len(pp.variables)
     lo, _, _ = pp.bounds()
     det = pp.details(x)
+    restored = None
     if not _inside(det):
-        return x, {"continuation": "skipped: the polished best is not inside the zeta box",
-                   "max_error_over_zeta": float(det["ratio"].max())}, {}
+        # the polish with tf fixed failed: let tf move too (either way) to get inside first
+        xr, info = polish(pp, x, polish_settings.model_copy(update={"free_tf": True}),
+                          stop_ratio=settings.target_ratio,
+                          max_evaluations=max(settings.evaluations_per_step, 5 * polish_settings.max_iterations))
+        dr = pp.details(xr)
+        restored = {"tf": float(xr[itf]), "max_error_over_zeta": float(dr["ratio"].max()),
+                    "evaluations": info["polish_evaluations"]}
+        if not _inside(dr):
+            return x, {"continuation": "skipped: neither polish (tf fixed, tf free) got inside the zeta box",
+                       "max_error_over_zeta": float(det["ratio"].max()), "restored": restored}, {}
+        x = xr
     tf0 = tf = float(x[itf])
     step = settings.step * tf
     rows = {k: [] for k in ("attempt", "tf_tried", "accepted", "max_error_over_zeta", "evaluations", "tf")}
@@ -305,7 +325,7 @@ def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings)
         rows["tf"].append(tf)
     else:
         reason = f"max_steps {settings.max_steps}"
-    summary = {"continuation": reason, "tf_start": tf0, "tf_end": tf, "attempts": len(rows["attempt"]),
+    summary = {"continuation": reason, "restored_with_free_tf": restored, "tf_start": tf0, "tf_end": tf, "attempts": len(rows["attempt"]),
                "accepted": int(sum(rows["accepted"])), "evaluations": evals}
     return x, summary, {k: np.asarray(v, float) for k, v in rows.items()}
 

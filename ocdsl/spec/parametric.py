@@ -98,6 +98,7 @@ class PSOSpec(_Strict):
     target: Optional[float] = Field(None, description="stop when the best fitness is at or below this")
     seed: int = 0
     chunks: int = Field(0, ge=0, description="batches per iteration given to the executor (0: one per worker)")
+    restarts: int = Field(1, ge=1, le=1000, description="independent swarms (seeds seed, seed+1, ...); the lowest best fitness is kept")
     topology: Literal["global", "ring"] = Field("global", description="social attractor: swarm best (global) or best of i-1, i, i+1 (ring)")
 
     @field_validator("inertia")
@@ -148,7 +149,9 @@ class ContinuationSpec(_Strict):
     coefficients (the series are in t/tf, so the same coefficients give the same angle
     history in normalised time); a success keeps the point and multiplies the step by
     ``grow``, a failure halves it; it stops below ``min_step`` or after ``max_steps``
-    polishes. Each polish may use ``evaluations_per_step`` integrations.
+    polishes. Each polish may use ``evaluations_per_step`` integrations. When the polish
+    with tf fixed left the swarm's best outside the box, one polish with tf free (either
+    direction) is tried first (``extra.continuation.restored_with_free_tf``).
     """
 
     enabled: bool = False
