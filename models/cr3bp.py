@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ocdsl.symbolic.model import Model, sym, syms
+from ocdsl.symbolic.model import Model, syms
 from ocdsl.simulate.sundman import sundman
 from ocdsl.symbolic.registry import register
 

@@ -196,7 +196,6 @@ def seed_problem(h_i: float, h_v: float | None = None, degree: int = 5, n_ctrl: 
     v12 = -math.sqrt(vl ** 2 + 2 * a * h_v)
     td = (vl - v12) / a
     tb = 1000.0 - td
-    th_end = u0 * tb / r0 / 2
 
     def r_brake(t):   # cubic Hermite: r0 (slope 0) to r12 (slope v12 * tb)
         h00, h01, h11 = 2 * t ** 3 - 3 * t ** 2 + 1, -2 * t ** 3 + 3 * t ** 2, t ** 3 - t ** 2

@@ -6,16 +6,13 @@
 """
 from __future__ import annotations
 
-import math
 import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-import sympy as sp
 
-from .result import PhaseTrajectory, Result
+from .result import Result
 from .spec import compile as spec_compile
 from .spec.errors import SpecError
 from .spec.loader import load_yaml

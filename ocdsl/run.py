@@ -7,7 +7,7 @@ from typing import Any
 
 import sympy as sp
 
-from .result import PhaseTrajectory, Result
+from .result import Result
 from .spec.compile import LoadedFile
 from .spec.schema import PseudospectralMethod
 
@@ -123,10 +123,8 @@ def _certify(file: LoadedFile, result: Result) -> None:
     """Attach the optimality certificate when the module is available and the solve converged."""
     if result.status not in ("optimal", "acceptable"):
         return
-    try:
-        from .solve.certify import certify_result
-    except ImportError:
-        return
+    from .solve.certify import certify_result
+
     try:
         result.certificate = certify_result(file.problem, result)
     except Exception as e:  # the certificate must never lose a solved run

@@ -11,7 +11,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 from ocdsl.symbolic import relative_motion as rm
-from ocdsl.symbolic.model import TIME, sym, syms
+from ocdsl.symbolic.model import sym, syms
 from ocdsl.symbolic.registry import build_model, model_names
 
 OMEGA = 7.292116e-5      # GEO rate (digest §3), rad/s

@@ -4,7 +4,7 @@ import pytest
 import sympy as sp
 
 from ocdsl.symbolic import sdc
-from ocdsl.symbolic.model import Model, sym, syms
+from ocdsl.symbolic.model import Model, syms
 from ocdsl.symbolic.registry import build_model
 
 AUX = ["hx", "hy", "hz"]

@@ -1,7 +1,6 @@
 """Malformed problem files: one clear error naming file, line and text; no run folder."""
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

@@ -93,7 +93,7 @@ def problem_data(problem: Problem, meshes: dict, guesses: dict | list[dict]) -> 
                             "phases": []}
     scalar_of: dict[sp.Symbol, tuple] = {s: ("param", i) for i, s in enumerate(free)}
     for p, ph in enumerate(problem.phases):
-        mesh, guess = meshes[ph.name], guesses[ph.name]
+        mesh = meshes[ph.name]
         lay = Layout.of(mesh)
         args = list(ph.states) + list(ph.controls) + [TIME] + free
         tag = f"p{p}"

@@ -6,7 +6,6 @@ Each law becomes a phase named after it (``trajectory_<law>.csv``) and a table
 """
 from __future__ import annotations
 
-import sympy as sp
 
 from ..result import Result
 from .run import robustness_sweep, run_controllers, summary_table

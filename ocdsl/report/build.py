@@ -28,7 +28,6 @@ import base64
 import csv
 import io
 import json
-import math
 import os
 import re
 import shutil

@@ -10,14 +10,12 @@ over zeta_i). A run whose integration fails gets ``failure_fitness``.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 import sympy as sp
 
-from ocdsl.simulate import ControlLayout, Event, compile_model, evaluate_controls, final_states, simulate
+from ocdsl.simulate import ControlLayout, compile_model, evaluate_controls, final_states, simulate
 from ocdsl.symbolic.model import Model
 
 

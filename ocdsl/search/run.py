@@ -108,7 +108,6 @@ def build(problem, spec, integer_parameters: Iterable[str] = ()) -> ParametricPr
             final_sym[sym_] = b.var
     tf_sym = ph.tf_symbol
     terminals: list[Terminal] = []
-    var_syms = {sp.Symbol(n, real=True): sp.Symbol(n, real=True) for n in variables}
     zeta_default = float(spec.tolerances.get("default", 1e-3))
     for c in problem.boundary:
         syms_ = c.expr.free_symbols

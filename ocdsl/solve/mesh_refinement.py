@@ -366,7 +366,6 @@ def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
     mesh = lay.mesh
     _, U, _, _ = _solution_arrays(pb)
     seg = lay.colloc_segment
-    s = lay.s_colloc
     out = []
     for j, c in enumerate(ph.controls):
         lo, hi = ph.bounds_of(c)
@@ -662,7 +661,6 @@ def _fit_degree(samples, xscale, uscale, lowest: int, highest: int, limit: float
 
     s = np.concatenate([q[0] for q in samples])
     Xs = np.vstack([q[1] for q in samples]) / xscale
-    Us = np.vstack([q[2] for q in samples]) / uscale
     a, b = s.min(), s.max()
     z = 2 * (s - a) / (b - a) - 1
     for n in range(lowest, highest + 1):

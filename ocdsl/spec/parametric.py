@@ -29,7 +29,7 @@ is tf + sum max((|error_i| - zeta_i)/zeta_i, 0) (digest eqs. 32-35).
 """
 from __future__ import annotations
 
-from typing import Literal, Optional, Union
+from typing import Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 

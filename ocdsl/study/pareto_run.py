@@ -24,7 +24,7 @@ from __future__ import annotations
 import builtins
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 

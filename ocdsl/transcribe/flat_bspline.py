@@ -39,7 +39,7 @@ import sympy as sp
 from ocdsl.symbolic.flatness import FlatMap, derivative_symbol, flatten
 from ocdsl.symbolic.model import TIME, Model
 
-from .bspline import basis_matrix, greville
+from .bspline import basis_matrix
 
 __all__ = ["FlatBSplineOptions", "FlatPhase", "FlatNLP", "build_flat_bspline", "solve_flat",
            "PYOMO_FUNCTIONS"]
