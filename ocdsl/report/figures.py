@@ -19,6 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ocdsl.result import PhaseTrajectory, Result
+from ocdsl.report.tables import finite_or_none
 
 WIDTH_IN = 6.4      # fits an A4 text block (17 cm) with a little room
 ROW_IN = 1.85
@@ -147,14 +148,6 @@ def _styled(func):
     return wrapper
 
 
-def _finite(v: Any) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
-
-
 def _chunks(seq: Sequence, n: int) -> list[Sequence]:
     return [seq[i:i + n] for i in range(0, len(seq), n)] or []
 
@@ -260,7 +253,7 @@ def _bounds_of(problem: dict, names: Iterable[str]) -> dict[str, tuple[float | N
     for info in phases.values() if isinstance(phases, dict) else []:
         for n, b in (info.get("bounds") or {}).items():
             if n in names and isinstance(b, (list, tuple)) and len(b) == 2 and n not in res:
-                res[n] = (_finite(b[0]), _finite(b[1]))
+                res[n] = (finite_or_none(b[0]), finite_or_none(b[1]))
     return res
 
 
@@ -337,7 +330,7 @@ def _expected_hamiltonian(cert: Any) -> float | None:
     vals = [c.get("hamiltonian", {}).get("expected") for c in
             ((cert.get("phases") or {}).values() if isinstance(cert.get("phases"), dict) else [cert])
             if isinstance(c, dict) and isinstance(c.get("hamiltonian"), dict)]
-    vals = [_finite(v) for v in vals]
+    vals = [finite_or_none(v) for v in vals]
     return vals[0] if vals and vals[0] is not None and all(v == vals[0] for v in vals) else None
 
 
@@ -633,7 +626,7 @@ def fig_pareto(rows: list[dict[str, Any]], criteria: tuple[str, str], units: dic
     """Criteria plane: every solution (hollow, coloured by ``family`` when present), the
     Pareto-optimal ones filled and joined."""
     a, b = criteria
-    pts = [(r, _finite(r.get(a)), _finite(r.get(b))) for r in rows]
+    pts = [(r, finite_or_none(r.get(a)), finite_or_none(r.get(b))) for r in rows]
     pts = [(r, x, y) for r, x, y in pts if x is not None and y is not None]
     if not pts:
         return []
@@ -669,23 +662,23 @@ def fig_pareto(rows: list[dict[str, Any]], criteria: tuple[str, str], units: dic
 def _truthy(v: Any) -> bool:
     if isinstance(v, str):
         return v.strip().lower() in ("1", "1.0", "true", "yes", "y", "t")
-    f = _finite(v)
+    f = finite_or_none(v)
     return bool(f) if f is not None else False
 
 
 @_styled
 def fig_sweep(rows: list[dict[str, Any]], param: str, outputs: Sequence[str], units: dict | None = None) -> list[Fig]:
     """Outputs (objective, t_f, ...) against one swept parameter; failed points marked x."""
-    outputs = [o for o in outputs if any(_finite(r.get(o)) is not None for r in rows)]
+    outputs = [o for o in outputs if any(finite_or_none(r.get(o)) is not None for r in rows)]
     if not outputs:
         return []
     fig, axes = _new_figure(len(outputs))
     for ax, o in zip(axes, outputs):
         ok = [(float(r[param]), float(r[o])) for r in rows
-              if _finite(r.get(param)) is not None and _finite(r.get(o)) is not None
+              if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None
               and str(r.get("status", "optimal")) in ("optimal", "feasible", "stable")]
         bad = [(float(r[param]), float(r[o])) for r in rows
-               if _finite(r.get(param)) is not None and _finite(r.get(o)) is not None
+               if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None
                and str(r.get("status", "optimal")) not in ("optimal", "feasible", "stable")]
         ok.sort()
         if ok:
@@ -700,7 +693,7 @@ def fig_sweep(rows: list[dict[str, Any]], param: str, outputs: Sequence[str], un
 
 @_styled
 def fig_histograms(rows: list[dict[str, Any]], outputs: Sequence[str]) -> list[Fig]:
-    data = [(o, np.array([_finite(r.get(o)) for r in rows if _finite(r.get(o)) is not None]))
+    data = [(o, np.array([finite_or_none(r.get(o)) for r in rows if finite_or_none(r.get(o)) is not None]))
             for o in outputs]
     data = [(o, a) for o, a in data if a.size >= 2]
     if not data:

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import shutil
@@ -244,14 +243,6 @@ def write_manifest(reports: Path, outcomes: Sequence[Outcome]) -> Path:
 
 
 # ================================================================================= index
-def _finite(v: Any) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
-
-
 def expect_numbers(run_dir: Path, study: str, link: Path) -> list[dict[str, Any]]:
     """Rows of the index for the ``expect`` checks of one run folder."""
     try:
@@ -274,6 +265,7 @@ def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> li
     """Rows of the index for a study folder: its :data:`PAPER_TABLES` entry against
     ``study.csv`` (a paper row without a study row counts as failed)."""
     from ocdsl.report.build import read_study_table
+    from ocdsl.report.tables import finite_or_none
 
     spec = PAPER_TABLES.get(stem)
     if not spec:
@@ -283,8 +275,8 @@ def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> li
     out = []
     for ref in spec["rows"]:
         key = tuple(ref[k] for k in spec["match"])
-        hit = next((r for r in rows if all(_finite(r.get(k)) == float(v) for k, v in zip(spec["match"], key))), None)
-        value = _finite(hit.get(q)) if hit and hit.get("status") in GOOD else None
+        hit = next((r for r in rows if all(finite_or_none(r.get(k)) == float(v) for k, v in zip(spec["match"], key))), None)
+        value = finite_or_none(hit.get(q)) if hit and hit.get("status") in GOOD else None
         paper, tol = float(ref["paper"]), float(ref.get("tol", 0.0))
         if value is None:
             err, passed = None, False

@@ -112,7 +112,8 @@ def table(key: str, caption: str, columns: Sequence[str], rows: list[list[dict]]
 
 
 # ------------------------------------------------------------------------ problem
-def _finite_or_none(v: Any) -> float | None:
+def finite_or_none(v: Any) -> float | None:
+    """``float(v)`` when it is a finite number, else None (missing or non-numeric cells)."""
     try:
         f = float(v)
     except (TypeError, ValueError):
@@ -141,7 +142,7 @@ def variables_table(res: Result, kind: str) -> dict | None:
     for n, e in seen.items():
         lo, hi = (e["bounds"] if isinstance(e["bounds"], (list, tuple)) and len(e["bounds"]) == 2
                   else (None, None))
-        lo, hi = _finite_or_none(lo), _finite_or_none(hi)
+        lo, hi = finite_or_none(lo), finite_or_none(hi)
         row = [name_cell(n), unit_cell(units.get(n, "")),
                cell(lo) if lo is not None else cell("−∞" if e["bounds"] else "—", "num"),
                cell(hi) if hi is not None else cell("∞" if e["bounds"] else "—", "num")]
@@ -164,7 +165,7 @@ def parameters_table(res: Result) -> dict | None:
         value = res.parameters.get(n, info.get("value"))
         free = bool(info.get("free", False))
         overridden = (n in res.parameters and "value" in info and not free
-                      and _finite_or_none(info.get("value")) != _finite_or_none(res.parameters[n]))
+                      and finite_or_none(info.get("value")) != finite_or_none(res.parameters[n]))
         note = "free (optimised)" if free else ("overridden (file: %s)" % fmt(info.get("value")) if overridden
                                                 else "")
         rows.append([name_cell(n), cell(value), unit_cell(units.get(n, "")), cell(note, "")])
@@ -227,7 +228,7 @@ def summary_table(res: Result) -> dict:
 
 
 def wall_time_table(res: Result) -> dict | None:
-    wt = {k: v for k, v in (res.wall_time_s or {}).items() if _finite_or_none(v) is not None}
+    wt = {k: v for k, v in (res.wall_time_s or {}).items() if finite_or_none(v) is not None}
     stages = [(k, float(v)) for k, v in wt.items() if k != "total"]
     if not stages:
         return None
@@ -375,7 +376,7 @@ def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 4
 def _truthy(v: Any) -> bool:
     if isinstance(v, str):
         return v.strip().lower() in ("1", "1.0", "true", "yes", "y", "t")
-    f = _finite_or_none(v)
+    f = finite_or_none(v)
     return bool(f) if f is not None else False
 
 
@@ -450,7 +451,7 @@ def runs_table(results: list[Result], labels: list[str] | None = None) -> dict |
     for lab, r in zip(labels, results):
         tf = r.tf
         if isinstance(tf, dict):
-            tf = sum(v for v in tf.values() if _finite_or_none(v) is not None) if tf else None
+            tf = sum(v for v in tf.values() if finite_or_none(v) is not None) if tf else None
         n_ok = sum(bool(c.get("passed")) for c in r.expect)
         row = [cell(lab, "name"), status_cell(r.status), cell(r.objective, "num", 8), cell(tf, "num", 8),
                cell(r.iterations), cell((r.nlp or {}).get("variables")),
