@@ -397,6 +397,19 @@ def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
     return sorted(set(out))
 
 
+def _smooth_neighbours(mesh, k, errors) -> tuple[int, int] | None:
+    """The nearest smooth segments left and right of segment k, at least half its width
+    (their control polynomials stand in for the control on either side of a feature)."""
+    if k == 0 or k == mesh.segments - 1:
+        return None
+    width = np.diff(mesh.breakpoints)
+    rough = {e.segment for e in errors if e.nonsmooth}
+    ok = lambda q: q not in rough and width[q] >= 0.5 * width[k]  # noqa: E731
+    lk = next((q for q in range(k - 1, -1, -1) if ok(q)), None)
+    rk = next((q for q in range(k + 1, mesh.segments) if ok(q)), None)
+    return None if lk is None or rk is None else (lk, rk)
+
+
 def _corner(mesh, k, errors, controls, tol):
     """Where the control has a corner (continuous, kinked) near segment k, or None.
 
@@ -409,16 +422,10 @@ def _corner(mesh, k, errors, controls, tol):
     """
     from scipy.optimize import brentq
 
-    if controls is None or k == 0 or k == mesh.segments - 1:
+    sides = _smooth_neighbours(mesh, k, errors) if controls is not None else None
+    if sides is None:
         return None
-    a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
-    width = np.diff(mesh.breakpoints)
-    rough = {e.segment for e in errors if e.nonsmooth}
-    ok = lambda q: q not in rough and width[q] >= 0.5 * (b - a)  # noqa: E731
-    lk = next((q for q in range(k - 1, -1, -1) if ok(q)), None)
-    rk = next((q for q in range(k + 1, mesh.segments) if ok(q)), None)
-    if lk is None or rk is None:
-        return None
+    lk, rk = sides
     left, right = controls[lk], controls[rk]
     ga, gb = float(mesh.breakpoints[lk + 1]), float(mesh.breakpoints[rk])
     grid = np.linspace(ga, gb, 81)
@@ -453,16 +460,10 @@ def _jump(mesh, k, errors, controls, U, lay):
     from scipy.integrate import quad
     from scipy.optimize import brentq
 
-    if controls is None or k == 0 or k == mesh.segments - 1:
+    sides = _smooth_neighbours(mesh, k, errors) if controls is not None else None
+    if sides is None:
         return None
-    a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
-    width = np.diff(mesh.breakpoints)
-    rough = {e.segment for e in errors if e.nonsmooth}
-    ok = lambda q: q not in rough and width[q] >= 0.5 * (b - a)  # noqa: E731
-    lk = next((q for q in range(k - 1, -1, -1) if ok(q)), None)
-    rk = next((q for q in range(k + 1, mesh.segments) if ok(q)), None)
-    if lk is None or rk is None:
-        return None
+    lk, rk = sides
     ga, gb = float(mesh.breakpoints[lk + 1]), float(mesh.breakpoints[rk])
     mid = np.array([0.5 * (ga + gb)])
     jumps = np.abs(controls[lk](mid)[0] - controls[rk](mid)[0])
@@ -473,7 +474,7 @@ def _jump(mesh, k, errors, controls, U, lay):
     Q = 0.0
     for q in range(lk + 1, rk):
         sc = mesh.scheme(q)
-        Q += float(np.dot(sc.weights, U[lay.colloc[q], j])) * width[q] / 2
+        Q += float(np.dot(sc.weights, U[lay.colloc[q], j])) * (mesh.breakpoints[q + 1] - mesh.breakpoints[q]) / 2
     uL = lambda s: float(controls[lk](np.array([s]))[0, j])  # noqa: E731
     uR = lambda s: float(controls[rk](np.array([s]))[0, j])  # noqa: E731
     with warnings.catch_warnings():
