@@ -2,7 +2,6 @@
 opaque AttributeError), and the run folder records the diagnosis."""
 import json
 
-import pytest
 
 from ocdsl.api import run_file
 

@@ -70,7 +70,7 @@ Checks and their measured numbers (see :func:`certificate` for the dict):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
