@@ -99,10 +99,9 @@ def test_not_converged_is_reported(configs):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured: the uniform 3x3 mesh (25 variables) has its breakpoints exactly on "
-                   "the corners 1/3 and 2/3 and is exact; the adaptive mesh ends with 61 variables (corners located "
-                   "to ~1e-5, and on the constrained arc the state wiggles at that level, so coarsening keeps degree 8)")
 def test_bryson_denham_smaller_than_uniform(configs):
+    # the uniform 3 x 3 mesh (25 variables) has its breakpoints exactly on the corners and is
+    # exact; the adaptive run ends on the arc mesh (3, 1, 3) with the corners re-located on it
     res = _solve(configs, "mesh_bryson_denham.yaml")
     err = abs(res.objective - 4.0)
     n, size = _uniform_nlp_size(configs, "mesh_bryson_denham.yaml",

@@ -488,14 +488,160 @@ def _jump(mesh, k, errors, controls, U, lay):
     return ts if ga < ts < gb else None
 
 
-def locate_features(tr, pb, errors, params, spec, controls) -> list[float]:
-    """Located nonsmooth points of one phase (normalised time): bound-to-bound switches, then,
-    in nonsmooth segments that hold none, corners (``_corner``) or other jumps (``_jump``)."""
+def _boundary_controls(ph, free_syms, max_order: int = 3) -> dict:
+    """Per bounded state j: (order, control index, callable (x..., t, p...) -> u), the control
+    that keeps the state on its bound (``boundary control``): the state's time derivatives along
+    the dynamics are taken until a control appears (the constraint's order q) and the q-th
+    derivative = 0 is solved for that control (Bryson & Ho 1975, sec. 3.11). Bryson-Denham
+    x <= l: x'' = u, q = 2, u_b = 0; Goddard v <= v_max: v' = 0, q = 1, u_b = (D + m/r^2)/T_max.
+    States whose derivatives meet several controls at once, or none up to ``max_order``, or
+    whose equation sympy cannot solve uniquely, are left out."""
+    from ..symbolic.model import TIME
+
+    f = list(ph.rhs())
+    out = {}
+    for j, s in enumerate(ph.states):
+        lo, hi = ph.bounds_of(s)
+        if not (math.isfinite(lo) or math.isfinite(hi)):
+            continue
+        c = s
+        for q in range(1, max_order + 1):
+            c = sum(sp.diff(c, x) * fx for x, fx in zip(ph.states, f)) + sp.diff(c, TIME)
+            present = [i for i, u in enumerate(ph.controls) if c.has(u)]
+            if not present:
+                continue
+            if len(present) > 1:
+                break
+            i = present[0]
+            try:
+                sol = sp.solve(sp.Eq(c, 0), ph.controls[i], dict=False)
+            except Exception:
+                break
+            if len(sol) == 1:
+                args = list(ph.states) + [TIME] + list(free_syms)
+                out[j] = (q, i, sp.lambdify(args, sol[0], "numpy"))
+            break
+    return out
+
+
+def _state_at(lay, X, U, s):
+    """State polynomial value at normalised time s (the segment holding s; the first or last
+    segment's polynomial extrapolated outside [0, 1])."""
+    bps = lay.mesh.breakpoints
+    k = int(np.clip(np.searchsorted(bps, s, side="right") - 1, 0, lay.mesh.segments - 1))
+    xs, _ = _seg_polys(lay, k, X, U)
+    a, b = bps[k], bps[k + 1]
+    return xs(2.0 * (s - a) / (b - a) - 1.0)[0]
+
+
+def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = None) -> list[float]:
+    """Entry and exit times of state-constrained arcs (normalised time), located from the
+    arc next to them (our method; see docs/mesh-refinement.md).
+
+    A constrained arc is a run of segments on which a state is at its bound on every state
+    node; for it and the nearest segment on either side on which that state is at its bound
+    on no node, the junction is the zero nearest the arc of
+        phi(s) = u_U(s) - u_b(x(s), t(s)),
+    u_U the unconstrained segment's control polynomial (extrapolated over the gap), u_b the
+    boundary control (``_boundary_controls``) along the state polynomials: at a junction of a
+    constraint of order >= 2 the control is continuous and equals u_b. Measured on
+    Bryson-Denham, mesh (3, 1, 3) with breakpoints at 1/3 + d1 and 2/3 + d2: the exit is
+    found to 6 d2^2 (the arc after it is the cubic fixed by x = l, v = 0 at its start), the
+    entry only to 0.8 d1 (LGR collocates the entry breakpoint in the arc before it, which
+    tilts that arc's control). So, on a mesh with the same segments and degrees as in an
+    earlier iteration (``memory``), the estimate g(b) of a junction breakpoint b is treated as
+    a fixed-point map and the breakpoint is moved to the secant root of g(b) - b instead
+    (exact for a linear map; measured on configs/mesh_bryson_denham.yaml: the entry
+    1.1e-5 -> 9.1e-6 by the plain estimate, then 3.6e-10 by one secant step).
+    """
+    from scipy.optimize import brentq
+
+    ph, lay = pb.phase, pb.layout
+    mesh = lay.mesh
+    free_syms = sorted(params, key=str)
+    pvals = [params[s] for s in free_syms]
+    ubs = _boundary_controls(ph, free_syms)
+    if not ubs:
+        return []
+    X, U, t0, tf = _solution_arrays(pb)
+    bps = np.asarray(mesh.breakpoints)
+    K = mesh.segments
+    polys = _control_polys(pb)
+    out = []
+    for j, (order, i, ub) in ubs.items():
+        lo, hi = ph.bounds_of(ph.states[j])
+        act = [_activity(X[lay.support[k], j], lo, hi, active_tol) for k in range(K)]
+        full = [bool(a.all()) and len(set(a.tolist())) == 1 for a in act]
+        free = [not a[1:-1].any() for a in act]   # the ends may touch the bound (a junction)
+        k = 0
+        while k < K:
+            if not full[k]:
+                k += 1
+                continue
+            qa = k
+            while k + 1 < K and full[k + 1]:
+                k += 1
+            qb = k
+            k += 1
+            for side, (edge, other) in (("entry", (qa, next((q for q in range(qa - 1, -1, -1) if free[q]), None))),
+                                        ("exit", (qb, next((q for q in range(qb + 1, K) if free[q]), None)))):
+                if other is None:
+                    continue
+                b = float(bps[edge] if side == "entry" else bps[edge + 1])
+                lo_s = 0.5 * (bps[other] + bps[other + 1]) if side == "entry" else b
+                hi_s = b if side == "entry" else 0.5 * (bps[other] + bps[other + 1])
+                # up to the middle of the arc's first (last) segment on its side
+                if side == "entry":
+                    hi_s = 0.5 * (bps[edge] + bps[edge + 1])
+                else:
+                    lo_s = 0.5 * (bps[edge] + bps[edge + 1])
+
+                def phi(s, other=other):
+                    x = _state_at(lay, X, U, s)
+                    return float(polys[other](np.array([s]))[0, i]
+                                 - ub(*x, t0 + (tf - t0) * s, *pvals))
+
+                grid = np.linspace(lo_s, hi_s, 201)
+                with np.errstate(all="ignore"):
+                    vals = np.array([phi(s) for s in grid])
+                roots = [brentq(phi, grid[n], grid[n + 1], xtol=1e-15)
+                         for n in range(len(grid) - 1)
+                         if np.isfinite(vals[n]) and np.isfinite(vals[n + 1]) and vals[n] * vals[n + 1] < 0]
+                roots += [grid[n] for n in range(len(grid)) if vals[n] == 0.0]
+                if not roots:
+                    continue
+                g = min(roots, key=lambda r: abs(r - b))
+                if memory is not None:
+                    key = (side, j, edge, tuple(mesh.degrees))
+                    prev = memory.get(key)
+                    memory[key] = (b, g)
+                    if prev is not None and abs(prev[0] - b) > 1e-15:
+                        F0, F1 = prev[1] - prev[0], g - b
+                        if F1 != F0:
+                            cand = b - F1 * (b - prev[0]) / (F1 - F0)
+                            rho = 1.0 + (F1 - F0) / (b - prev[0])   # slope of the map g
+                            if -1.0 < rho < 0.95 and 0 < cand < 1:
+                                g = cand
+                out.append(float(g))
+    return sorted(out)
+
+
+def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None = None) -> list[float]:
+    """Located nonsmooth points of one phase (normalised time): bound-to-bound switches, the
+    ends of state-constrained arcs (``locate_junctions``; ``memory`` carries its secant steps
+    across iterations), then, in nonsmooth segments that hold none, corners (``_corner``) or
+    other jumps (``_jump``)."""
     mesh = pb.layout.mesh
     U = _solution_arrays(pb)[1]
     # at a bound to 1e-6 (relative): the NLP's bound relaxation and stopping tolerance leave
     # a bang arc's control ~1e-8 inside its bound
     feats = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
+    try:
+        for f in locate_junctions(pb, params, max(1e-9, 0.1 * spec.tolerance), memory):
+            if all(abs(f - g) > spec.corner_tolerance for g in feats):
+                feats.append(f)
+    except Exception:   # an aid only: the other locators and the estimate still work
+        pass
     bps = mesh.breakpoints
     for e in errors:
         if not e.nonsmooth:
@@ -560,6 +706,28 @@ def _place(segs: list[list], f: float, snap: float, keep: list[float], tol: floa
     segs[k:k + 1] = [[a, f, N], [f, b, N]]
 
 
+def _arc_mesh_moves(mesh, errors, spec, features, todo) -> dict[int, float]:
+    """On an arc mesh (every interior breakpoint within corner_tolerance of a located feature,
+    as ``coarsen`` builds it): breakpoint index -> feature, for the breakpoints that are not
+    exactly on their feature and have a segment above tolerance next to them. ``refine`` moves
+    them onto the features and leaves those segments as they are: on such a stiff mesh the
+    error next to a junction is that of the junction's position (Bryson-Denham (3, 1, 3):
+    0.18 d for a junction off by d), which a higher degree would only paper over."""
+    bps = np.asarray(mesh.breakpoints)
+    inner = bps[1:-1]
+    feats = [f for f in features if f not in todo]
+    if not len(inner) or not feats or not all(min(abs(b - f) for f in feats) <= spec.corner_tolerance
+                                               for b in inner):
+        return {}
+    moves = {}
+    for f in feats:
+        q = 1 + int(np.argmin(np.abs(inner - f)))
+        if (abs(bps[q] - f) > 1e-14 and bps[q - 1] < f < bps[q + 1]
+                and max(errors[q - 1].error, errors[q].error) > spec.tolerance):
+            moves[q] = float(f)
+    return moves
+
+
 def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None) -> Any:
     """The next mesh of one phase (see the module docstring).
 
@@ -575,13 +743,15 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None)
     if features is None:
         features = corners_to_place(mesh, errors, spec, controls)
     todo = misplaced(mesh, features, spec)
+    moves = _arc_mesh_moves(mesh, errors, spec, features, todo)
+    still = {k for q in moves for k in (q - 1, q)}
     proposals: list[list[list]] = []
     for e in errors:
         k = e.segment
         a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
         N = mesh.degrees[k]
         holds = [f for f in todo if a < f < b]
-        if not (e.error > tol) or holds:
+        if not (e.error > tol) or holds or k in still:
             proposals.append([[a, b, N]])
             continue
         if e.nonsmooth and not e.smoothed:
@@ -620,6 +790,11 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None)
             a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
             proposals[k] = [[a, b, mesh.degrees[k]]]
     segs = [sg for prop in proposals for sg in prop]
+    for q, f in moves.items():   # the segments next to a moved breakpoint were kept: edges exact
+        b = float(mesh.breakpoints[q])
+        for sg in segs:
+            sg[0] = f if sg[0] == b else sg[0]
+            sg[1] = f if sg[1] == b else sg[1]
     for f in todo:
         _place(segs, f, spec.snap, features, spec.corner_tolerance)
     segs = [sg for sg in segs if sg[1] > sg[0]]
@@ -722,7 +897,106 @@ def coarsen(pb, errors, spec, features) -> Any:
             f = min(near, key=lambda f: abs(f - new_bps[q]))
             if new_bps[q - 1] < f < new_bps[q + 1]:
                 new_bps[q] = f
-    return Mesh(mesh.scheme_name, np.array(new_bps), tuple(int(g[2]) for g in groups))
+    merged = Mesh(mesh.scheme_name, np.array(new_bps), tuple(int(g[2]) for g in groups))
+    arcs = _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest)
+    nx, nu = len(pb.phase.states), len(pb.phase.controls)
+    if arcs is not None and _nlp_size(arcs, nx, nu) < _nlp_size(merged, nx, nu):
+        return arcs
+    return merged
+
+
+def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float):
+    """States on the sample points ``pts`` (normalised time in [a, b]) of the trajectory that
+    starts from the collocated state at a and follows a state bound's boundary control
+    (``_boundary_controls``), when it stays within ``threshold`` (relative, as the error
+    estimate) of the collocated states on the arc's nodes and within the control's bounds;
+    else None. Phases with free parameters are not tried."""
+    from scipy.integrate import solve_ivp
+
+    ph, lay = pb.phase, pb.layout
+    X, U, t0, tf = _solution_arrays(pb)
+    f, _ = _phase_functions(ph, [])
+    inside = (lay.s_state >= a) & (lay.s_state <= b)
+    ta, tb = t0 + (tf - t0) * a, t0 + (tf - t0) * b
+    ts = np.clip(t0 + (tf - t0) * np.concatenate([lay.s_state[inside], pts]), min(ta, tb), max(ta, tb))
+    t_eval = np.unique(ts)
+    for j, (q, i, ub) in _boundary_controls(ph, []).items():
+        lo, hi = ph.bounds_of(ph.controls[i])
+        nu = len(ph.controls)
+
+        def control(x, t, i=i, ub=ub):
+            u = np.zeros(nu)
+            u[i] = float(ub(*x, t))
+            return u
+
+        def rhs(t, x):
+            return np.asarray(f(*x, *control(x, t), t), float).reshape(-1)
+
+        x0 = _state_at(lay, X, U, a)
+        try:
+            with np.errstate(all="ignore"):
+                sol = solve_ivp(rhs, (ta, tb), x0, method="DOP853", t_eval=t_eval,
+                                rtol=1e-11, atol=1e-11 * xscale)
+        except Exception:
+            continue
+        if not sol.success or sol.y.shape[1] != len(t_eval):
+            continue
+        y = sol.y.T[np.searchsorted(t_eval, ts)]
+        n = int(inside.sum())
+        us_ = np.array([control(y[l], ts[l])[i] for l in range(len(ts))])
+        if (np.max(np.abs(y[:n] - X[inside]) / xscale, initial=0.0) <= threshold
+                and np.all(us_ >= lo - 1e-9) and np.all(us_ <= hi + 1e-9)):
+            return y[n:]
+    return None
+
+
+def _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest):
+    """The arc mesh, or None: one segment per arc between located features (switches,
+    junctions), of the smallest degree whose polynomial fits the states over the arc within
+    ``limit`` (as ``coarsen``), leaving out the segments next to the features, where the
+    discrete solution smears the feature. A state-constrained arc is recognised by the
+    trajectory of its boundary control (``_boundary_arc``, within sqrt(tolerance) of the
+    collocated states, a loose test: the arc mesh is a trial that the next solve checks), and
+    its degree is fitted to that trajectory rather than to the discrete solution, which
+    wiggles there at the level of the junctions' position error (Bryson-Denham: x up to 6e-7
+    below its bound between the corners with the corners 1e-5 off). None when an arc needs
+    more than ``max_degree``. ``refine`` then moves the arc mesh's breakpoints onto the
+    re-located features (``_arc_mesh_moves``)."""
+    from ..transcribe.mesh import Mesh
+
+    lay = pb.layout
+    bps = np.asarray(lay.mesh.breakpoints)
+    fs = []
+    for f in sorted(features):
+        if spec.corner_tolerance < f < 1 - spec.corner_tolerance and (not fs or f - fs[-1] > spec.corner_tolerance):
+            fs.append(float(f))
+    if not fs:
+        return None
+    near = set()
+    for f in fs:
+        q = int(np.argmin(np.abs(bps - f)))
+        near |= {q - 1, q}
+    edges = [0.0, *fs, 1.0]
+    seg_of = np.concatenate([np.full(len(q[0]), k) for k, q in enumerate(samples)])
+    s_all = np.concatenate([q[0] for q in samples])
+    x_all = np.vstack([q[1] for q in samples])
+    u_all = np.vstack([q[2] for q in samples])
+    degrees = []
+    for a, b in zip(edges, edges[1:]):
+        m = (s_all >= a) & (s_all <= b)
+        away = m & ~np.isin(seg_of, list(near))
+        if away.sum() > 2:
+            m = away
+        n = _fit_degree([(s_all[m], x_all[m], u_all[m])], xs, us, lowest, spec.max_degree, limit)
+        if n is None or n > spec.min_degree:
+            y = _boundary_arc(pb, a, b, s_all[m], xs, math.sqrt(spec.tolerance))
+            if y is not None:
+                nb = _fit_degree([(s_all[m], y, u_all[m])], xs, us, lowest, spec.max_degree, limit)
+                n = nb if nb is not None and (n is None or nb < n) else n
+        if n is None:
+            return None
+        degrees.append(n)
+    return Mesh(lay.mesh.scheme_name, np.array(edges), tuple(degrees))
 
 
 def _nlp_size(mesh, nx: int, nu: int) -> int:
@@ -827,6 +1101,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     last = None
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
+    junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
@@ -889,7 +1164,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             for pb in tr.phases:
                 try:
                     features[pb.phase.name] = locate_features(tr, pb, errors[pb.phase.name], params, spec,
-                                                              _control_polys(pb))
+                                                              _control_polys(pb),
+                                                              memory=junction_memory.setdefault(pb.phase.name, {}))
                 except Exception as exc:  # locating is an aid; the estimate still decides
                     _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
                     features[pb.phase.name] = []
