@@ -193,3 +193,29 @@ def test_continuation_in_tf_reaches_the_lp_minimum(tmp_path):
     else:
         assert res.tf == c["tf_end"] <= c["polished"]["tf"] == res.extra["pso_only"]["tf"]
         assert res.status == "feasible" and "continuation" in res.tables
+
+
+def test_slsqp_refinement_reaches_the_lp_minimum(tmp_path):
+    """The constrained refinement (min tf with every |e|/zeta <= target) lands on the LP
+    bound of the toy problem from a point far above it, with the errors inside the box,
+    and a widened box (box_scale) can only lower it further."""
+    from ocdsl.search.run import refine_tf
+    from ocdsl.spec.parametric import RefineSpec
+
+    p = tmp_path / "toy.yaml"
+    p.write_text(TOY)
+    lf = load(p)
+    pp = build(lf.problem, lf.method)
+    x0 = np.array([3.0, 0.0, np.pi ** 2 / (2 * 9.0), 0.0])
+    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=1.0))
+    det = pp.details(x)
+    tf_min = _lp_tf_min(1e-3)
+    assert np.all(det["ratio"] <= 1.0 + 1e-6)
+    assert abs(det["tf"] - tf_min) <= 1e-4 * tf_min, (det["tf"], tf_min, info)
+    assert info["tf_start"] == 3.0 and info["tf_end"] == det["tf"]
+    x2, info2 = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=1.0, box_scale=2.0))
+    assert info2["tf_end"] <= info["tf_end"] + 1e-9
+    # a start it cannot improve on (tf at its lower bound, far outside the box) is rejected
+    xb = np.array([1.0, 0.0, 0.0, 0.0])
+    x3, info3 = refine_tf(pp, xb, RefineSpec(method="slsqp", max_iterations=3))
+    assert np.array_equal(x3, xb) and info3["refine"].startswith("rejected")

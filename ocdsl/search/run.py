@@ -214,6 +214,11 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         x_best, cinfo, ctable = continue_tf(pp, x_best, spec.polish, spec.continuation)
         continuation = {"polished": polished, **cinfo}
         timings["continuation"] = time.perf_counter() - t0
+    refined = None
+    if spec.refine.method == "slsqp":
+        t0 = time.perf_counter()
+        x_best, refined = refine_tf(pp, x_best, spec.refine)
+        timings["refine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     det = pp.details(x_best)
     tr, U = pp.trajectory(x_best)
@@ -240,6 +245,8 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         extra["pso_only"] = pso_only
     if continuation is not None:
         extra["continuation"] = continuation
+    if refined is not None:
+        extra["refine"] = refined
     if "m" in cm.state_names:
         mf = float(det["final"][cm.state_names.index("m")])
         extra["m_f"] = mf
@@ -254,6 +261,8 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
     polished = " and least-squares polish" if pso_only is not None else ""
     if continuation is not None:
         polished += (f" and continuation in tf ({continuation['continuation']}; swarm tf {pso_only['tf']:.6g})")
+    if refined is not None:
+        polished += f" and SLSQP refinement ({refined['refine']})"
     msg = (f"PSO{polished} stopped ({res.stop_reason}) after {res.iterations} iterations, {res.n_evals} evaluations; "
            f"best fitness {res.f:.6g}, tf {det['tf']:.6g}; terminal errors "
            f"{'inside' if feasible else 'NOT inside'} the tolerances (max |e|/zeta {det['ratio'].max() if len(det['ratio']) else 0:.3g})")
@@ -327,6 +336,78 @@ def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings)
     summary = {"continuation": reason, "restored_with_free_tf": restored, "tf_start": tf0, "tf_end": tf, "attempts": len(rows["attempt"]),
                "accepted": int(sum(rows["accepted"])), "evaluations": evals}
     return x, summary, {k: np.asarray(v, float) for k, v in rows.items()}
+
+
+def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, dict]:
+    """Minimise tf subject to every |error|/zeta <= ``settings.target_ratio`` from ``x``.
+
+    See :class:`ocdsl.spec.parametric.RefineSpec`. The integers stay fixed; tf and the
+    continuous coefficients move (the coefficients within the box widened by
+    ``box_scale``). Returns the new point (or ``x`` when the result is not inside the zeta
+    box or not faster) and a summary.
+    """
+    from scipy.optimize import minimize
+
+    lo, hi, is_int = pp.bounds()
+    idx = np.flatnonzero(~is_int)
+    itf = len(pp.variables)
+    if not pp.tf_free or itf not in idx:
+        return x, {"refine": "skipped: tf is fixed"}
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    wide_lo, wide_hi = centre - settings.box_scale * half, centre + settings.box_scale * half
+    wide_lo[itf], wide_hi[itf] = lo[itf], hi[itf]          # tf keeps the problem's bounds
+    width = np.where(hi[idx] > lo[idx], hi[idx] - lo[idx], 1.0)
+    zeta = np.array([t.zeta for t in pp.terminals])
+    j_tf = int(np.flatnonzero(idx == itf)[0])
+    h = settings.fd_step
+    n_evals = [0]
+    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def point(u):   # SLSQP works in box-normalised coordinates: every variable O(1)
+        X = x.copy()
+        X[idx] = lo[idx] + u * width
+        return X
+
+    def ratios_and_jacobian(u):
+        key = u.tobytes()
+        if key not in cache:
+            U = np.vstack([u, u + h * np.eye(len(u))])
+            X = np.tile(x, (len(U), 1))
+            X[:, idx] = lo[idx] + U * width
+            Yf, status, _, var, tf = pp.final(X)
+            E, _ = pp.errors(Yf, var, tf)
+            n_evals[0] += len(U)
+            R = E / zeta
+            R[(status < 0) | (status == 2)] = 1e6
+            cache.clear()
+            cache[key] = (R[0], ((R[1:] - R[0]) / h).T)
+        return cache[key]
+
+    target = settings.target_ratio
+    constraints = [{"type": "ineq",
+                    "fun": lambda u: np.concatenate([target - ratios_and_jacobian(u)[0], target + ratios_and_jacobian(u)[0]]),
+                    "jac": lambda u: np.vstack([-ratios_and_jacobian(u)[1], ratios_and_jacobian(u)[1]])}]
+    grad = np.zeros(len(idx))
+    grad[j_tf] = width[j_tf]
+    u0 = (x[idx] - lo[idx]) / width
+    box = list(zip((wide_lo[idx] - lo[idx]) / width, (wide_hi[idx] - lo[idx]) / width))
+    tf0 = float(x[itf])
+    try:
+        sol = minimize(lambda u: lo[itf] + u[j_tf] * width[j_tf], u0, jac=lambda u: grad, bounds=box,
+                       constraints=constraints, method="SLSQP",
+                       options={"maxiter": settings.max_iterations, "ftol": 1e-10})
+        message = str(sol.message)
+        xn = point(np.clip(sol.x, [b[0] for b in box], [b[1] for b in box]))
+    except Exception as e:  # keep the previous point on any failure
+        return x, {"refine": f"failed: {e}", "evaluations": n_evals[0], "tf_start": tf0, "tf_end": tf0}
+    dn = pp.details(xn)
+    summary = {"refine": message, "evaluations": n_evals[0], "tf_start": tf0, "tf_end": float(xn[itf]),
+               "max_error_over_zeta": float(dn["ratio"].max()), "box_scale": settings.box_scale}
+    if not _inside(dn) or xn[itf] > tf0:
+        summary["refine"] = f"rejected ({message}; tf {xn[itf]:.6g}, max |e|/zeta {dn['ratio'].max():.3g})"
+        summary["tf_end"] = tf0
+        return x, summary
+    return xn, summary
 
 
 class _Reached(Exception):

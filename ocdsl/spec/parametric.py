@@ -169,6 +169,28 @@ class ContinuationSpec(_Strict):
         return self
 
 
+class RefineSpec(_Strict):
+    """Optional constrained local minimisation of tf after the continuation (not in the seed
+    paper; reported apart in ``extra.refine``).
+
+    ``slsqp``: with the integers fixed, SciPy's SLSQP minimises tf subject to
+    ``|error_i| / zeta_i <= target_ratio`` for every terminal constraint, over tf and the
+    continuous coefficients (Jacobians by forward differences, one batch per iteration).
+    Unlike the continuation, which only moves tf while restoring feasibility, it trades tf
+    against the terminal errors at once, i.e. it converges to a local minimum of the
+    paper's problem (min tf inside the zeta box). ``box_scale`` widens the coefficient box
+    about its centre for this stage only (the swarm's box is a search range, not a
+    constraint of the problem; 1 keeps it). A result outside the box or with a larger tf
+    than its start is rejected.
+    """
+
+    method: Literal["none", "slsqp"] = "none"
+    max_iterations: int = Field(300, ge=1, le=100_000)
+    target_ratio: float = Field(0.9, gt=0.0, le=1.0, description="bound on every |error|/zeta")
+    box_scale: float = Field(1.0, ge=1.0, le=100.0, description="coefficient box widened about its centre by this factor")
+    fd_step: float = Field(1e-6, gt=0.0, le=1e-2, description="forward-difference step, fraction of each box width")
+
+
 class ParametricSpec(_Strict):
     transcription: Literal["parametric"] = "parametric"
     controls: dict[str, SeriesSpec]
@@ -181,7 +203,7 @@ class ParametricSpec(_Strict):
     optimizer: PSOSpec = Field(default_factory=PSOSpec)
     polish: PolishSpec = Field(default_factory=PolishSpec)
     continuation: ContinuationSpec = Field(default_factory=ContinuationSpec)
-    angle_convention: Literal["0_2pi", "atan2"] = "0_2pi"
+    refine: RefineSpec = Field(default_factory=RefineSpec)
     output_points: int = Field(2000, ge=10)
     threads: bool = Field(True, description="in-process evaluation over all cores (Numba threads)")
 

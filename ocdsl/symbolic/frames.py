@@ -10,8 +10,8 @@ Conventions (digest §2.7, §7 item 12):
 - theta_E is quadrant-aware (``atan2(y, x + mu)``), never a plain arctan.
 - Revolutions are counted with the paper's convention theta(tf) = 2*pi*N_rev + theta_f
   with theta_f in [0, 2*pi); the initial angle is taken in [0, 2*pi) too
-  (``angle_convention="0_2pi"``), which the digest argues is the natural reading, or
-  as the raw atan2 value in (-pi, pi] (``"atan2"``).
+  (:func:`initial_angle` with ``convention="0_2pi"``), which the digest argues is the
+  natural reading, or as the raw atan2 value in (-pi, pi] (``"atan2"``).
 """
 from __future__ import annotations
 
