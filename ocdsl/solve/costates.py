@@ -41,30 +41,79 @@ from ..transcribe.pseudospectral import Transcription
 from ..transcribe.solution import control_on_state_nodes
 
 
+def colloc_costates(m, pb) -> np.ndarray:
+    """(n_colloc, nx): the costate of one phase at its collocation nodes (module doc)."""
+    lay, ph = pb.layout, pb.phase
+    nx = len(ph.states)
+    lam_c = np.zeros((lay.n_colloc, nx))
+    for k in range(lay.mesh.segments):
+        sc = lay.mesh.scheme(k)
+        if sc.name == "LGL":
+            # integral form: the multiplier of node j's dynamics is (A^T nu)_j
+            A = lobatto_integration_matrix(sc.degree)
+            nu = np.array([[m.dual.get(pb.defects[(k, i, j)], 0.0) if i > 0 else 0.0
+                            for j in range(nx)] for i in range(sc.degree)])
+            lam_c[lay.colloc[k]] = -(A.T @ nu) / np.asarray(sc.weights)[:, None]
+            continue
+        for i, cn in enumerate(lay.colloc[k]):
+            for j in range(nx):
+                nu = m.dual.get(pb.defects[(k, i, j)], 0.0)
+                end = m.dual.get(pb.ends[(k, j)], 0.0) if pb.ends else 0.0
+                lam_c[cn, j] = -(nu / float(sc.weights[i]) + end)
+    return lam_c
+
+
+def defect_duals(pb, lam_c: np.ndarray, lam_end: np.ndarray | None = None):
+    """The inverse of ``colloc_costates``: defect (and LG end) constraint data -> the
+    multiplier that gives the costate ``lam_c`` (n_colloc, nx) at the collocation nodes
+    (``lam_end`` (segments, nx): the costate at each segment's end, LG only):
+    nu_i = -lambda_i w_i (LGR); nu_F = -lambda(end), nu_i = -(lambda_i + nu_F) w_i (LG);
+    LGL: the least-squares nu with nu_0 = 0 and (A^T nu)_j = -lambda_j w_j. Returns a
+    pyomo ComponentMap."""
+    from pyomo.common.collections import ComponentMap
+
+    lay, ph = pb.layout, pb.phase
+    nx = len(ph.states)
+    out = ComponentMap()
+    for k in range(lay.mesh.segments):
+        sc = lay.mesh.scheme(k)
+        w = np.asarray(sc.weights, float)
+        lam = np.asarray(lam_c[lay.colloc[k]], float)
+        if sc.name == "LGL":
+            A = lobatto_integration_matrix(sc.degree)
+            nu = np.linalg.lstsq(A[1:].T, -(w[:, None] * lam), rcond=None)[0]
+            for i in range(1, sc.degree):
+                for j in range(nx):
+                    out[pb.defects[(k, i, j)]] = float(nu[i - 1, j])
+            continue
+        end = np.zeros(nx)
+        if pb.ends:
+            end = -np.asarray(lam_end[k], float)
+            for j in range(nx):
+                out[pb.ends[(k, j)]] = float(end[j])
+        for i in range(len(w)):
+            for j in range(nx):
+                out[pb.defects[(k, i, j)]] = float(-(lam[i, j] + end[j]) * w[i])
+    return out
+
+
 def costates(tr: Transcription) -> list[dict[str, np.ndarray]]:
     """Per phase: state name -> costate on the state nodes (NaN where none is defined)."""
-    m = tr.model
     out = []
     for pb in tr.phases:
-        lay, ph = pb.layout, pb.phase
-        nx = len(ph.states)
-        lam_c = np.zeros((lay.n_colloc, nx))
-        for k in range(lay.mesh.segments):
-            sc = lay.mesh.scheme(k)
-            if sc.name == "LGL":
-                # integral form: the multiplier of node j's dynamics is (A^T nu)_j
-                A = lobatto_integration_matrix(sc.degree)
-                nu = np.array([[m.dual.get(pb.defects[(k, i, j)], 0.0) if i > 0 else 0.0
-                                for j in range(nx)] for i in range(sc.degree)])
-                lam_c[lay.colloc[k]] = -(A.T @ nu) / np.asarray(sc.weights)[:, None]
-                continue
-            for i, cn in enumerate(lay.colloc[k]):
-                for j in range(nx):
-                    nu = m.dual.get(pb.defects[(k, i, j)], 0.0)
-                    end = m.dual.get(pb.ends[(k, j)], 0.0) if pb.ends else 0.0
-                    lam_c[cn, j] = -(nu / float(sc.weights[i]) + end)
-        on_nodes = control_on_state_nodes(pb, lam_c)
-        out.append({s.name: on_nodes[:, j] for j, s in enumerate(ph.states)})
+        on_nodes = control_on_state_nodes(pb, colloc_costates(tr.model, pb))
+        out.append({s.name: on_nodes[:, j] for j, s in enumerate(pb.phase.states)})
+    return out
+
+
+def path_scale(pb, duration: float) -> np.ndarray:
+    """(n_colloc,): w_i * h/2 * (tf - t0) of every collocation node, the factor between a
+    path row's multiplier and mu(t_i) (module doc)."""
+    lay = pb.layout
+    out = np.zeros(lay.n_colloc)
+    for k in range(lay.mesh.segments):
+        half_h = (lay.mesh.breakpoints[k + 1] - lay.mesh.breakpoints[k]) / 2.0
+        out[lay.colloc[k]] = np.asarray(lay.mesh.scheme(k).weights, float) * half_h * duration
     return out
 
 

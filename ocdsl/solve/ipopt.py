@@ -123,9 +123,51 @@ class Progress:
             self.fd = None
 
 
+# Ipopt options of a solve started from given multipliers (``solve(..., multipliers=...)``),
+# the caller's options override them. warm_start_init_point makes Ipopt use the lambda, z_L,
+# z_U passed to cyipopt instead of its least-squares / unit estimates; the pushes keep the
+# start (and the bound multipliers) within 1e-9 of where they are instead of Ipopt's default
+# 1e-3 push into the interior, and a small mu_init does not move the (nearly optimal) point
+# back onto the central path of mu = 0.1 (measured in docs/mesh-refinement.md, "Warm start").
+WARM_START_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                      "warm_start_bound_frac": 1e-9, "warm_start_slack_bound_push": 1e-9,
+                      "warm_start_slack_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9,
+                      "mu_init": 1e-6}
+
+
+@dataclass
+class Multipliers:
+    """Starting multipliers for ``solve``, keyed by Pyomo component data.
+
+    ``constraints``: ConstraintData -> multiplier in Pyomo's ``dual`` suffix convention
+    (Ipopt's lambda, ``L = f + lambda^T g``); ``lower`` / ``upper``: VarData -> Ipopt's
+    z_L / z_U (>= 0). Missing entries start at 0 (Ipopt pushes bound multipliers up to
+    ``warm_start_mult_bound_push``)."""
+
+    constraints: Any = field(default_factory=lambda: _component_map())
+    lower: Any = field(default_factory=lambda: _component_map())
+    upper: Any = field(default_factory=lambda: _component_map())
+
+
+def _component_map():
+    """A dict keyed by Pyomo component data (VarData is not hashable)."""
+    from pyomo.common.collections import ComponentMap
+
+    return ComponentMap()
+
+
 def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
-          progress: Progress | None = None, on_iteration: Callable | None = None) -> SolveInfo:
-    """Solve a Pyomo model with Ipopt; never raises for a failed solve (status 'error')."""
+          progress: Progress | None = None, on_iteration: Callable | None = None,
+          multipliers: Multipliers | None = None) -> SolveInfo:
+    """Solve a Pyomo model with Ipopt; never raises for a failed solve (status 'error').
+
+    With ``multipliers`` the solve starts from them as well as from the variables' values
+    (``_solve_direct``: Pyomo's ``SolverFactory('cyipopt')`` cannot pass them), with
+    ``WARM_START_OPTIONS`` under the caller's options; if that solve does not end optimal or
+    acceptable, the variables are reset to their starting values and the model is solved
+    again without the multipliers (the message says so, the iterations of both count). Bound
+    multipliers are loaded into the model's ``ipopt_zL_out`` / ``ipopt_zU_out`` suffixes when
+    it has them (both paths)."""
     import logging
 
     import pyomo.environ as pyo
@@ -133,10 +175,42 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
     check_available()
     # Ipopt may end a hair outside a bound (bound_relax_factor); Pyomo warns per variable on load
     logging.getLogger("pyomo.core").setLevel(logging.ERROR)
-    opts = {**DEFAULT_OPTIONS, **(options or {})}
-    if not verbose:
-        opts.setdefault("print_level", 0)
-    opts.setdefault("sb", "yes")
+
+    def options_with(*layers):
+        out = {k: v for layer in layers for k, v in layer.items()}
+        if not verbose:
+            out.setdefault("print_level", 0)
+        out.setdefault("sb", "yes")
+        return out
+
+    opts = options_with(DEFAULT_OPTIONS, options or {})
+    try:
+        if multipliers is None:
+            return _attempt(model, opts, verbose, progress, on_iteration, None)
+        start = [(v, v.value) for v in model.component_data_objects(pyo.Var) if not v.fixed]
+        warm = _attempt(model, options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {}), verbose,
+                        progress, on_iteration, multipliers)
+        if warm.status in ("optimal", "acceptable"):
+            return warm
+        # never worse than without the multipliers: the same primal start, Ipopt's own duals
+        for v, x in start:
+            v.set_value(x, skip_validation=True)
+        info = _attempt(model, opts, verbose, progress, on_iteration, None)
+        info.message = (f"{info.message} (started from the given multipliers Ipopt ended '{warm.status}' "
+                        f"after {warm.iterations} iterations; solved again without them, iterations "
+                        "counted together)")
+        info.iterations += warm.iterations
+        info.solve_time += warm.solve_time
+        info.history = warm.history + info.history
+        return info
+    finally:
+        if progress:
+            progress.close()
+
+
+def _attempt(model, opts, verbose, progress, on_iteration, multipliers) -> SolveInfo:
+    import pyomo.environ as pyo
+
     history: list[tuple[int, float, float, float]] = []
 
     def callback(*args):
@@ -150,19 +224,18 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
             on_iteration(it, obj, inf_pr, inf_du)
         return True
 
-    solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
     t = time.perf_counter()
     try:
-        results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
+        if multipliers is not None:
+            msg, nlp = _solve_direct(model, opts, verbose, callback, multipliers)
+        else:
+            solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
+            results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
+            msg = results.solver.message
     except Exception as e:  # evaluation errors, bad options...
-        if progress:
-            progress.close()
         return SolveInfo("error", f"{type(e).__name__}: {e}", len(history) and history[-1][0],
                          None, time.perf_counter() - t, history=history)
     elapsed = time.perf_counter() - t
-    if progress:
-        progress.close()
-    msg = results.solver.message
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     status = STATUS_MAP.get(msg, "error")
     nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
@@ -176,3 +249,39 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         pass
     iterations = history[-1][0] if history else 0
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
+
+
+def _solve_direct(model, opts: dict[str, Any], verbose: bool, callback: Callable,
+                  multipliers: Multipliers):
+    """What Pyomo's cyipopt solver does (pynumero ``algorithms/solvers/cyipopt_solver.py``,
+    ``PyomoCyIpoptSolver.solve``: PyomoNLP -> CyIpoptNLP -> options -> solve -> load the
+    primals, duals and bound multipliers into the model), except that cyipopt's ``solve``
+    gets ``lagrange``, ``zl`` and ``zu`` besides ``x0``. Returns (Ipopt's status message,
+    the PyomoNLP). Models with grey-box blocks or scaling suffixes are not handled here."""
+    import numpy as np
+    from pyomo.common.tee import capture_output
+    from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
+    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
+
+    nlp = PyomoNLP(model)
+    problem = CyIpoptNLP(nlp, intermediate_callback=callback)
+    if any(f is not None for f in problem.scaling_factors()):
+        raise ValueError("warm start with multipliers does not handle scaling_factor suffixes")
+    for k, v in opts.items():
+        problem.add_option(k, v)
+    cons, vars_ = nlp.get_pyomo_constraints(), nlp.get_pyomo_variables()
+    lam = np.array([float(multipliers.constraints.get(c, 0.0)) for c in cons], float)
+    zl = np.array([max(0.0, float(multipliers.lower.get(v, 0.0))) for v in vars_], float)
+    zu = np.array([max(0.0, float(multipliers.upper.get(v, 0.0))) for v in vars_], float)
+    # no bound, no multiplier (Ipopt ignores them there; keep them clean anyway)
+    zl[~np.isfinite(problem.x_lb()) | (problem.x_lb() <= -1e19)] = 0.0
+    zu[~np.isfinite(problem.x_ub()) | (problem.x_ub() >= 1e19)] = 0.0
+    try:
+        with capture_output(sys.stdout if verbose else None, capture_fd=True):
+            x, info = problem.solve(problem.x_init(), lagrange=lam, zl=zl, zu=zu)
+        nlp.set_primals(x)
+        nlp.set_duals(info["mult_g"])
+        nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))
+    finally:
+        problem.close()
+    return info["status_msg"], nlp

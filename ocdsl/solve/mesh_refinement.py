@@ -55,12 +55,12 @@ Refinement rule
       ``coarsen_margin * tolerance``. The coarse mesh is solved and estimated like any other
       (refined again if it misses); the smallest mesh that met the tolerance is returned.
 
-Warm start: the states and controls of the previous mesh are sampled from each segment's
-interpolating polynomials and interpolated onto the new mesh (``transcribe.guess``).
-Multipliers are not carried over: Pyomo's cyipopt solver (pynumero
-``algorithms/solvers/cyipopt_solver.py``) calls cyipopt's ``solve(problem.x_init())`` with no
-``lagrange``/``zl``/``zu``, so ``warm_start_init_point`` would start from Ipopt's default duals;
-passing them needs a direct ``cyipopt.Problem`` call in ``solve/ipopt.py``.
+Warm start (``warm_start``): with ``multipliers`` (default) the new mesh starts from the
+previous mesh's polynomials and from its multipliers mapped through the costate, the path and
+bound multiplier densities and by name (``solve/warm_start.py``), solved by cyipopt directly
+(``ipopt.solve(..., multipliers=...)``; Pyomo's cyipopt solver passes no ``lagrange``/``zl``/
+``zu``); with ``primal`` only the states and controls, sampled from the polynomials and
+interpolated onto the new mesh (``transcribe.guess``).
 """
 from __future__ import annotations
 
@@ -1081,11 +1081,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from ..transcribe.guess import make_guess
     from ..transcribe.pseudospectral import build
     from . import ipopt
+    from . import warm_start as ws
 
     ipopt.check_available()
     problem, spec = file.problem, file.method.mesh
     meshes = initial_meshes(file)
     previous: dict[str, PhaseTrajectory] = {}
+    snapshot = None      # the previous mesh's solution, multipliers included (warm_start.py)
     if warm_start is not None:
         previous = {p.name: p for p in Result.read(warm_start).phases}
     options = dict(file.spec.solver.options)
@@ -1108,9 +1110,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
                        for ph in problem.phases}
             tr = build(problem, meshes, guesses)
+            ws.prepare(tr.model)
+            mult = ws.apply(snapshot, tr) if snapshot is not None else None
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[mesh {it}]")
-            info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar)
+            info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult)
         with timer.measure("mesh"):
             params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
             errors = {pb.phase.name: estimate_errors(pb, params, active_tol=max(1e-9, 0.1 * spec.tolerance),
@@ -1123,6 +1127,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         elapsed = time.perf_counter() - t_iter
         rec = {"iteration": it, "status": info.status, "objective": info.objective,
                "ipopt_iterations": info.iterations, "nlp": dict(info.nlp), "time_s": round(elapsed, 4),
+               "warm_start": "multipliers" if mult is not None else ("primal" if it > 1 else "none"),
                "max_error": max_err,
                "where": ({"phase": worst.phase, "segment": worst.segment, "t": [worst.t_start, worst.t_end],
                           "state": worst.state} if worst else None),
@@ -1188,6 +1193,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 break
             coarsening = True
             previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+            snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
             meshes = smaller
             continue
         if coarsening:
@@ -1198,6 +1204,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         if it == spec.max_iterations:
             break
         previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+        snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
         meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec,
                                         features=features[pb.phase.name]) for pb in tr.phases}
     if status is None:

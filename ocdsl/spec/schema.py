@@ -119,6 +119,10 @@ class MeshSpec(Strict):
                                  "control and keep the smaller error (docs/mesh-refinement.md: did not help Goddard)")
     growth: float = Field(3.0, ge=1.0, description="a refinement at most multiplies the segment count by this "
                           "(the segments with the largest errors are refined first)")
+    warm_start: Literal["multipliers", "primal"] = Field(
+        "multipliers", description="how each new mesh's solve starts from the previous mesh's solution: "
+        "'multipliers' = states, controls and all NLP multipliers mapped through the costates "
+        "(ocdsl/solve/warm_start.py), 'primal' = states and controls only")
 
     @model_validator(mode="after")
     def _check(self):
