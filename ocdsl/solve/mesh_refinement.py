@@ -149,10 +149,11 @@ def _activity(values, lo, hi, tol):
     return out
 
 
-def _zigzag(u) -> bool:
-    """Node-to-node chattering: the significant steps of u alternate in sign at least twice."""
+def _zigzag(u, step: float | None = None) -> bool:
+    """Node-to-node chattering: the significant steps of u (above ``step``, default 1e-6 of
+    1 + max |u|) alternate in sign at least twice."""
     d = np.diff(np.asarray(u, float))
-    d = d[np.abs(d) > 1e-6 * (1.0 + np.max(np.abs(u)))]
+    d = d[np.abs(d) > (1e-6 * (1.0 + np.max(np.abs(u))) if step is None else step)]
     return int(np.sum(np.sign(d[1:]) != np.sign(d[:-1]))) >= 2
 
 
@@ -434,6 +435,10 @@ def _corner(mesh, k, errors, controls, tol):
         d = lambda s: float(left(np.array([s]))[0, j] - right(np.array([s]))[0, j])  # noqa: E731
         vals = np.array([d(s) for s in grid])
         span = np.max(np.abs(left(grid)[:, j])) + np.max(np.abs(right(grid)[:, j])) + 1.0
+        # no kink where the two polynomials stay together to 1e-3 of the control's size over
+        # the gap (Goddard's coast arc: u at 0 up to solver noise of 1e-6 crossed itself)
+        if np.max(np.abs(vals)) < 1e-3 * span:
+            continue
         for i in range(len(grid) - 1):
             if vals[i] == 0.0 or vals[i] * vals[i + 1] < 0:
                 c = brentq(d, grid[i], grid[i + 1], xtol=1e-14) if vals[i] != 0.0 else grid[i]
@@ -544,7 +549,10 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
         phi(s) = u_U(s) - u_b(x(s), t(s)),
     u_U the unconstrained segment's control polynomial (extrapolated over the gap), u_b the
     boundary control (``_boundary_controls``) along the state polynomials: at a junction of a
-    constraint of order >= 2 the control is continuous and equals u_b. Measured on
+    constraint of order >= 2 the control is continuous and equals u_b. For a first-order
+    constraint (Goddard's v <= v_max) the control may jump there (u_b to 0); when phi has no
+    zero, the zero of x_U,j(s) - bound is used instead, x_U,j the unconstrained segment's state polynomial
+    extrapolated (the state is continuous with a kink at the junction). Measured on
     Bryson-Denham, mesh (3, 1, 3) with breakpoints at 1/3 + d1 and 2/3 + d2: the exit is
     found to 6 d2^2 (the arc after it is the cubic fixed by x = l, v = 0 at its start), the
     entry only to 0.8 d1 (LGR collocates the entry breakpoint in the arc before it, which
@@ -572,7 +580,12 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
         lo, hi = ph.bounds_of(ph.states[j])
         act = [_activity(X[lay.support[k], j], lo, hi, active_tol) for k in range(K)]
         full = [bool(a.all()) and len(set(a.tolist())) == 1 for a in act]
-        free = [not a[1:-1].any() for a in act]   # the ends may touch the bound (a junction)
+        # off the bound inside (the ends may touch it: a junction), and clearly so somewhere:
+        # a state that sits at its bound up to solver noise is no unconstrained arc
+        away = 1e-6 * (1.0 + abs(hi if math.isfinite(hi) else lo))
+        free = [not a[1:-1].any() and float(np.max(np.minimum(np.abs(X[lay.support[k], j] - lo),
+                                                              np.abs(X[lay.support[k], j] - hi)))) > away
+                for k, a in enumerate(act)]
         k = 0
         while k < K:
             if not full[k]:
@@ -596,18 +609,31 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
                 else:
                     lo_s = 0.5 * (bps[edge] + bps[edge + 1])
 
+                bound = hi if act[edge][0] > 0 else lo
+                xs_other = _seg_polys(lay, other, X, U)[0]
+                a_o, b_o = bps[other], bps[other + 1]
+
                 def phi(s, other=other):
                     x = _state_at(lay, X, U, s)
                     return float(polys[other](np.array([s]))[0, i]
                                  - ub(*x, t0 + (tf - t0) * s, *pvals))
 
+                def psi(s, xs_other=xs_other, a_o=a_o, b_o=b_o, bound=bound):
+                    # the state leaves (reaches) its bound with a kink where the control jumps;
+                    # the other arc's state polynomial, extrapolated, crosses the bound there
+                    return float(xs_other(2.0 * (s - a_o) / (b_o - a_o) - 1.0)[0, j] - bound)
+
                 grid = np.linspace(lo_s, hi_s, 201)
-                with np.errstate(all="ignore"):
-                    vals = np.array([phi(s) for s in grid])
-                roots = [brentq(phi, grid[n], grid[n + 1], xtol=1e-15)
-                         for n in range(len(grid) - 1)
-                         if np.isfinite(vals[n]) and np.isfinite(vals[n + 1]) and vals[n] * vals[n + 1] < 0]
-                roots += [grid[n] for n in range(len(grid)) if vals[n] == 0.0]
+                roots = []
+                for fun in ((phi, psi) if order == 1 else (phi,)):
+                    with np.errstate(all="ignore"):
+                        vals = np.array([fun(s) for s in grid])
+                    roots = [brentq(fun, grid[n], grid[n + 1], xtol=1e-15)
+                             for n in range(len(grid) - 1)
+                             if np.isfinite(vals[n]) and np.isfinite(vals[n + 1]) and vals[n] * vals[n + 1] < 0]
+                    roots += [grid[n] for n in range(len(grid)) if vals[n] == 0.0]
+                    if roots:
+                        break
                 if not roots:
                     continue
                 g = min(roots, key=lambda r: abs(r - b))
@@ -622,8 +648,15 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
                             rho = 1.0 + (F1 - F0) / (b - prev[0])   # slope of the map g
                             if -1.0 < rho < 0.95 and 0 < cand < 1:
                                 g = cand
-                out.append(float(g))
-    return sorted(out)
+                gap = abs(b - (bps[other + 1] if side == "entry" else bps[other]))
+                out.append((float(g), float(gap)))
+    # two estimates of one junction (Goddard: v leaves v_max where m reaches m_min): the one
+    # extrapolated over the shorter gap is kept
+    kept: list[tuple[float, float]] = []
+    for g, gap in sorted(out, key=lambda q: q[1]):
+        if all(abs(g - h) > max(gap, hgap, 1e-12) for h, hgap in kept):
+            kept.append((g, gap))
+    return sorted(g for g, _ in kept)
 
 
 def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None = None) -> list[float]:
@@ -636,12 +669,14 @@ def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None 
     # at a bound to 1e-6 (relative): the NLP's bound relaxation and stopping tolerance leave
     # a bang arc's control ~1e-8 inside its bound
     feats = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
+    junctions = []
     try:
-        for f in locate_junctions(pb, params, max(1e-9, 0.1 * spec.tolerance), memory):
-            if all(abs(f - g) > spec.corner_tolerance for g in feats):
-                feats.append(f)
+        junctions = locate_junctions(pb, params, max(1e-9, 0.1 * spec.tolerance), memory)
     except Exception:   # an aid only: the other locators and the estimate still work
         pass
+    for f in junctions:
+        if all(abs(f - g) > spec.corner_tolerance for g in feats):
+            feats.append(f)
     bps = mesh.breakpoints
     for e in errors:
         if not e.nonsmooth:
@@ -649,9 +684,18 @@ def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None 
         a, b = float(bps[e.segment]), float(bps[e.segment + 1])
         if any(a - spec.corner_tolerance <= f <= b + spec.corner_tolerance for f in feats):
             continue
+        # a junction in a neighbouring segment already accounts for this one's active-set change
+        lo_n, hi_n = float(bps[max(e.segment - 1, 0)]), float(bps[min(e.segment + 2, mesh.segments)])
+        if any(lo_n <= f <= hi_n for f in junctions):
+            continue
         c = _corner(mesh, e.segment, errors, controls, spec.tolerance)
         if c is None:
             c = _jump(mesh, e.segment, errors, controls, U, pb.layout)
+        # a point outside the flagged segment is not the change it holds (measured on Goddard:
+        # the coast arc's flagged segments, where u sits at 0 up to solver noise, gave the
+        # burn's end 0.1 away)
+        if c is not None and not (a - spec.corner_tolerance <= c <= b + spec.corner_tolerance):
+            c = None
         if c is not None and all(abs(c - f) > spec.corner_tolerance for f in feats):
             feats.append(c)
     return sorted(feats)
@@ -1008,6 +1052,74 @@ def _nlp_size(mesh, nx: int, nu: int) -> int:
 
 
 # ---------------------------------------------------------------------------------------
+# optional regularisation of chattering (singular) arcs
+# ---------------------------------------------------------------------------------------
+
+def chattering_segments(pb) -> list[tuple[float, float]]:
+    """Segments (normalised time) on which a control zigzags from node to node (``_zigzag`` on
+    the segment's collocation points and the nearest one on either side): the discrete
+    solution of a singular arc, where the control is weakly determined and the NLP chatters."""
+    lay = pb.layout
+    U = _solution_arrays(pb)[1]
+    bps = lay.mesh.breakpoints
+    # steps below 1e-3 of the control's range are solver noise (a bang arc 1e-8 inside its bound)
+    span = []
+    for j, c in enumerate(pb.phase.controls):
+        lo, hi = pb.phase.bounds_of(c)
+        span.append(1e-3 * ((hi - lo) if math.isfinite(hi - lo) else 1.0 + np.max(np.abs(U[:, j]))))
+    out = []
+    for k in range(lay.mesh.segments):
+        nodes = list(lay.colloc[k])
+        if k > 0:
+            nodes = [lay.colloc[k - 1][-1]] + nodes
+        if k + 1 < lay.mesh.segments:
+            nodes = nodes + [lay.colloc[k + 1][0]]
+        if len(nodes) >= 4 and any(_zigzag(U[nodes, j], span[j]) for j in range(U.shape[1])):
+            out.append((float(bps[k]), float(bps[k + 1])))
+    return out
+
+
+def _merge_intervals(old: list, new: list) -> list:
+    out = []
+    for a, b in sorted([tuple(x) for x in old] + [tuple(x) for x in new]):
+        if out and a <= out[-1][1] + 1e-12:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return out
+
+
+def regularise(tr, regions: dict, weight: float):
+    """Add weight * sum over consecutive collocation points inside ``regions`` (per phase,
+    normalised-time intervals) of (u_{i+1} - u_i)^2 / (s_{i+1} - s_i) -- a quadrature of
+    weight * int (du/ds)^2 ds over the detected chattering arcs -- to the objective (with the
+    sign that penalises it). Returns the Pyomo expression of the added term, or None.
+    The solved objective is reported without it (``solve_adaptive``)."""
+    import pyomo.environ as pyo
+
+    if not weight or not any(regions.values()):
+        return None
+    terms = []
+    for pb in tr.phases:
+        iv = regions.get(pb.phase.name) or []
+        lay, b = pb.layout, pb.block
+        sc = lay.s_colloc
+        inside = [any(a <= x <= c for a, c in iv) for x in sc]
+        nu = len(pb.phase.controls)
+        for i in range(lay.n_colloc - 1):
+            if inside[i] and inside[i + 1] and sc[i + 1] > sc[i]:
+                for j in range(nu):
+                    terms.append((b.U[i + 1, j] - b.U[i, j]) ** 2 / float(sc[i + 1] - sc[i]))
+    if not terms:
+        return None
+    m = tr.model
+    m.mesh_regularisation = pyo.Expression(expr=weight * sum(terms))
+    sign = 1.0 if m.objective.sense == pyo.minimize else -1.0
+    m.objective.expr = m.objective.expr + sign * m.mesh_regularisation
+    return m.mesh_regularisation
+
+
+# ---------------------------------------------------------------------------------------
 # warm start
 # ---------------------------------------------------------------------------------------
 
@@ -1104,17 +1216,25 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
     junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
+    chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
+    reg_weight = spec.regularise
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
                        for ph in problem.phases}
             tr = build(problem, meshes, guesses)
+            reg = regularise(tr, chatter, reg_weight) if spec.regularise else None
             ws.prepare(tr.model)
             mult = ws.apply(snapshot, tr) if snapshot is not None else None
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[mesh {it}]")
             info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult)
+        reg_value = None
+        if reg is not None and info.objective is not None:
+            # the objective of the problem itself: the regularisation term taken out
+            reg_value = float(pyo.value(reg))
+            info.objective += reg_value if tr.model.objective.sense == pyo.maximize else -reg_value
         with timer.measure("mesh"):
             params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
             errors = {pb.phase.name: estimate_errors(pb, params, active_tol=max(1e-9, 0.1 * spec.tolerance),
@@ -1132,6 +1252,12 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                "where": ({"phase": worst.phase, "segment": worst.segment, "t": [worst.t_start, worst.t_end],
                           "state": worst.state} if worst else None),
                "meshes": {k: m.describe() for k, m in meshes.items()}}
+        if reg is not None:
+            rec["regularisation"] = {"weight": reg_weight, "value": reg_value,
+                                     "arcs": {k: [list(x) for x in v] for k, v in chatter.items()}}
+        if spec.regularise and info.status in GOOD:
+            for pb in tr.phases:
+                chatter[pb.phase.name] = _merge_intervals(chatter.get(pb.phase.name, []), chattering_segments(pb))
         history.append(rec)
         for ph in problem.phases:
             m = meshes[ph.name]

@@ -119,6 +119,9 @@ class MeshSpec(Strict):
                                  "control and keep the smaller error (docs/mesh-refinement.md: did not help Goddard)")
     growth: float = Field(3.0, ge=1.0, description="a refinement at most multiplies the segment count by this "
                           "(the segments with the largest errors are refined first)")
+    regularise: float = Field(0.0, ge=0, description="weight w of w * int (du/ds)^2 ds added to the objective on "
+                              "the arcs where the control has chattered (singular arcs; off when 0); the reported "
+                              "objective leaves it out (docs/mesh-refinement.md)")
     warm_start: Literal["multipliers", "primal"] = Field(
         "multipliers", description="how each new mesh's solve starts from the previous mesh's solution: "
         "'multipliers' = states, controls and all NLP multipliers mapped through the costates "
