@@ -138,7 +138,7 @@ def test_refuses_a_non_polar_run(tmp_path):
 
 
 def test_revolutions_of_a_cartesian_trajectory():
-    """N_rev of a Cartesian trajectory from the unwrapped atan2 angle (paper-mode convention)."""
+    """N_rev of a Cartesian trajectory from the unwrapped angle, under the paper run's convention."""
     import ocdsl
 
     num = R._Numeric(ocdsl.load(CONFIGS / "seed1_10N_optimal.yaml").file)
@@ -149,6 +149,10 @@ def test_revolutions_of_a_cartesian_trajectory():
         theta = R.unwrapped_angle(tr, num)
         assert theta[0] == pytest.approx(-2.0) and theta[-1] == pytest.approx(end)
         assert frames.revolutions(theta[-1]) == n_rev
+        # counted from the paper run's start in [0, 2 pi) (4.28 rad): one revolution more
+        theta = R.unwrapped_angle(tr, num, theta0=2 * np.pi - 2.0)
+        assert theta[0] == pytest.approx(2 * np.pi - 2.0) and theta[-1] == pytest.approx(end + 2 * np.pi)
+        assert frames.revolutions(theta[-1]) == n_rev + 1
 
 
 # ---------------------------------------------------------------------------------------

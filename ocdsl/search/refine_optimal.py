@@ -251,12 +251,21 @@ def reintegrate(loaded, result: Result, rtol: float = 1e-12) -> dict[str, Any]:
     }
 
 
-def unwrapped_angle(tr: PhaseTrajectory, num: "_Numeric") -> np.ndarray:
-    """The ECRF angle along a trajectory, unwrapped from its atan2 start (paper-mode convention)."""
+def unwrapped_angle(tr: PhaseTrajectory, num: "_Numeric", theta0: float | None = None) -> np.ndarray:
+    """The ECRF angle along a trajectory, unwrapped continuously from its start.
+
+    ``theta0``: the paper-mode run's initial angle, which fixes the revolution convention
+    (atan2 value or its [0, 2 pi) residue); the start is shifted by the multiple of 2 pi
+    that brings it onto ``theta0``, so N_rev is counted as in that run.
+    """
     if num.frame == "polar":
-        return np.asarray(tr.states["theta"], float)
-    xe = np.asarray(tr.states["x"], float) + num.mu
-    return frames.unwrap_angle(np.arctan2(np.asarray(tr.states["y"], float), xe))
+        theta = np.asarray(tr.states["theta"], float)
+    else:
+        xe = np.asarray(tr.states["x"], float) + num.mu
+        theta = frames.unwrap_angle(np.arctan2(np.asarray(tr.states["y"], float), xe))
+    if theta0 is not None and len(theta):
+        theta = theta + 2.0 * math.pi * round((theta0 - theta[0]) / (2.0 * math.pi))
+    return theta
 
 
 def frames_LU() -> float:
@@ -328,7 +337,8 @@ def refine(config: str | Path, paper_dir: str | Path, out: str | Path | None = N
     result.extra["warm_start"] = {"paper_run": str(paper_dir), "folder": str(warm_dir), **warm.extra}
     tr = result.phase()
     t_arr = float(tr.states[CLOCK][-1])
-    theta_f = float(unwrapped_angle(tr, num)[-1])
+    theta0 = float(Result.read(paper_dir).phase().states["theta"][0])
+    theta_f = float(unwrapped_angle(tr, num, theta0)[-1])
     optimal = {"tf": t_arr, "m_p": float(1.0 - tr.states["m"][-1]), "status": result.status,
                "N_rev": frames.revolutions(theta_f) if math.isfinite(theta_f) else None,
                "wall_time_s": result.wall_time_s["total"],
