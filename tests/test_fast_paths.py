@@ -69,3 +69,18 @@ def test_generated_casadi_script_same_optimum(configs, tmp_path, scheme):
     assert ca["status"] == "Solve_Succeeded"
     assert ca["variables"] - res.nlp["variables"] >= 0   # CasADi counts fixed variables too
     assert ca["objective"] == pytest.approx(res.objective, rel=1e-8)
+
+
+def test_gc_left_as_found_after_build_and_hand_over(configs):
+    """build() and run's gc_frozen() leave the collector enabled and nothing frozen."""
+    import gc
+
+    from ocdsl.transcribe.pseudospectral import gc_frozen
+
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    with gc_frozen():
+        assert gc.get_freeze_count() > 0
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    res = ocdsl.load(configs / "brachistochrone.yaml").solve()
+    assert res.status == "optimal"
+    assert gc.isenabled() and gc.get_freeze_count() == 0

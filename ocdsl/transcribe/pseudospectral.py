@@ -59,6 +59,11 @@ FAST = {
     # D @ X as one Pyomo LinearExpression from precomputed monomials, not a sum() that
     # rebuilds the expression term by term, and variable data looked up once per node
     "linear_defects": True,
+    # on leaving build(), hand every object made during the pause straight to the oldest
+    # generation (gc.freeze + gc.unfreeze, O(1)) instead of letting the first young
+    # collection after gc.enable() walk them all and promote them generation by generation
+    # (0.3 s CPU of a 0.9 s build at 2,000 segments)
+    "gc_to_oldest": True,
 }
 
 
@@ -71,7 +76,29 @@ def _gc_paused():
     try:
         yield
     finally:
+        if FAST["gc_to_oldest"]:
+            gc.freeze()
+            gc.unfreeze()
         gc.enable()
+
+
+@contextlib.contextmanager
+def gc_frozen():
+    """Keep the objects that exist now (the built model) out of cyclic collections.
+
+    For the hand-over to Ipopt: the NL writer allocates millions of small objects, and each
+    full collection they trigger otherwise walks the whole model again (measured: one such
+    collection made the hand-over 1.5 -> 2.6 s CPU at 2,000 segments). gc.unfreeze() on exit
+    puts everything back in the oldest generation, so nothing is kept alive longer.
+    """
+    if not FAST["no_gc"] or not gc.isenabled():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess]) -> Transcription:
