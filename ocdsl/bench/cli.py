@@ -15,9 +15,11 @@ import click
 @click.option("--out", type=click.Path(dir_okay=False), default="reports/bench/peers.md", show_default=True)
 @click.option("--scaling", "scaling_file", type=click.Path(dir_okay=False, exists=True), default=None,
               help="problem file of the build-time scaling series")
-@click.option("--scaling-segments", default="10,20,50,100,200,500,1000,2000", show_default=True)
+@click.option("--scaling-segments", default="10,20,50,100,200,500,1000,2000,5000", show_default=True)
+@click.option("--scaling-repeat", type=int, default=3, show_default=True,
+              help="builds per segment count in the scaling series (CPU medians)")
 @click.option("--series-solve", default="", help="segment counts at which the scaling problem is also solved")
-def bench(files, runs, out, scaling_file, scaling_segments, series_solve):
+def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, series_solve):
     """Compare ocdsl with a CasADi script generated from the same problem (needs `pip install casadi`)."""
     try:
         import casadi  # noqa: F401
@@ -28,4 +30,4 @@ def bench(files, runs, out, scaling_file, scaling_segments, series_solve):
     seg = [int(k) for k in scaling_segments.split(",") if k.strip()]
     solve = [int(k) for k in series_solve.split(",") if k.strip()]
     click.echo(main_peers([Path(f) for f in files], runs, Path(out), Path(scaling_file) if scaling_file else None,
-                          seg, solve))
+                          seg, solve, scaling_repeat))

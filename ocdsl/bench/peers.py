@@ -122,7 +122,8 @@ def _f(v, nd=3):
 
 def table(cases: list[dict]) -> str:
     head = ("| problem | tool | vars | cons | iter | Ipopt w/o f-eval | Ipopt CPU w/o f-eval | f-eval | start-up+imports | parse | "
-            "symbolic | build | hand-over | post | peak MB | wall (median) | CPU | ratio wall | ratio CPU | objective |")
+            "symbolic | build | hand-over | post | peak MB | wall (median) | CPU | outside Ipopt | "
+            "Ipopt CPU/iter | ratio wall | ratio CPU | ratio Ipopt CPU/iter | objective |")
     lines = [head, "|" + "---|" * head.count("|")[:-1] if False else "|" + "---|" * (head.count("|") - 1)]
     for c in cases:
         o, k = c["ocdsl"], c["casadi"]
@@ -130,69 +131,112 @@ def table(cases: list[dict]) -> str:
             ratio_w = f"{o['wall'] / k['wall']:.2f}" if who == "ocdsl" and k["wall"] else ""
             ratio_c = f"{o['cpu'] / k['cpu']:.2f}" if who == "ocdsl" and k["cpu"] else ""
             obj = "-" if s["objective"] is None else f"{s['objective']:.10g}"
+            per_it = {w: (x["ipopt_wo_fe_cpu_s"] / x["iterations"] if x.get("ipopt_wo_fe_cpu_s") and x.get("iterations")
+                          else None) for w, x in (("o", o), ("k", k))}
+            ratio_it = (f"{per_it['o'] / per_it['k']:.2f}" if who == "ocdsl" and per_it["o"] and per_it["k"] else "")
+            me = per_it["o" if who == "ocdsl" else "k"]
+            share = f"{100 * s['outside'] / s['wall']:.0f} %" if s.get("outside") is not None and s["wall"] else "-"
             lines.append(
                 f"| {c['name']} | {who} | {_f(s['variables'], 0)} | {_f(s['constraints'], 0)} | "
                 f"{_f(s['iterations'], 0)} | {_f(s['ipopt_wo_fe_s'])} | {_f(s['ipopt_wo_fe_cpu_s'])} | {_f(s['ipopt_fe_s'])} | "
                 f"{_f((s['startup'] or 0) + (s['lazy_imports'] or 0))} | {_f(s['parse'])} | {_f(s['symbolic'])} | "
                 f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s['rss_mb'], 0)} | "
-                f"{_f(s['wall'])} | {_f(s['cpu'])} | {ratio_w} | {ratio_c} | {obj} ({s['status']}) |")
+                f"{_f(s['wall'])} | {_f(s['cpu'])} | {share} | {_f(me, 4)} | {ratio_w} | {ratio_c} | {ratio_it} | "
+                f"{obj} ({s['status']}) |")
     return "\n".join(lines)
 
 
-def scaling(problem_file: Path, segments: list[int], work: Path) -> tuple[str, dict]:
-    """Build + hand-over time (no solve) of ocdsl and of the CasADi script against segments."""
+def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
+    """In a fresh process: build + hand-over (PyomoNLP) at K segments, ``repeat`` times.
+
+    CPU seconds (``time.process_time``), medians over the repeats; as ``ocdsl run`` does
+    (``ocdsl.run.solve_pseudospectral``): guess + ``build`` is the build, ``PyomoNLP`` inside
+    ``gc_frozen`` the hand-over (NL writer + ASL)."""
+    import gc
+
+    from ..api import compile_file
+    from ..solve import ipopt
+    from ..transcribe.guess import make_guess
+    from ..transcribe.mesh import Mesh
+    from ..transcribe.pseudospectral import build, gc_frozen
+
+    ipopt.check_available()
+    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
+
+    file = compile_file(Path(problem_file))
+    problem, method = file.problem, file.method
+    b, h, n = [], [], None
+    for _ in range(max(1, repeat)):
+        meshes = {ph.name: Mesh.uniform(method.transcription, K, method.degree) for ph in problem.phases}
+        c = time.process_time()
+        guesses = {ph.name: make_guess(problem, ph) for ph in problem.phases}
+        tr = build(problem, meshes, guesses)
+        b.append(time.process_time() - c)
+        c = time.process_time()
+        with gc_frozen():
+            nlp = PyomoNLP(tr.model)
+        h.append(time.process_time() - c)
+        n = int(nlp.n_primals())
+        del nlp, tr
+        gc.collect()
+    return {"K": K, "vars": n, "build": statistics.median(b), "handover": statistics.median(h),
+            "build_runs": b, "handover_runs": h}
+
+
+def scaling(problem_file: Path, segments: list[int], work: Path, repeat: int = 3) -> tuple[str, dict]:
+    """Build + hand-over CPU time and peak memory (no solve) of ocdsl and of the CasADi script.
+
+    Each segment count runs in its own process per tool (so the peak RSS is that of one
+    model at that size), ``repeat`` builds each, CPU medians; exponents fitted over >= 50."""
     import numpy as np
 
     from ..api import compile_file
-    from ..transcribe.guess import make_guess
-    from ..transcribe.mesh import Mesh
-    from ..transcribe.pseudospectral import build
     from .casadi_gen import write_script
 
-    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
-
     file = compile_file(problem_file)
-    problem, method = file.problem, file.method
     rows = []
+    env = dict(os.environ)
     for K in segments:
-        meshes = {ph.name: Mesh.uniform(method.transcription, K, method.degree) for ph in problem.phases}
-        t = time.perf_counter()
-        guesses = {ph.name: make_guess(problem, ph) for ph in problem.phases}
-        tr = build(problem, meshes, guesses)
-        b = time.perf_counter() - t
-        t = time.perf_counter()
-        nlp = PyomoNLP(tr.model)
-        h = time.perf_counter() - t
-        n = nlp.n_primals()
-        del nlp, tr
+        child = ["-m", "ocdsl.bench.peers", "--scale-child", str(Path(problem_file).resolve()), str(K), str(repeat)]
+        r = _run([sys.executable, *child], work, env)
+        line = next((ln for ln in r["stdout"].splitlines() if ln.startswith("SCALE_RESULT ")), "x {}")
+        o = json.loads(line.split(" ", 1)[1])
+        if not o:
+            print(r["stdout"][-2000:], file=sys.stderr)
         script = write_script(work / f"scale_{K}.py", file, segments=K)
-        r = _run([sys.executable, str(script), "--no-solve"], work, dict(os.environ))
-        line = next((ln for ln in r["stdout"].splitlines() if ln.startswith("CASADI_RESULT ")), "x {}")
+        rc = _run([sys.executable, str(script), "--no-solve", "--repeat", str(repeat)], work, env)
+        line = next((ln for ln in rc["stdout"].splitlines() if ln.startswith("CASADI_RESULT ")), "x {}")
         cr = json.loads(line.split(" ", 1)[1])
-        rows.append({"K": K, "vars": n, "build": b, "handover": h, "c_build": cr.get("build"),
-                     "c_handover": cr.get("handover"), "c_rss": r["rss_mb"]})
-        print(f"  scaling K={K}: ocdsl build {b:.3f} + hand-over {h:.3f}; CasADi build {cr.get('build')}",
-              file=sys.stderr)
+        rows.append({"K": K, "vars": o.get("vars"), "build": o.get("build"), "handover": o.get("handover"),
+                     "rss": r["rss_mb"], "c_build": cr.get("build_cpu"), "c_handover": cr.get("handover_cpu"),
+                     "c_rss": rc["rss_mb"]})
+        print(f"  scaling K={K}: ocdsl build {_f(o.get('build'))} + hand-over {_f(o.get('handover'))} CPU s, "
+              f"{r['rss_mb']:.0f} MB; CasADi {_f(cr.get('build_cpu'))} + {_f(cr.get('handover_cpu'))}, "
+              f"{rc['rss_mb']:.0f} MB", file=sys.stderr)
     Ks = np.array([r["K"] for r in rows], float)
     fit = {}
     for key in ("build", "handover", "c_build", "c_handover"):
         y = np.array([r[key] or np.nan for r in rows], float)
         ok = np.isfinite(y) & (Ks >= 50) & (y > 0)
         fit[key] = float(np.polyfit(np.log(Ks[ok]), np.log(y[ok]), 1)[0]) if ok.sum() >= 2 else None
-    lines = ["| segments | NLP variables | ocdsl build | ocdsl hand-over | CasADi build | CasADi nlpsol set-up |",
-             "|---:|---:|---:|---:|---:|---:|"]
+    lines = [(f"CPU seconds (`time.process_time`), median of {repeat} builds in one process per segment count "
+              "and tool; peak MB = that process's maximum RSS (imports + one model, its NLP and "
+              "the solver interface, no solve)."), "",
+             ("| segments | NLP variables | ocdsl build | ocdsl hand-over | ocdsl peak MB | CasADi build | "
+              "CasADi nlpsol set-up | CasADi peak MB |"),
+             "|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['K']} | {r['vars']} | {r['build']:.3f} | {r['handover']:.3f} | "
-                     f"{_f(r['c_build'])} | {_f(r['c_handover'])} |")
+        lines.append(f"| {r['K']} | {r['vars']} | {_f(r['build'])} | {_f(r['handover'])} | {r['rss']:.0f} | "
+                     f"{_f(r['c_build'])} | {_f(r['c_handover'])} | {r['c_rss']:.0f} |")
     lines.append("")
-    lines.append("Fitted exponent of time ~ segments^p over segments >= 50: " + ", ".join(
+    lines.append("Fitted exponent of CPU time ~ segments^p over segments >= 50: " + ", ".join(
         f"{k} p = {_f(v, 2)}" for k, v in fit.items()))
     return "\n".join(lines), fit
 
 
 def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("reports/bench/peers.md"),
                scaling_file: Path | None = None, scaling_segments: list[int] | None = None,
-               series_solve: list[int] | None = None) -> str:
+               series_solve: list[int] | None = None, scaling_repeat: int = 3) -> str:
     from .core import machine
 
     cases = []
@@ -206,7 +250,7 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             cases.append(bench_case(Path(scaling_file), tmp / f"series{K}", runs, segments=K))
         scale_text = ""
         if scaling_file is not None and scaling_segments:
-            scale_text, _ = scaling(Path(scaling_file), scaling_segments, tmp)
+            scale_text, _ = scaling(Path(scaling_file), scaling_segments, tmp, repeat=scaling_repeat)
     text = (f"# ocdsl against a generated CasADi script\n\n{machine()}, {time.strftime('%Y-%m-%d %H:%M')}, "
             f"{runs} runs each, alternating, medians; seconds.\n\n"
             "Whole processes. ocdsl: start-up+imports = process wall minus `ocdsl run`'s own total, plus the "
@@ -214,12 +258,20 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             "(PyNumero NL writer + ASL + cyipopt set-up); post includes costates, certificate and expect "
             "checks. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
             "Ipopt CPU = user + sys seconds from Ipopt's timing statistics (the wall columns "
-            "mostly measure the machine's other load). Ratios are ocdsl/CasADi. With `method.starts` > 1 both run every start, but Ipopt rewrites its "
+            "mostly measure the machine's other load); Ipopt CPU/iter = that without function evaluations "
+            "over iterations; outside Ipopt = share of the process wall not in Ipopt (with or without "
+            "function evaluations). Ratios are ocdsl/CasADi. With `method.starts` > 1 both run every start, but Ipopt rewrites its "
             "output file per solve, so the Ipopt columns are the last start's and the other starts' "
             "Ipopt time falls into hand-over.\n\n" + table(cases) + "\n")
     if scale_text:
-        text += f"\n## Scaling: build time against segments ({Path(scaling_file).stem}, no solve)\n\n" + scale_text + "\n"
+        text += (f"\n## Scaling: build time and memory against segments ({Path(scaling_file).stem}, no solve)\n\n"
+                 + scale_text + "\n")
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(text)
     return text
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 5 and sys.argv[1] == "--scale-child":
+        print("SCALE_RESULT " + json.dumps(_scale_child(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]))))
