@@ -174,3 +174,42 @@ def test_goddard_smaller_than_uniform(configs, goddard):
     n, size = _uniform_nlp_size(configs, "mesh_goddard.yaml", lambda r: abs(r.objective - GODDARD_R) <= err,
                                 [50, 100, 200, 400])
     assert n is None or goddard.nlp["variables"] < size, (goddard.nlp, n, size)
+
+
+def test_junction_locator_on_arc_mesh(configs):
+    """Boundary controls from the constraint's order, and the junctions of Bryson-Denham's
+    constrained arc re-located on a (3, 1, 3) mesh whose breakpoints are off the corners
+    (measured: exit to ~6 d^2, entry to 0.8 d, then the secant step)."""
+    import pyomo.environ as pyo
+
+    from ocdsl.solve import ipopt
+    from ocdsl.solve import mesh_refinement as mr
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    f = compile_file(configs / "mesh_bryson_denham.yaml")
+    ph = f.problem.phases[0]
+    (j, (order, i, ub)), = mr._boundary_controls(ph, []).items()
+    assert (j, order, i) == (0, 2, 0) and float(ub(0.1, 0.0, 0.5)) == 0.0
+    g = compile_file(configs / "mesh_goddard.yaml").problem.phases[0]
+    bc = mr._boundary_controls(g, [])
+    assert bc[1][0] == 1   # v <= v_max: first order, u_b = (D + m/r^2)/T_max
+    r, v, m = 1.01, 0.1, 0.8
+    D = 310 * v ** 2 * np.exp(-500 * (r - 1))
+    assert abs(float(bc[1][2](r, v, m, 0.0)) - (D + m / r ** 2) / 3.5) < 1e-12
+
+    memory = {}
+    b = [1 / 3 + 1e-4, 2 / 3 + 2e-5]
+    got = []
+    for _ in range(3):
+        meshes = {ph.name: Mesh("LGR", np.array([0.0, *b, 1.0]), (3, 1, 3))}
+        tr = build(f.problem, meshes, {ph.name: make_guess(f.problem, ph, None)})
+        info = ipopt.solve(tr.model, {"tol": 1e-10, "bound_relax_factor": 1e-11})
+        assert info.status == "optimal"
+        b = mr.locate_junctions(tr.phases[0], {}, 1e-9, memory)
+        assert len(b) == 2
+        got.append((abs(b[0] - 1 / 3), abs(b[1] - 2 / 3)))
+        assert pyo.value(tr.model.objective) <= 4.0 + 1e-9
+    assert got[0][1] < 1e-8 and 0.5e-4 < got[0][0] < 1e-4   # exit: quadratic; entry: 0.8 d
+    assert got[-1][0] < 1e-8 and got[-1][1] < 1e-8           # after the secant step

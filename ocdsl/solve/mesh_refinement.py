@@ -47,6 +47,14 @@ Refinement rule
       Each one farther than ``corner_tolerance`` from a breakpoint becomes one: the nearest
       breakpoint is moved onto it when within ``snap`` of the segment width, else the segment
       is split there; the mesh is not converged while one is off its breakpoint.
+    - Ends of state-constrained arcs (``locate_junctions``, our method): from the boundary
+      control u_b (the bounded state differentiated along the dynamics until a control
+      appears, ``_boundary_controls``), the zero of u_U - u_b with u_U the control polynomial
+      of the nearest unconstrained segment (first-order constraints with a control jump: the
+      zero of that segment's state polynomial minus the bound); repeated on the same mesh
+      shape, a secant step on the map breakpoint -> estimate.
+    - On an arc mesh (every interior breakpoint on a located feature), breakpoints are moved
+      onto their re-located features and the segments next to them kept (``_arc_mesh_moves``).
     - At most ``growth`` times the segments per refinement (largest errors first).
     - Coarsening (``coarsen``), once a mesh meets the tolerance: Liu, Hager & Rao (2015)
       reduce degrees and merge segments where the error is far below tolerance; here
@@ -54,6 +62,11 @@ Refinement rule
       one Legendre polynomial fits the solution's states over it within
       ``coarsen_margin * tolerance``. The coarse mesh is solved and estimated like any other
       (refined again if it misses); the smallest mesh that met the tolerance is returned.
+      A second candidate is the arc mesh: one segment per arc between located features, a
+      state-constrained arc fitted on its boundary-control trajectory (``_arc_mesh``).
+    - Optional regularisation (``regularise`` > 0): w * int (du/ds)^2 ds over the arcs where
+      the control chattered (``chattering_segments``, ``regularise``); the reported objective
+      leaves the term out. It changes the problem (measured bias in docs/mesh-refinement.md).
 
 Warm start (``warm_start``): with ``multipliers`` (default) the new mesh starts from the
 previous mesh's polynomials and from its multipliers mapped through the costate, the path and
@@ -613,12 +626,12 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
                 xs_other = _seg_polys(lay, other, X, U)[0]
                 a_o, b_o = bps[other], bps[other + 1]
 
-                def phi(s, other=other):
+                def phi(s, other=other, i=i, ub=ub):
                     x = _state_at(lay, X, U, s)
                     return float(polys[other](np.array([s]))[0, i]
                                  - ub(*x, t0 + (tf - t0) * s, *pvals))
 
-                def psi(s, xs_other=xs_other, a_o=a_o, b_o=b_o, bound=bound):
+                def psi(s, xs_other=xs_other, a_o=a_o, b_o=b_o, bound=bound, j=j):
                     # the state leaves (reaches) its bound with a kink where the control jumps;
                     # the other arc's state polynomial, extrapolated, crosses the bound there
                     return float(xs_other(2.0 * (s - a_o) / (b_o - a_o) - 1.0)[0, j] - bound)
@@ -964,16 +977,16 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float):
     ta, tb = t0 + (tf - t0) * a, t0 + (tf - t0) * b
     ts = np.clip(t0 + (tf - t0) * np.concatenate([lay.s_state[inside], pts]), min(ta, tb), max(ta, tb))
     t_eval = np.unique(ts)
-    for j, (q, i, ub) in _boundary_controls(ph, []).items():
+    nu = len(ph.controls)
+    for _q, i, ub in _boundary_controls(ph, []).values():
         lo, hi = ph.bounds_of(ph.controls[i])
-        nu = len(ph.controls)
 
         def control(x, t, i=i, ub=ub):
             u = np.zeros(nu)
             u[i] = float(ub(*x, t))
             return u
 
-        def rhs(t, x):
+        def rhs(t, x, control=control):
             return np.asarray(f(*x, *control(x, t), t), float).reshape(-1)
 
         x0 = _state_at(lay, X, U, a)
