@@ -381,6 +381,10 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
             R[(status < 0) | (status == 2)] = 1e6
             cache.clear()
             cache[key] = (R[0], ((R[1:] - R[0]) / h).T)
+            # SLSQP's iterates may leave the box and its line search may fail on noisy
+            # finite differences: the fastest iterate inside the zeta box is kept
+            if np.all(np.abs(R[0]) <= 1.0) and X[0, itf] < best[0]:
+                best[0], best[1] = float(X[0, itf]), X[0].copy()
         return cache[key]
 
     target = settings.target_ratio
@@ -392,6 +396,7 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
     u0 = (x[idx] - lo[idx]) / width
     box = list(zip((wide_lo[idx] - lo[idx]) / width, (wide_hi[idx] - lo[idx]) / width))
     tf0 = float(x[itf])
+    best: list = [tf0, x.copy()]
     try:
         sol = minimize(lambda u: lo[itf] + u[j_tf] * width[j_tf], u0, jac=lambda u: grad, bounds=box,
                        constraints=constraints, method="SLSQP",
@@ -401,12 +406,13 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
     except Exception as e:  # keep the previous point on any failure
         return x, {"refine": f"failed: {e}", "evaluations": n_evals[0], "tf_start": tf0, "tf_end": tf0}
     dn = pp.details(xn)
+    if not _inside(dn) or xn[itf] > best[0]:
+        final = f"final iterate tf {xn[itf]:.6g}, max |e|/zeta {dn['ratio'].max():.3g}"
+        xn, dn = best[1], pp.details(best[1])
+        message = (f"{message}; {final}; kept the fastest iterate inside the zeta box" if best[0] < tf0
+                   else f"rejected ({message}; {final})")
     summary = {"refine": message, "evaluations": n_evals[0], "tf_start": tf0, "tf_end": float(xn[itf]),
                "max_error_over_zeta": float(dn["ratio"].max()), "box_scale": settings.box_scale}
-    if not _inside(dn) or xn[itf] > tf0:
-        summary["refine"] = f"rejected ({message}; tf {xn[itf]:.6g}, max |e|/zeta {dn['ratio'].max():.3g})"
-        summary["tf_end"] = tf0
-        return x, summary
     return xn, summary
 
 
