@@ -213,3 +213,58 @@ def test_junction_locator_on_arc_mesh(configs):
         assert pyo.value(tr.model.objective) <= 4.0 + 1e-9
     assert got[0][1] < 1e-8 and 0.5e-4 < got[0][0] < 1e-4   # exit: quadratic; entry: 0.8 d
     assert got[-1][0] < 1e-8 and got[-1][1] < 1e-8           # after the secant step
+
+
+@pytest.mark.parametrize("scheme", ["LG", "LGR", "LGR-start", "LGL"])
+def test_bryson_denham_every_scheme(configs, scheme):
+    """Refinement converges with every collocation scheme (LG used to repeat its 2 x 3 mesh
+    until max_iterations: the split of each segment's two brackets did not fit the growth
+    budget and was dropped), each iteration's mesh differs from the one before, and J = 4."""
+    loaded = ocdsl.load(configs / "mesh_bryson_denham.yaml")
+    loaded.file.method.transcription = scheme
+    res = loaded.solve()
+    assert res.status == "optimal", res.message
+    assert abs(res.objective - 4.0) <= 1e-8
+    assert max(res.tables["mesh_error"]["error"]) <= res.extra["mesh"]["tolerance"]
+    hist = res.extra["mesh_history"]
+    assert len(hist) <= 14
+    for before, after in zip(hist, hist[1:]):
+        assert after["meshes"] != before["meshes"] or before.get("converged"), (before["iteration"], after["meshes"])
+
+
+def test_refine_never_returns_the_same_mesh_silently():
+    """The growth budget cuts an oversized split down instead of dropping it, and a mesh that
+    cannot change while the tolerance is unmet raises MeshStalled."""
+    from ocdsl.solve import mesh_refinement as mr
+    from ocdsl.spec.schema import MeshSpec
+    from ocdsl.transcribe.mesh import Mesh
+
+    spec = MeshSpec(tolerance=1e-8)
+    mesh = Mesh.uniform("LG", 2, 3)
+    # Bryson-Denham, LG 2 x 3: x touches its bound at the middle Gauss point of each segment
+    g = [0.0563508327, 0.25, 0.4436491673]
+    errors = [mr.SegmentError("main", k, 0.5 * k, 0.5 * k + 0.5, 3, 1.56e-3, 1.56e-3, 0.0, "x", True,
+                              [(0.5 * k + g[0], 0.5 * k + g[1]), (0.5 * k + g[1], 0.5 * k + g[2])])
+              for k in range(2)]
+    new = mr.refine(mesh, errors, spec, features=[])
+    assert not mr.same_mesh(new, mesh)
+    assert 2 < new.segments <= spec.growth * mesh.segments
+    # below tolerance everywhere, but a located feature that no breakpoint can take
+    ok = [mr.SegmentError("main", k, 0.5 * k, 0.5 * k + 0.5, 3, 1e-10, 1e-10, 0.0, "x", False)
+          for k in range(2)]
+    with pytest.raises(mr.MeshStalled, match="could not be put on breakpoints"):
+        mr.refine(mesh, ok, spec, features=[1.5])
+    # above tolerance with the rules leaving the mesh alone (max_degree reached, no budget):
+    # the worst segment is bisected
+    forced = mr._forced_refinement(Mesh.uniform("LG", 2, 12), errors, spec, [])
+    assert forced.segments == 3
+
+
+def test_same_mesh_stops_with_a_message(configs, monkeypatch):
+    from ocdsl.solve import mesh_refinement as mr
+
+    monkeypatch.setattr(mr, "refine", lambda mesh, *a, **k: mesh)
+    res = _solve(configs, "mesh_bryson_denham.yaml")
+    assert res.status == "mesh_not_converged"
+    assert len(res.extra["mesh_history"]) == 1
+    assert "same mesh" in res.message and "Stopped early" in res.message

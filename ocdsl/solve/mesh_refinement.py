@@ -835,17 +835,21 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None)
             B = max(math.ceil((N + P) / nmin), 2)
             edges = [a + (b - a) * q / B for q in range(B + 1)]
             proposals.append([[x, y, nmin] for x, y in zip(edges, edges[1:])])
-    # at most growth x the segments: the largest errors are split first, the others wait
+    # at most growth x the segments: the largest errors are split first; a split that does not
+    # fit the remaining budget is cut down to it (``_within_budget``), and a segment that gets
+    # no new segment at all waits. (It used to be left as it was even when it came first:
+    # Bryson-Denham with LG on 2 x 3 touches x <= l at two Gauss points of each segment, so
+    # each segment's brackets asked for 5 cuts against a budget of 4 and the 2 x 3 mesh was
+    # solved again until max_iterations.)
     budget = max(1, int(spec.growth * mesh.segments) - mesh.segments)
     for k in sorted(range(len(errors)), key=lambda q: -errors[q].error):
         extra = len(proposals[k]) - 1
         if extra <= 0:
             continue
-        if extra <= budget:
-            budget -= extra
-        else:
-            a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
-            proposals[k] = [[a, b, mesh.degrees[k]]]
+        if extra > budget:
+            proposals[k] = _within_budget(proposals[k], budget, mesh.degrees[k])
+            extra = len(proposals[k]) - 1
+        budget -= extra
     segs = [sg for prop in proposals for sg in prop]
     for q, f in moves.items():   # the segments next to a moved breakpoint were kept: edges exact
         b = float(mesh.breakpoints[q])
@@ -857,7 +861,63 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None)
     segs = [sg for sg in segs if sg[1] > sg[0]]
     bps = [0.0] + [sg[1] for sg in segs]
     bps[-1] = 1.0
-    return Mesh(mesh.scheme_name, np.array(bps), tuple(int(sg[2]) for sg in segs))
+    new = Mesh(mesh.scheme_name, np.array(bps), tuple(int(sg[2]) for sg in segs))
+    if same_mesh(new, mesh) and (todo or any(e.error > tol for e in errors)):
+        # never the same mesh again while the tolerance is unmet: the worst segment is
+        # refined regardless of the rules above, or the refinement stops (MeshStalled)
+        new = _forced_refinement(mesh, errors, spec, todo)
+    return new
+
+
+class MeshStalled(RuntimeError):
+    """``refine`` cannot produce a mesh different from the current one although the
+    tolerance is unmet; ``solve_adaptive`` ends with ``mesh_not_converged`` and this message."""
+
+
+def same_mesh(a, b) -> bool:
+    return (a.scheme_name == b.scheme_name and tuple(a.degrees) == tuple(b.degrees)
+            and np.array_equal(np.asarray(a.breakpoints), np.asarray(b.breakpoints)))
+
+
+def _within_budget(prop: list[list], budget: int, degree: int) -> list[list]:
+    """A segment's proposal [[a, b, N], ...] cut down to at most ``budget`` new segments:
+    ``budget`` of its interior edges, evenly spread over them (a bracketed switch keeps edges on
+    either side of it), each piece with the proposal's largest degree; with no budget left,
+    the segment unchanged (it waits for the next iteration)."""
+    a, b = prop[0][0], prop[-1][1]
+    if budget <= 0:
+        return [[a, b, degree]]
+    inner = [sg[1] for sg in prop[:-1]]
+    pick = sorted({inner[min(len(inner) - 1, round((q + 1) * (len(inner) + 1) / (budget + 1)) - 1)]
+                   for q in range(budget)})
+    N = max(sg[2] for sg in prop)
+    edges = [a, *pick, b]
+    return [[x, y, N] for x, y in zip(edges, edges[1:])]
+
+
+def _forced_refinement(mesh, errors, spec, todo):
+    """The mesh with its worst segment (largest error) refined: degree raised by one up to
+    max_degree, else bisected. Raises MeshStalled when neither is possible."""
+    from ..transcribe.mesh import Mesh
+
+    bps = np.asarray(mesh.breakpoints, float)
+    worst = max(errors, key=lambda e: e.error) if errors else None
+    if worst is None or not (worst.error > spec.tolerance):
+        raise MeshStalled(f"located switches/corners {todo} could not be put on breakpoints of mesh "
+                          f"{mesh.describe()}")
+    k = worst.segment
+    degrees = list(mesh.degrees)
+    if degrees[k] < spec.max_degree:
+        degrees[k] += 1
+        return Mesh(mesh.scheme_name, bps.copy(), tuple(degrees))
+    a, b = bps[k], bps[k + 1]
+    mid = 0.5 * (a + b)
+    if not (a < mid < b) or b - a < 1e-12:
+        raise MeshStalled(f"segment {k} (s in [{a:.6g}, {b:.6g}]) has error {worst.error:.3e} above "
+                          f"tolerance {spec.tolerance:.1e} at max_degree {spec.max_degree} and is too "
+                          "short to split")
+    degrees[k:k + 1] = [spec.min_degree, spec.min_degree]
+    return Mesh(mesh.scheme_name, np.concatenate([bps[:k + 1], [mid], bps[k + 1:]]), tuple(degrees))
 
 
 # ---------------------------------------------------------------------------------------
@@ -1225,6 +1285,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                           "max_error", "max_error_segment", "max_error_t", "time_s")}
     best = None          # (max_error, iteration, tr, info, meshes, errors)
     status, message = None, ""
+    stalled = ""         # why the refinement stopped before max_iterations without converging
     last = None
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
@@ -1344,8 +1405,20 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             break
         previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
         snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
-        meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec,
-                                        features=features[pb.phase.name]) for pb in tr.phases}
+        try:
+            new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec,
+                                                features=features[pb.phase.name]) for pb in tr.phases}
+        except MeshStalled as exc:
+            stalled = f"mesh iteration {it}: refinement stalled: {exc}"
+            rec["stalled"] = str(exc)
+            break
+        if all(same_mesh(new_meshes[k], meshes[k]) for k in meshes):
+            # refine() changes every phase that misses the tolerance; this is a last guard
+            stalled = (f"mesh iteration {it}: refinement returned the same mesh while the tolerance "
+                       f"{spec.tolerance:.1e} is unmet (largest error {max_err:.3e})")
+            rec["stalled"] = stalled
+            break
+        meshes = new_meshes
     if status is None:
         if converged:
             chosen = min(converged, key=lambda c: (c[3].nlp.get("variables", 0), c[0]))
@@ -1370,9 +1443,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                  f"{worst.t_end:.6g}], state {worst.state}); {len(above)} segment(s) above tolerance"
                  if worst else f"within tolerance but located switches/corners {off_c} are off the breakpoints")
         message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
-                   f"{spec.max_iterations} iterations: best mesh (iteration {it_c}) has largest estimated "
-                   f"error {max_err:.3e} {where}. Raise max_iterations or max_degree, "
-                   "or loosen the tolerance.")
+                   f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
+                   f"largest estimated error {max_err:.3e} {where}. "
+                   + (f"Stopped early because {stalled}." if stalled else
+                      "Raise max_iterations or max_degree, or loosen the tolerance."))
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
