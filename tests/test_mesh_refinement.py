@@ -268,3 +268,16 @@ def test_same_mesh_stops_with_a_message(configs, monkeypatch):
     assert res.status == "mesh_not_converged"
     assert len(res.extra["mesh_history"]) == 1
     assert "same mesh" in res.message and "Stopped early" in res.message
+
+
+def test_two_phase_mesh_lg(configs):
+    """A two-phase problem (LG, as in its file) with a mesh block runs to optimal."""
+    from ocdsl.spec.schema import MeshSpec
+
+    loaded = ocdsl.load(configs / "two_phase_double_integrator.yaml")
+    loaded.file.method.mesh = MeshSpec(tolerance=1e-8, max_iterations=8)
+    res = loaded.solve()
+    assert res.status == "optimal", res.message
+    assert abs(res.phase("brake").time[-1] - 2.0) <= 1e-8
+    assert abs(res.phase("accelerate").time[-1] - 1.0) <= 1e-8
+    assert set(res.extra["mesh_history"][0]["meshes"]) == {"accelerate", "brake"}
