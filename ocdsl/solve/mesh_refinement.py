@@ -55,7 +55,12 @@ Refinement rule
       shape, a secant step on the map breakpoint -> estimate.
     - On an arc mesh (every interior breakpoint on a located feature), breakpoints are moved
       onto their re-located features and the segments next to them kept (``_arc_mesh_moves``).
-    - At most ``growth`` times the segments per refinement (largest errors first).
+    - At most ``growth`` times the segments per refinement (largest errors first); a split
+      over the remaining budget is cut down to it (``_within_budget``), never dropped.
+    - Never the same mesh twice while the tolerance is unmet: if the rules leave a phase's
+      mesh unchanged, its worst segment gets degree + 1 (up to ``max_degree``) or is bisected
+      (``_forced_refinement``); when that is impossible ``MeshStalled`` ends the run with
+      ``mesh_not_converged`` and the reason in the message.
     - Coarsening (``coarsen``), once a mesh meets the tolerance: Liu, Hager & Rao (2015)
       reduce degrees and merge segments where the error is far below tolerance; here
       consecutive segments are merged and every segment gets the smallest degree for which
