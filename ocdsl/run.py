@@ -45,7 +45,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     from .solve import ipopt
     from .transcribe.guess import make_guess
     from .transcribe.mesh import Mesh
-    from .transcribe.pseudospectral import build, gc_frozen
+    from .transcribe.pseudospectral import build
 
     ipopt.check_available()
     problem, method = file.problem, file.method
@@ -73,8 +73,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         with timer.measure("build"):
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=s) for ph in problem.phases}
             tr = build(problem, meshes, guesses)
-        # gc_frozen: the hand-over's full collections do not walk the built model again
-        with timer.measure("solve"), gc_frozen():
+        with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[{i + 1}/{starts}]" if starts > 1 else "")
             info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar)
         records.append({"start": i, "seed": s, "status": info.status, "objective": info.objective,

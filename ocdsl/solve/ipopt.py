@@ -224,14 +224,19 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers) -> Solve
             on_iteration(it, obj, inf_pr, inf_du)
         return True
 
+    from ..transcribe.pseudospectral import gc_frozen
+
     t = time.perf_counter()
     try:
-        if multipliers is not None:
-            msg, nlp = _solve_direct(model, opts, verbose, callback, multipliers)
-        else:
-            solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
-            results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
-            msg = results.solver.message
+        # gc_frozen: the hand-over's full collections do not walk the built model again
+        # (reports/bench/levers.md section 11)
+        with gc_frozen():
+            if multipliers is not None:
+                msg, nlp = _solve_direct(model, opts, verbose, callback, multipliers)
+            else:
+                solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
+                results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
+                msg = results.solver.message
     except Exception as e:  # evaluation errors, bad options...
         return SolveInfo("error", f"{type(e).__name__}: {e}", len(history) and history[-1][0],
                          None, time.perf_counter() - t, history=history)

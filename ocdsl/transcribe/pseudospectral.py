@@ -89,7 +89,9 @@ def gc_frozen():
     For the hand-over to Ipopt: the NL writer allocates millions of small objects, and each
     full collection they trigger otherwise walks the whole model again (measured: one such
     collection made the hand-over 1.5 -> 2.6 s CPU at 2,000 segments). gc.unfreeze() on exit
-    puts everything back in the oldest generation, so nothing is kept alive longer.
+    puts everything back in the oldest generation, so nothing is kept alive longer. Used by
+    ``ocdsl.solve.ipopt.solve`` around the hand-over and the solve (not re-entrant: an inner
+    use would unfreeze the outer one's objects early, which is harmless but undoes it).
     """
     if not FAST["no_gc"] or not gc.isenabled():
         yield
