@@ -46,7 +46,7 @@ def test_integer_parameter_without_bounds():
 
 def test_integer_free_parameter_without_bounds_in_problem(tmp_path):
     from ocdsl.search.run import run
-    p, _ = _variant(tmp_path, "N_rev: {free: true, integer: true, bounds: [3, 8], value: 5}",
+    p, _ = _variant(tmp_path, "N_rev: {free: true, integer: true, bounds: [5, 5], value: 5}",
                     "N_rev: {free: true, integer: true, value: 5}")
     p.write_text(p.read_text().replace("  parameters: {N_rev: {integer: true, bounds: [3, 8]}}", ""))
     lf = load(p)
