@@ -179,6 +179,10 @@ def test_optimal_10N(tmp_path):
     assert tf <= 1.8065                     # the paper's indirect reference
     assert tf <= paper.tf
     assert all(c["passed"] for c in opt.expect)
+    # the digest's independent collocation optimum (Hermite-Simpson N = 3000: 1.54475 TU), in
+    # the paper's revolution class N_rev = 5 ([0, 2 pi) convention)
+    assert abs(tf - 1.54475) <= 1e-3 * 1.54475, tf
+    assert opt.extra["side_by_side"]["optimal"]["N_rev"] == paper.extra["N_rev"] == 5
 
 
 @pytest.mark.slow
@@ -187,3 +191,6 @@ def test_optimal_10N(tmp_path):
 def test_optimal_5N_2N(n, tmp_path):
     paper, opt = _paper_then_optimal(n, tmp_path)
     assert opt.extra["tf_physical"] <= paper.tf
+    # in the paper's class and at or below its printed Fourier-DPSO tf (3.02396 / 6.8730 TU)
+    assert opt.extra["side_by_side"]["optimal"]["N_rev"] == {5: 10, 2: 25}[n]
+    assert all(c["passed"] for c in opt.expect)
