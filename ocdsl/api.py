@@ -64,6 +64,7 @@ class Loaded:
         self.timer = Timer()
         self.file = compile_file(path, parameters, self.timer)
         self._parameters = dict(parameters or {})
+        self._reuse = None          # ocdsl.solve.reuse.ModelReuse, made on the first reuse=True
 
     @property
     def problem(self):
@@ -71,9 +72,13 @@ class Loaded:
 
     def solve(self, out: str | Path | None = None, *, parameters: dict[str, float] | None = None,
               seed: int | None = None, warm_start: str | Path | None = None, verbose: bool = False,
-              progress: bool = False) -> Result:
+              progress: bool = False, reuse: bool = False) -> Result:
         """Solve; ``parameters`` re-compiles with other constants without re-reading the file
-        (what a study worker does for each of its points). The handle itself is not changed."""
+        (what a study worker does for each of its points). The handle itself is not changed.
+
+        ``reuse``: with ``parameters``, keep one Pyomo model per set of parameter names, with
+        those constants as mutable Params, and re-solve it at each call whose problem has the
+        same structure (ocdsl/solve/reuse.py); else, and always as a fallback, build afresh."""
         timer, file = Timer(), self.file
         if parameters:
             with timer.measure("symbolic"):
@@ -81,7 +86,16 @@ class Loaded:
                 file = spec_compile._Compiler(self.path, file.located, file.spec, merged).compile()
         else:
             timer.stages.update(self.timer.stages)
-        result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=progress)
+        result = None
+        if reuse and parameters:
+            if self._reuse is None:
+                from .solve.reuse import ModelReuse
+
+                self._reuse = ModelReuse(self)
+            result = self._reuse.solve(file, parameters, timer, seed=seed, warm_start=warm_start,
+                                       verbose=verbose, progress=progress)
+        if result is None:
+            result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=progress)
         if out is not None:
             write_run(result, out, self.path)
         return result

@@ -40,6 +40,41 @@ def _better(info, best, sense: str) -> bool:
     return info.objective < best.objective if sense == "minimize" else info.objective > best.objective
 
 
+def previous_phases(file: LoadedFile, warm_start=None) -> dict:
+    """Phase name -> the PhaseTrajectory a phase's guess starts from: the ``warm_start`` run
+    folder, else ``guess: {from: RUN_DIR}`` in the file (relative to the file), phase by phase."""
+    previous = {}
+    if warm_start is not None:
+        return {p.name: p for p in Result.read(warm_start).phases}
+    for ph in file.problem.phases:
+        source = ph.guess.get("from")
+        if source:
+            folder = (file.path.parent / source) if not Path(source).is_absolute() else Path(source)
+            prev = {p.name: p for p in Result.read(folder).phases}
+            if ph.name in prev:
+                previous[ph.name] = prev[ph.name]
+            elif len(prev) == 1:
+                previous[ph.name] = next(iter(prev.values()))
+    return previous
+
+
+def solve_built(file: LoadedFile, tr, meshes, timer, *, verbose=False, progress=False) -> Result:
+    """Solve an already built (and started) transcription once and make its Result (the
+    reused-model path of a study point, ocdsl/solve/reuse.py)."""
+    from .solve import ipopt
+
+    with timer.measure("solve"):
+        info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose,
+                           progress=ipopt.Progress(progress, ""))
+    with timer.measure("post"):
+        result = _result(file, tr, info, timer, meshes)
+        result.extra["starts"] = [{"start": 0, "seed": None, "status": info.status,
+                                   "objective": info.objective, "iterations": info.iterations,
+                                   "solve_time_s": round(info.solve_time, 4)}]
+    result.wall_time_s = timer.breakdown()
+    return result
+
+
 def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None, verbose=False,
                          progress=False, meshes=None) -> Result:
     from .solve import ipopt
@@ -51,20 +86,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     problem, method = file.problem, file.method
     meshes = meshes or {ph.name: Mesh.uniform(method.transcription, method.segments, method.degree)
                         for ph in problem.phases}
-    previous = {}
-    if warm_start is not None:
-        previous = {p.name: p for p in Result.read(warm_start).phases}
-    else:
-        # `guess: {from: RUN_DIR}` in the file (relative to the file), phase by phase
-        for ph in problem.phases:
-            source = ph.guess.get("from")
-            if source:
-                folder = (file.path.parent / source) if not Path(source).is_absolute() else Path(source)
-                prev = {p.name: p for p in Result.read(folder).phases}
-                if ph.name in prev:
-                    previous[ph.name] = prev[ph.name]
-                elif len(prev) == 1:
-                    previous[ph.name] = next(iter(prev.values()))
+    previous = previous_phases(file, warm_start)
     starts = method.starts
     best = best_tr = None
     records = []

@@ -117,6 +117,7 @@ def test_points_grid_zip_list_and_determinism():
     ("sweep: {grdi: {a: [1]}}", "unknown key 'grdi'"),
     ("monte-carlo: {n: 3, parameters: {a: {dist: normal}}}", "std"),
     ("continuation: true\nstarts: 2", "needs a `sweep`"),
+    ("sweep: {list: [{a: 1}]}\nreuse_model: maybe", "reuse_model"),
 ])
 def test_bad_study_blocks(tmp_path, block, match):
     body = "name: demo\nparameters: {a: 1.0, b: 2.0}\nstudy:\n" + textwrap.indent(block, "  ") + "\n"

@@ -343,6 +343,10 @@ class _Compiler:
         prefix = f"{name}." if multi else ""
         constants = {s: v for s, v in model.parameters.items() if v is not None and s not in self.free}
         constants.update({s: v for s, v in top_params.items() if v is not None})
+        # ``symbolic``: constants left as symbols (not folded), for a model built once with
+        # them as mutable Pyomo Params and re-solved at each study point (ocdsl/solve/reuse.py)
+        for s in [s for s in constants if s.name in getattr(self, "symbolic", ())]:
+            del constants[s]
         for s, v in model.parameters.items():
             if v is None and s not in self.free:
                 self.issue(loc, f"model parameter '{s}' has no value; give it under model: parameters:")

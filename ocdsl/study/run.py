@@ -57,13 +57,16 @@ POINT_FILE = "point.json"
 # the default point function: ocdsl's own solve, with the built problem cached per worker
 # --------------------------------------------------------------------------------------
 def solve_point(path: str, out_dir: str, parameters: dict[str, float] | None = None,
-                seed: int | None = None, warm_start: str | None = None, quiet: bool = True) -> Any:
+                seed: int | None = None, warm_start: str | None = None, quiet: bool = True,
+                reuse: bool = True) -> Any:
     """Solve one point like ``ocdsl.api.run_file`` (the default point function).
 
     Imports (Pyomo, SymPy, ocdsl) happen once per worker process, which lives for the
     whole study. When the API can re-solve a built problem with new parameter values
     (``ocdsl.load(path)`` whose ``.solve`` takes ``parameters=``), the built problem is
     also cached per worker by (path, mtime, size); otherwise each point calls ``run_file``.
+    ``reuse``: re-solve one built model with the swept constants as mutable Params where the
+    point's structure allows (the study's ``reuse_model``; ocdsl/solve/reuse.py).
     """
     import ocdsl.api as api
     loaded_cls = getattr(api, "Loaded", None)
@@ -71,7 +74,8 @@ def solve_point(path: str, out_dir: str, parameters: dict[str, float] | None = N
         st = os.stat(path)
         handle = worker_cache(("ocdsl.load", str(path), st.st_mtime_ns, st.st_size),
                               lambda: api.load(path))
-        res = handle.solve(out=out_dir, parameters=parameters, seed=seed, warm_start=warm_start)
+        kw = {"reuse": reuse} if _takes(loaded_cls.solve, "reuse") else {}
+        res = handle.solve(out=out_dir, parameters=parameters, seed=seed, warm_start=warm_start, **kw)
         if not (Path(out_dir) / "result.json").is_file():
             res.write(out_dir)
         return res
@@ -156,10 +160,11 @@ def _solve_point(task: dict[str, Any]) -> dict[str, Any]:
             _write_files(warm, task["warm_files"])
         run_dir = scratch / "run"
         fn: Callable = task.get("point_fn") or solve_point
+        extra = {"reuse": task["reuse_model"]} if fn is solve_point and "reuse_model" in task else {}
         ret = None
         try:
             ret = fn(problem, str(run_dir), parameters=dict(point.parameters), seed=point.seed,
-                     warm_start=str(warm) if warm else None, quiet=True)
+                     warm_start=str(warm) if warm else None, quiet=True, **extra)
         except Exception as exc:  # a failed point never stops the study
             shutil.rmtree(run_dir, ignore_errors=True)
             _error_result(Path(problem).stem, point, f"{type(exc).__name__}: {exc}",
@@ -477,6 +482,7 @@ def run_study(problem_path: str | os.PathLike, out_dir: str | os.PathLike, *,
             _check_problem(loaded.problem_path)
         res = run_points(loaded.problem_path, out_dir, loaded.points, resume=resume,
                          quiet=quiet, point_fn=point_fn, executor=ex,
+                         reuse_model=loaded.spec.reuse_model,
                          info={"name": loaded.spec.name or loaded.study_path.stem,
                                "study_file": str(loaded.study_path),
                                "spec": loaded.spec.model_dump(mode="json", by_alias=True,
@@ -492,11 +498,12 @@ def run_points(problem_path: str | os.PathLike, out_dir: str | os.PathLike,
                points: Iterable[Point | dict], *, workers: int | None = None,
                serial: bool = False, scheduler: Any = None, resume: bool = False,
                quiet: bool = False, point_fn: Callable | None = None,
-               executor: Executor | None = None, info: dict[str, Any] | None = None
-               ) -> StudyResult:
+               executor: Executor | None = None, info: dict[str, Any] | None = None,
+               reuse_model: bool = True) -> StudyResult:
     """The study engine for a given list of points (``Point`` or its JSON dict: ``id``,
     ``parameters``, ``seed``, ``parent``, ``tags``). Pareto scans call this with their own
-    points; pass ``executor`` to reuse one across calls."""
+    points; pass ``executor`` to reuse one across calls. ``reuse_model``: the default point
+    function re-solves one built model per worker where it can (:func:`solve_point`)."""
     t_start = time.perf_counter()
     problem_path = Path(problem_path).resolve()
     out_dir = Path(out_dir)
@@ -528,7 +535,7 @@ def run_points(problem_path: str | os.PathLike, out_dir: str | os.PathLike,
     ex = executor or Executor(workers=workers, serial=serial, scheduler=scheduler)
     try:
         return _run(ex, problem_path, problem_text, sha, fingerprint, out_dir, points,
-                    quiet, point_fn, dict(info or {}), t_start)
+                    quiet, point_fn, dict(info or {}), t_start, reuse_model)
     except BaseException:
         if own_executor:
             ex.close(kill=True)
@@ -551,7 +558,7 @@ def _check_points(points: list[Point]) -> None:
 
 def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, fingerprint: str,
          out_dir: Path, points: list[Point], quiet: bool, point_fn: Callable | None,
-         info: dict[str, Any], t_start: float) -> StudyResult:
+         info: dict[str, Any], t_start: float, reuse_model: bool = True) -> StudyResult:
     points_dir = out_dir / "points"
     points_dir.mkdir(parents=True, exist_ok=True)
     for stale in points_dir.glob(".*"):  # half-written folders of a killed run
@@ -601,7 +608,7 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
                 task = {"point": p.to_json(), "problem_path": str(problem_path),
                         "problem_text": problem_text, "problem_sha": sha,
                         "warm_files": _read_files(points_dir / warm_id) if warm_id else None,
-                        "warm_id": warm_id, "point_fn": point_fn}
+                        "warm_id": warm_id, "point_fn": point_fn, "reuse_model": reuse_model}
                 h = ex.submit(_solve_point, task, key=f"ocdsl-{pid}-{session}")
                 inflight[h] = pid
                 if ex.kind == "serial":

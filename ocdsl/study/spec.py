@@ -196,6 +196,9 @@ class StudySpec(_Strict):
     starts: Starts | None = None
     monte_carlo: MonteCarlo | None = Field(default=None, alias="monte-carlo")
     continuation: bool = False
+    # one Pyomo model per worker, with the swept constants as mutable Params, re-solved at
+    # each point of the same structure (ocdsl/solve/reuse.py; docs/studies.md)
+    reuse_model: bool = True
 
     @field_validator("starts", mode="before")
     @classmethod

@@ -103,23 +103,34 @@ def gc_frozen():
         gc.unfreeze()
 
 
-def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess]) -> Transcription:
-    """Build the Pyomo model of ``problem`` on ``meshes`` (one per phase) from ``guesses``."""
+def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess],
+          mutable: dict[sp.Symbol, float] | None = None) -> Transcription:
+    """Build the Pyomo model of ``problem`` on ``meshes`` (one per phase) from ``guesses``.
+
+    ``mutable``: constant parameters the problem keeps as symbols (compiled with them not
+    folded), each made a mutable Pyomo Param ``c_<name>`` with this value, so that the model
+    can be re-solved with other values (ocdsl/solve/reuse.py)."""
     with _gc_paused():
-        return _build(problem, meshes, guesses)
+        return _build(problem, meshes, guesses, mutable or {})
 
 
-def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess]) -> Transcription:
+def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess],
+           mutable: dict[sp.Symbol, float]) -> Transcription:
     m = pyo.ConcreteModel(name=problem.name)
     m.dual = pyo.Suffix(direction=pyo.Suffix.IMPORT)
     scalars: dict[sp.Symbol, Any] = {}
+    for s, value in mutable.items():
+        prm = pyo.Param(initialize=float(value), mutable=True)
+        m.add_component(f"c_{s.name}", prm)
+        scalars[s] = prm
     for s, fp in problem.free_parameters.items():
         v = pyo.Var(bounds=(_bound(fp.lower), _bound(fp.upper)), initialize=fp.guess)
         m.add_component(f"p_{s.name}", v)
         scalars[s] = v
     blocks = []
     for ph in problem.phases:
-        pb = _build_phase(m, ph, meshes[ph.name], guesses[ph.name], problem, scalars)
+        pb = _build_phase(m, ph, meshes[ph.name], guesses[ph.name], problem, scalars,
+                          sorted(mutable, key=str))
         blocks.append(pb)
     # boundary values are the first/last state nodes
     for s, bv in problem.boundary_values.items():
@@ -183,7 +194,8 @@ def _ranged(e, lo: float, hi: float):
     return e <= hi
 
 
-def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, scalars) -> PhaseBlock:
+def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, scalars,
+                 consts: list = ()) -> PhaseBlock:
     lay = Layout.of(mesh)
     b = pyo.Block()
     m.add_component(f"phase_{ph.name}", b)
@@ -215,6 +227,8 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
     duration = b.tf - b.t0 if (ph.t0 is None or ph.tf is None) else float(ph.tf - ph.t0)
 
     free = sorted(problem.free_parameters, key=str)
+    # constants kept as symbols (``build(mutable=...)``) are arguments like free parameters
+    free += list(consts)
     params = [scalars[s] for s in free]
     rhs = ph.rhs()
     args = list(ph.states) + list(ph.controls) + [TIME] + free
