@@ -281,3 +281,56 @@ def test_two_phase_mesh_lg(configs):
     assert abs(res.phase("brake").time[-1] - 2.0) <= 1e-8
     assert abs(res.phase("accelerate").time[-1] - 1.0) <= 1e-8
     assert set(res.extra["mesh_history"][0]["meshes"]) == {"accelerate", "brake"}
+
+
+@pytest.mark.parametrize("scheme", ["LGR", "LGR-start", "LGL"])
+def test_two_phase_mesh_every_scheme(configs, scheme):
+    """The two-phase double integrator with a mesh, from 2 x 3 per phase, in the schemes that
+    collocate a control at the phase junction: optimal, tf to 1e-8, the phase switch to 1e-6.
+    Before ``junction_control: limit`` LGR and LGR-start ended mesh_not_converged in 8
+    iterations (195 variables, estimate 2.8e-6) and LGL too (198, 1.0e-4): the NLP put the
+    control at the junction's collocated point at the other bound (docs/mesh-refinement.md)."""
+    from ocdsl.spec.schema import MeshSpec
+
+    loaded = ocdsl.load(configs / "two_phase_double_integrator.yaml")
+    loaded.file.method.transcription = scheme
+    loaded.file.method.segments, loaded.file.method.degree = 2, 3
+    loaded.file.method.mesh = MeshSpec(tolerance=1e-8, max_iterations=8)
+    res = loaded.solve()
+    assert res.status == "optimal", res.message
+    assert abs(res.phase("brake").time[-1] - 2.0) <= 1e-8
+    assert abs(res.phase("accelerate").time[-1] - 1.0) <= 1e-6
+    assert res.extra["mesh"]["max_error"] <= 1e-8
+    assert len(res.extra["mesh_history"]) <= 3
+    # the control at the junction is its own phase's one-sided limit: full thrust / full braking
+    u_acc, u_brk = res.phase("accelerate").controls["u"], res.phase("brake").controls["u"]
+    assert np.all(u_acc >= 1 - 1e-6) and np.all(u_brk <= -1 + 1e-6)
+
+
+def test_two_phase_junction_control_free_is_the_old_transcription(configs):
+    """``junction_control: free`` leaves the junction control to the NLP: on 2 x 3 per phase
+    (LGR) it goes to the other bound, the control polynomial overshoots the bound between the
+    nodes and the estimate sees the collocated state ahead of every admissible trajectory."""
+    from ocdsl.spec.schema import MeshSpec
+
+    loaded = ocdsl.load(configs / "two_phase_double_integrator.yaml")
+    loaded.file.method.transcription = "LGR"
+    loaded.file.method.segments, loaded.file.method.degree = 2, 3
+    loaded.file.method.mesh = MeshSpec(tolerance=1e-8, max_iterations=1, junction_control="free")
+    res = loaded.solve()
+    assert res.status == "mesh_not_converged"
+    assert abs(res.phase("accelerate").controls["u"][-1]) <= 1e-6   # at the lower bound 0
+    assert res.phase("brake").time[-1] < 2.0 - 1e-4                 # "faster" than the optimum
+    assert res.extra["mesh"]["max_error"] > 1e-2
+
+
+def test_lgl_double_integrator_converges(configs):
+    """LGL on the single-phase double integrator: the two controls at the breakpoint on the
+    located switch are tied to their segments' interior limits; was mesh_not_converged (333
+    variables, 1.9e-6 after 8 iterations)."""
+    loaded = ocdsl.load(configs / "mesh_double_integrator.yaml")
+    loaded.file.method.transcription = "LGL"
+    res = loaded.solve()
+    assert res.status == "optimal", res.message
+    assert abs(res.phase("main").time[-1] - 2.0) <= 1e-8
+    assert min(abs(_breakpoints(res) - 1.0)) <= 1e-6

@@ -949,10 +949,16 @@ def _samples(pb, extra_points: int = 6):
     return out, xscale, uscale
 
 
-def _fit_degree(samples, xscale, uscale, lowest: int, highest: int, limit: float) -> int | None:
-    """Smallest degree n in [lowest, highest] whose Legendre least-squares fit of degree n to the
-    states (over the union of the samples) is within ``limit`` (relative, as the error
-    estimate), or None. The controls are not fitted: on a constrained arc the collocated
+def _fit_degree(samples, xscale, uscale, lowest: int, highest: int, limit: float,
+                shift: int = 0) -> int | None:
+    """Smallest degree n in [lowest, highest] whose Legendre least-squares fit of degree
+    n - ``shift`` to the states (over the union of the samples) is within ``limit`` (relative,
+    as the error estimate), or None. ``shift`` is the scheme degree minus the degree of its
+    state polynomial: 0 for LG, LGR, LGR-start (n collocation points, n + 1 support points),
+    1 for LGL (n points, state polynomial of degree n - 1: a degree-2 LGL segment holds a
+    straight line; without the shift coarsening gave the two-phase double integrator LGL
+    segments of degree 2 for its parabolas, missed the tolerance, refined, and coarsened to
+    the same mesh again every other iteration). The controls are not fitted: on a constrained arc the collocated
     control wiggles at the 1e-5 level without moving the state (Bryson-Denham), and a jump
     or kink of the control shows in the state's fit; the next solve's estimate checks."""
     from numpy.polynomial import legendre as leg
@@ -962,9 +968,12 @@ def _fit_degree(samples, xscale, uscale, lowest: int, highest: int, limit: float
     a, b = s.min(), s.max()
     z = 2 * (s - a) / (b - a) - 1
     for n in range(lowest, highest + 1):
-        if len(z) <= n + 1:
+        p = n - shift
+        if p < 0:
+            continue
+        if len(z) <= p + 1:
             return None
-        V = leg.legvander(z, n)
+        V = leg.legvander(z, p)
         res = Xs - V @ np.linalg.lstsq(V, Xs, rcond=None)[0]
         if np.max(np.abs(res), initial=0.0) > limit:
             continue
@@ -988,13 +997,14 @@ def coarsen(pb, errors, spec, features) -> Any:
     samples, xs, us = _samples(pb)
     limit = spec.coarsen_margin * spec.tolerance
     lowest = max(spec.lowest_degree, 2 if mesh.scheme_name == "LGL" else 1)
+    shift = 1 if mesh.scheme_name == "LGL" else 0
     bps = np.asarray(mesh.breakpoints)
     keep = [any(abs(bps[k] - f) <= spec.corner_tolerance for f in features) for k in range(len(bps))]
     K = mesh.segments
     # each segment on its own: the smallest degree that fits (segments above tolerance keep theirs)
     own = []
     for k in range(K):
-        n = (_fit_degree(samples[k:k + 1], xs, us, lowest, mesh.degrees[k], limit)
+        n = (_fit_degree(samples[k:k + 1], xs, us, lowest, mesh.degrees[k], limit, shift)
              if errors[k].error <= spec.tolerance else None)
         own.append((n if n is not None else mesh.degrees[k], n is not None))
     groups = []
@@ -1003,7 +1013,7 @@ def coarsen(pb, errors, spec, features) -> Any:
         best = (i, i, own[i][0])
         j = i
         while (j + 1 < K and own[best[1] - 0][1] and own[j + 1][1] and not keep[j + 1]):
-            m = _fit_degree(samples[i:j + 2], xs, us, lowest, spec.max_degree, limit)
+            m = _fit_degree(samples[i:j + 2], xs, us, lowest, spec.max_degree, limit, shift)
             # merged only when it has fewer nodes than the group and the segment kept apart
             if m is None or m >= best[2] + own[j + 1][0]:
                 break
@@ -1087,6 +1097,7 @@ def _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest):
     from ..transcribe.mesh import Mesh
 
     lay = pb.layout
+    shift = 1 if lay.mesh.scheme_name == "LGL" else 0
     bps = np.asarray(lay.mesh.breakpoints)
     fs = []
     for f in sorted(features):
@@ -1109,11 +1120,11 @@ def _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest):
         away = m & ~np.isin(seg_of, list(near))
         if away.sum() > 2:
             m = away
-        n = _fit_degree([(s_all[m], x_all[m], u_all[m])], xs, us, lowest, spec.max_degree, limit)
+        n = _fit_degree([(s_all[m], x_all[m], u_all[m])], xs, us, lowest, spec.max_degree, limit, shift)
         if n is None or n > spec.min_degree:
             y = _boundary_arc(pb, a, b, s_all[m], xs, math.sqrt(spec.tolerance))
             if y is not None:
-                nb = _fit_degree([(s_all[m], y, u_all[m])], xs, us, lowest, spec.max_degree, limit)
+                nb = _fit_degree([(s_all[m], y, u_all[m])], xs, us, lowest, spec.max_degree, limit, shift)
                 n = nb if nb is not None and (n is None or nb < n) else n
         if n is None:
             return None
@@ -1195,6 +1206,71 @@ def regularise(tr, regions: dict, weight: float):
     sign = 1.0 if m.objective.sense == pyo.minimize else -1.0
     m.objective.expr = m.objective.expr + sign * m.mesh_regularisation
     return m.mesh_regularisation
+
+
+def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0) -> int:
+    """At every phase junction, constrain a control collocated at the phase's end point to the
+    one-sided limit of its segment's interior control polynomial (``junction_control: limit``).
+
+    Which points: tau = +1 of the last segment of a phase that another phase follows (LGR, LGL)
+    and tau = -1 of the first segment of a phase that follows another (LGR-start, LGL); the
+    phases are taken in their order in the problem. The constraint is u_end = sum_i l_i(+-1) u_i
+    over the segment's other collocation points (Lagrange basis l_i through them); segments with
+    no other collocation point are left free. Why (measured, docs/mesh-refinement.md "Two
+    phases"): in the continuous problem the control at a phase junction acts on a single
+    instant, where it generally jumps; in the NLP it acts through its quadrature weight w_N h/2,
+    and on the two-phase double integrator (LGR) the NLP drives it to the other bound, so that
+    the segment's control polynomial overshoots the bound between the nodes (1.2 on 2 x 3) and
+    the collocated state goes faster than any admissible control allows (tf = 1.99918 < 2). The
+    error estimate rightly sees that (1.7e-2), but it only falls with the width of the phase's
+    end segment, so refinement does not reach 1e-8 in 8 iterations. With the end control tied
+    to its interior limit, the discrete solution is the exact one.
+
+    ``features`` (per phase, normalised times of located switches/corners, as
+    ``locate_features`` returns them) with ``tol``: for LGL also at every interior breakpoint
+    within ``tol`` of one, both controls there (tau = +1 of the segment before, tau = -1 of the
+    segment after: two control values at one instant, each collocated) are tied to their own
+    segment's interior limit. Measured on the single-phase double integrator (LGL, 2 x 3): the
+    NLP puts u = 0 at both copies of the breakpoint t = 1 (u = (1, 1, 0 | 0, -1, -1)), the
+    control polynomials overshoot to 1.12 between the nodes, and the estimate (3.0e-2, then
+    falling only with the width of the two segments) never reached 1e-9. LGR and LGR-start
+    collocate one control at such a breakpoint and converged there without it, so they are
+    left as they were. Returns the number of constraints added."""
+    import pyomo.environ as pyo
+
+    from ..transcribe.nodes import lagrange_matrix
+
+    added = 0
+    n_ph = len(tr.phases)
+    for i, pb in enumerate(tr.phases):
+        lay, b = pb.layout, pb.block
+        nu = len(pb.phase.controls)
+        ends = []
+        if i < n_ph - 1:
+            ends.append(("end", lay.mesh.segments - 1, 1.0))
+        if i > 0:
+            ends.append(("start", 0, -1.0))
+        if lay.mesh.scheme_name == "LGL" and features:
+            bps = np.asarray(lay.mesh.breakpoints)
+            for q in range(1, len(bps) - 1):
+                if any(abs(bps[q] - f) <= tol for f in features.get(pb.phase.name, [])):
+                    ends.append((f"end_{q - 1}", q - 1, 1.0))
+                    ends.append((f"start_{q}", q, -1.0))
+        for which, k, tau in ends:
+            col = np.asarray(lay.mesh.scheme(k).colloc, float)
+            at = np.flatnonzero(np.abs(col - tau) < 1e-12)
+            if not len(at) or len(col) < 2:
+                continue
+            others = [q for q in range(len(col)) if q != at[0]]
+            coef = lagrange_matrix(col[others], np.array([tau]))[0]
+            nodes = np.asarray(lay.colloc[k])
+            cl = pyo.ConstraintList()
+            b.add_component(f"mesh_junction_control_{which}", cl)
+            for j in range(nu):
+                cl.add(b.U[int(nodes[at[0]]), j]
+                       == sum(float(c) * b.U[int(nodes[q]), j] for c, q in zip(coef, others)))
+                added += 1
+    return added
 
 
 # ---------------------------------------------------------------------------------------
@@ -1297,6 +1373,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
     chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
     reg_weight = spec.regularise
+    located: dict = {}   # per phase: the features located on the previous mesh (limit_junction_controls)
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
@@ -1304,6 +1381,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        for ph in problem.phases}
             tr = build(problem, meshes, guesses)
             reg = regularise(tr, chatter, reg_weight) if spec.regularise else None
+            if spec.junction_control == "limit":
+                limit_junction_controls(tr, located, spec.corner_tolerance)
             ws.prepare(tr.model)
             mult = ws.apply(snapshot, tr) if snapshot is not None else None
         with timer.measure("solve"):
@@ -1380,6 +1459,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
                     features[pb.phase.name] = []
         off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
+        located = features
         rec["features"] = features
         rec["features_off_breakpoints"] = off
         if max_err <= spec.tolerance and not any(off.values()):

@@ -126,6 +126,11 @@ class MeshSpec(Strict):
         "multipliers", description="how each new mesh's solve starts from the previous mesh's solution: "
         "'multipliers' = states, controls and all NLP multipliers mapped through the costates "
         "(ocdsl/solve/warm_start.py), 'primal' = states and controls only")
+    junction_control: Literal["limit", "free"] = Field(
+        "limit", description="'limit': at a phase junction, a control collocated at the phase's end point "
+        "(LGR: tau = +1 of a phase that another follows; LGR-start: tau = -1 of a phase that follows "
+        "another; LGL: both) is constrained to the one-sided limit of its segment's interior control "
+        "polynomial (docs/mesh-refinement.md, 'Two phases'); 'free': left to the NLP")
 
     @model_validator(mode="after")
     def _check(self):
