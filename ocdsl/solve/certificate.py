@@ -899,7 +899,9 @@ def _reintegration(num, model, t, X, U, bounds, segments, tol: Tolerances,
     breaks = np.array(sorted(breaks))
     try:
         if batched:
-            local, glob = _reintegrate_batched(num, uf, t, X, breaks, scale, tol)
+            local, glob = _reintegrate_batched(
+                num, uf, t, X, breaks, scale, tol,
+                "shooting" if FAST["global_shooting"] else "sequential")
         else:
             local, glob = _reintegrate_pieces(num, uf, t, X, breaks, scale, tol)
     except Exception as exc:  # noqa: BLE001 - reported, not raised
@@ -955,12 +957,19 @@ def _reintegrate_pieces(num, uf, t, X, breaks, scale, tol: Tolerances):
     return local, glob
 
 
-def _reintegrate_batched(num, uf, t, X, breaks, scale, tol: Tolerances):
+def _reintegrate_batched(num, uf, t, X, breaks, scale, tol: Tolerances, global_pass: str = "shooting"):
     """The same passes with :func:`_radau_batch`: the local pass restarts at every node, so
     its pieces are independent (a piece that starts on a segment boundary between nodes
     continues the one before it: those go in later rounds); all the pieces of a round are
-    integrated at once. The global pass is one sequential pass, piece by piece, as before
-    (``solve_ivp`` per piece).
+    integrated at once. The global pass (``global_pass``):
+
+    * ``"shooting"`` (default): the chain of pieces from the first state is found by
+      multiple shooting over the same per-piece integrator maps ``F_p`` (all pieces at once,
+      :func:`_global_shooting`), starting from the local pass; it ends when every piece's
+      end meets the next piece's start to rounding (see there), so the ends are those of the
+      sequential pass. If it does not get there, the sequential pass runs instead;
+    * ``"sequential"``: one ``solve_ivp`` per piece, piece by piece (the reference).
+
     Control, right-hand side and Jacobian are evaluated vectorised over the batch."""
     n = X.shape[1]
     fun = lambda tt, Y: num._nodes(num._f, tt, Y, uf.at(tt), (n,))        # noqa: E731
@@ -981,16 +990,116 @@ def _reintegrate_batched(num, uf, t, X, breaks, scale, tol: Tolerances):
         x_end[sel] = _radau_batch(fun, jac, a[sel], b[sel], x0, atol, tol.rtol, step[sel])
     local = np.zeros(X.shape)
     glob = np.zeros(X.shape)
-    x_glob = X[0].copy()
-    for p in range(len(a)):   # sequential: SciPy's Radau has less overhead per call at B = 1
-        sol = _integrate(num, uf, a[p], b[p], x_glob, scale, tol, step[p])
-        if not sol.success:
-            raise RuntimeError(sol.message)
-        x_glob = sol.y[:, -1]
-        if end[p] >= 0:
-            local[end[p]] = np.abs(x_end[p] - X[end[p]]) / scale
-            glob[end[p]] = np.abs(x_glob - X[end[p]]) / scale
+    at_node = end >= 0
+    local[end[at_node]] = np.abs(x_end[at_node] - X[end[at_node]]) / scale
+    g_end = None
+    if global_pass == "shooting" and len(a):
+        S0 = np.where((start >= 0)[:, None], X[np.maximum(start, 0)], np.roll(x_end, 1, axis=0))
+        try:
+            g_end = _global_shooting(fun, jac, a, b, S0, x_end, X, atol, tol, step)
+        except Exception:  # noqa: BLE001 - the sequential pass decides (and reports) instead
+            g_end = None
+    elif global_pass not in ("shooting", "sequential"):
+        raise ValueError(f"global_pass must be 'shooting' or 'sequential', got {global_pass!r}")
+    if g_end is None:
+        g_end = np.zeros((len(a), n))
+        x_glob = X[0].copy()
+        for p in range(len(a)):   # sequential: SciPy's Radau has less overhead per call at B = 1
+            sol = _integrate(num, uf, a[p], b[p], x_glob, scale, tol, step[p])
+            if not sol.success:
+                raise RuntimeError(sol.message)
+            x_glob = g_end[p] = sol.y[:, -1]
+    glob[end[at_node]] = np.abs(g_end[at_node] - X[end[at_node]]) / scale
     return local, glob
+
+
+# The certificate's fast paths (issue 11), each switchable for the comparison tests
+# (tests/test_certificate_fast.py runs the reference paths with them off):
+# - global_shooting: the global re-integration pass by multiple shooting over all pieces at
+#   once (_global_shooting) instead of one solve_ivp per piece in sequence;
+# - batched_expm: the switch-resolution matrix exponentials in one batch (_expm_batch)
+#   instead of scipy.linalg.expm per interval.
+FAST = {"global_shooting": True, "batched_expm": True}
+SHOOTING = {"max_iterations": 25, "stall": 3, "target": 1e-2}
+
+
+def _expm_batch(M):
+    """``expm`` of each matrix of ``M`` (B, n, n): scaling and squaring with a degree-12
+    Taylor polynomial (the Newton matrices of :func:`_global_shooting`; accuracy there only
+    sets the convergence rate, never the result)."""
+    norm = np.abs(M).sum(axis=2).max(axis=1)
+    s = np.maximum(0, np.ceil(np.log2(np.maximum(norm, 1e-300))).astype(int) + 1)
+    A = M / (2.0 ** s)[:, None, None]
+    eye = np.broadcast_to(np.eye(M.shape[1]), M.shape)
+    E = eye + A / 12.0
+    for k in range(11, 0, -1):          # Horner: I + A/1 (I + A/2 (I + ...))
+        E = eye + np.einsum("bij,bjk->bik", A, E) / k
+    for r in range(int(s.max()) if len(s) else 0):
+        sq = s > r
+        E[sq] = np.einsum("bij,bjk->bik", E[sq], E[sq])
+    return E
+
+
+def _global_shooting(fun, jac, a, b, S, E, X, atol, tol: Tolerances, step):
+    """The global pass by multiple shooting: the starts ``S[p]`` with ``S[0] = X[0]`` and
+    ``S[p+1] = F_p(S[p])``, ``F_p`` the integrator map of piece ``p`` (:func:`_radau_batch`,
+    one IVP per piece, the same as integrating the pieces one after the other).
+
+    ``S``/``E``: starts and ends of the local pass (``E = F(S)``), the first iterate.
+    Newton on the residuals ``R_p = F_p(S_p) - S_{p+1}``: ``dS_{p+1} = Phi_p dS_p + R_p``
+    with ``Phi_p`` the flow's sensitivity, approximated by ``expm(J dt)`` at the piece's
+    midpoint (an approximation slows the convergence, it does not move the fixed point);
+    then every piece whose start changed is integrated again, all at once.
+
+    Residuals are measured against the integrator's own error allowance of one step,
+    ``atol + rtol |S_{p+1}|`` per state. Stops when every residual is below
+    ``SHOOTING["target"]`` (1e-2) of it, or below ``Tolerances.refine`` of it (the least
+    number of steps a piece takes, i.e. what the integrator itself may leave on every
+    piece) once an iteration gains less than 10x: ``F_p`` is only defined to about one
+    step's allowance (a start moved by rounding can change the step sequence, on a
+    clipped control's kink the Newton iteration count, and move the end by that much;
+    measured: the Goddard problem's chattering arc stalls at 1-2), so beyond that floor
+    iterating only moves the ends by the same noise, and exact agreement with the
+    sequential pass is not sought. Returns the ends (P, n), or None when it does not get
+    there in ``SHOOTING["max_iterations"]`` or the largest residual stops falling for
+    ``SHOOTING["stall"]`` iterations (the caller then runs the sequential pass)."""
+    P, n = S.shape
+    S = S.copy()
+    E = E.copy()
+    if not np.array_equal(S[0], X[0]):          # pragma: no cover - S[0] is X[0] by construction
+        S[0] = X[0]
+        E[:1] = _radau_batch(fun, jac, a[:1], b[:1], S[:1], atol, tol.rtol, step[:1])
+    tm = 0.5 * (a + b)
+    Phi = _expm_batch(jac(tm, 0.5 * (S + E)) * (b - a)[:, None, None])
+    best, last, stalled = math.inf, math.inf, 0
+    for _ in range(SHOOTING["max_iterations"]):
+        R = E[:-1] - S[1:]
+        ratio = np.abs(R) / (atol + tol.rtol * np.abs(S[1:]))
+        worst = float(ratio.max()) if len(ratio) else 0.0
+        # done at the target, or within the allowance once Newton stops gaining (the
+        # noise floor of F: further iterations would only move the ends by that noise)
+        if worst <= SHOOTING["target"] or (worst <= tol.refine and worst > 0.1 * last):
+            return E
+        if not math.isfinite(worst):
+            return None
+        last = worst
+        if worst < best:
+            best, stalled = worst, 0
+        else:
+            stalled += 1
+            if stalled >= SHOOTING["stall"]:
+                return None
+        dS = np.zeros((P, n))
+        first = int(np.flatnonzero(np.any(R != 0, axis=1))[0])
+        d = np.zeros(n)
+        Rl = R.tolist()
+        for p in range(first, P - 1):                 # dS_{p+1} = Phi_p dS_p + R_p
+            d = Phi[p] @ d + Rl[p]
+            dS[p + 1] = d
+        S = S + dS
+        moved = np.flatnonzero(np.any(dS != 0, axis=1))
+        E[moved] = _radau_batch(fun, jac, a[moved], b[moved], S[moved], atol, tol.rtol, step[moved])
+    return None
 
 
 def _switch_resolution(num, t, X, U, bounds, segments, scale, tol: Tolerances):
@@ -1018,6 +1127,7 @@ def _switch_resolution(num, t, X, U, bounds, segments, scale, tol: Tolerances):
     n = X.shape[1]
     owner = segment_of_nodes(t, segments) if segments is not None else None
     both = {}
+    todo = []                  # (k, dt, gain) of the intervals on which a control switches
     for k in range(1, N):
         if owner is None:
             sw = (side[k - 1] * side[k] < 0)
@@ -1031,15 +1141,27 @@ def _switch_resolution(num, t, X, U, bounds, segments, scale, tol: Tolerances):
         sw = sw & (width > 0)
         if sw.any():
             switching[k] = True
-            dt = t[k] - t[k - 1]
-            gain = np.maximum(fu[k - 1], fu[k])[:, sw] @ width[sw]
-            # a control difference du on [0, dt] moves the state by the solution of
-            # d' = A d + B du: |d(dt)| <= phi1(|A| dt) dt |B| |du|, phi1(z) = (e^z - 1)/z,
-            # so states driven only through others (a position by its velocity) count too
-            A = np.maximum(np.abs(num.fx_point(t[k - 1], X[k - 1], U[k - 1])),
-                           np.abs(num.fx_point(t[k], X[k], U[k])))
-            aug = np.zeros((2 * n, 2 * n))
-            aug[:n, :n], aug[:n, n:] = A * dt, np.eye(n) * dt
-            phi1_dt = expm(aug)[:n, n:]
-            res[k] = (phi1_dt @ gain) / scale
+            todo.append((k, t[k] - t[k - 1], np.maximum(fu[k - 1], fu[k])[:, sw] @ width[sw]))
+    if not todo:
+        return res, switching
+    # a control difference du on [0, dt] moves the state by the solution of
+    # d' = A d + B du: |d(dt)| <= phi1(|A| dt) dt |B| |du|, phi1(z) = (e^z - 1)/z,
+    # so states driven only through others (a position by its velocity) count too
+    ks = np.array([k for k, _, _ in todo])
+    dts = np.array([dt for _, dt, _ in todo])
+    if FAST["batched_expm"]:
+        fx = num._nodes(num._fx, t, X, U, (n, n))
+        A = np.maximum(np.abs(fx[ks - 1]), np.abs(fx[ks]))
+    else:
+        A = np.array([np.maximum(np.abs(num.fx_point(t[k - 1], X[k - 1], U[k - 1])),
+                                 np.abs(num.fx_point(t[k], X[k], U[k]))) for k in ks])
+    aug = np.zeros((len(ks), 2 * n, 2 * n))
+    aug[:, :n, :n] = A * dts[:, None, None]
+    aug[:, :n, n:] = np.eye(n) * dts[:, None, None]
+    if FAST["batched_expm"]:
+        phi1_dt = _expm_batch(aug)[:, :n, n:]
+    else:
+        phi1_dt = np.array([expm(m)[:n, n:] for m in aug])
+    for i, (k, _, gain) in enumerate(todo):
+        res[k] = (phi1_dt[i] @ gain) / scale
     return res, switching
