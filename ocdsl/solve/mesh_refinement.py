@@ -69,6 +69,14 @@ Refinement rule
       (refined again if it misses); the smallest mesh that met the tolerance is returned.
       A second candidate is the arc mesh: one segment per arc between located features, a
       state-constrained arc fitted on its boundary-control trajectory (``_arc_mesh``).
+    - Controls at phase junctions (``junction_control: limit``, the default;
+      ``limit_junction_controls``): a control collocated at a phase's end point where another
+      phase joins (LGR: tau = +1, LGR-start: tau = -1, LGL: both), and for LGL both controls at
+      a breakpoint on a located switch/corner, are constrained to the one-sided limit of their
+      segment's interior control polynomial. The continuous problem leaves the control at that
+      instant free (measure zero); the NLP weights it by its quadrature weight and, left free,
+      set it to the other bound so that the control polynomial overshoots its bound between
+      the nodes (two-phase double integrator: estimate stuck at 2.8e-6 after 8 iterations).
     - Optional regularisation (``regularise`` > 0): w * int (du/ds)^2 ds over the arcs where
       the control chattered (``chattering_segments``, ``regularise``); the reported objective
       leaves the term out. It changes the problem (measured bias in docs/mesh-refinement.md).
