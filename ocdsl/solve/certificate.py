@@ -931,6 +931,13 @@ def _node_index(t, a) -> int:
     return k if k < len(t) and t[k] == a else -1
 
 
+def _node_indices(t, a) -> np.ndarray:
+    """:func:`_node_index` of every time in ``a`` (vectorised)."""
+    k = np.searchsorted(t, a)
+    kc = np.minimum(k, len(t) - 1)
+    return np.where((k < len(t)) & (t[kc] == a), k, -1)
+
+
 def _reintegrate_pieces(num, uf, t, X, breaks, scale, tol: Tolerances):
     """Reference: one ``solve_ivp(method="Radau")`` per piece and pass (the first
     implementation; ~2 ms per call). Returns ``(local, global)`` errors (N, n)."""
@@ -975,8 +982,7 @@ def _reintegrate_batched(num, uf, t, X, breaks, scale, tol: Tolerances, global_p
     fun = lambda tt, Y: num._nodes(num._f, tt, Y, uf.at(tt), (n,))        # noqa: E731
     jac = lambda tt, Y: num._nodes(num._fx, tt, Y, uf.at(tt), (n, n))     # noqa: E731
     a, b = breaks[:-1], breaks[1:]
-    start = np.array([_node_index(t, x) for x in a])
-    end = np.array([_node_index(t, x) for x in b])
+    start, end = _node_indices(t, a), _node_indices(t, b)
     step = (b - a) / tol.refine
     atol = tol.rtol * scale
     # position of each piece in its chain (a chain starts at a node)
