@@ -397,12 +397,22 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
     box = list(zip((wide_lo[idx] - lo[idx]) / width, (wide_hi[idx] - lo[idx]) / width))
     tf0 = float(x[itf])
     best: list = [tf0, x.copy()]
+    runs, last_best = 0, tf0
     try:
-        sol = minimize(lambda u: lo[itf] + u[j_tf] * width[j_tf], u0, jac=lambda u: grad, bounds=box,
-                       constraints=constraints, method="SLSQP",
-                       options={"maxiter": settings.max_iterations, "ftol": 1e-10})
-        message = str(sol.message)
-        xn = point(np.clip(sol.x, [b[0] for b in box], [b[1] for b in box]))
+        while True:
+            runs += 1
+            sol = minimize(lambda u: lo[itf] + u[j_tf] * width[j_tf], u0, jac=lambda u: grad, bounds=box,
+                           constraints=constraints, method="SLSQP",
+                           options={"maxiter": settings.max_iterations, "ftol": 1e-10})
+            message = str(sol.message)
+            xn = point(np.clip(sol.x, [b[0] for b in box], [b[1] for b in box]))
+            # a failed line search (exit mode 8) on noisy differences: start again from the
+            # fastest point inside the box, while that keeps improving
+            improved = best[0] < last_best - 1e-6 * tf0
+            if sol.status != 8 or runs > settings.restarts or not improved:
+                break
+            last_best = best[0]
+            u0 = (best[1][idx] - lo[idx]) / width
     except Exception as e:  # keep the previous point on any failure
         return x, {"refine": f"failed: {e}", "evaluations": n_evals[0], "tf_start": tf0, "tf_end": tf0}
     dn = pp.details(xn)
@@ -412,7 +422,8 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
         message = (f"{message}; {final}; kept the fastest iterate inside the zeta box" if best[0] < tf0
                    else f"rejected ({message}; {final})")
     summary = {"refine": message, "evaluations": n_evals[0], "tf_start": tf0, "tf_end": float(xn[itf]),
-               "max_error_over_zeta": float(dn["ratio"].max()), "box_scale": settings.box_scale}
+               "max_error_over_zeta": float(dn["ratio"].max()), "box_scale": settings.box_scale,
+               "slsqp_runs": runs}
     return xn, summary
 
 
