@@ -27,7 +27,12 @@ def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, seri
         raise click.ClickException("the CasADi comparison needs CasADi: pip install 'ocdsl[bench]'") from None
     from .peers import main_peers
 
-    seg = [int(k) for k in scaling_segments.split(",") if k.strip()]
-    solve = [int(k) for k in series_solve.split(",") if k.strip()]
+    try:
+        seg = [int(k) for k in scaling_segments.split(",") if k.strip()]
+        solve = [int(k) for k in series_solve.split(",") if k.strip()]
+    except ValueError as e:
+        raise click.UsageError(f"--scaling-segments / --series-solve take integers separated by commas: {e}") from None
+    if solve and scaling_file is None:
+        raise click.UsageError("--series-solve needs --scaling FILE (the problem of the scaling series)")
     click.echo(main_peers([Path(f) for f in files], runs, Path(out), Path(scaling_file) if scaling_file else None,
                           seg, solve, scaling_repeat))
