@@ -19,9 +19,6 @@ def test_bench_bad_options_are_one_clear_error():
     """`ocdsl bench` option mistakes: exit 2 with a usage message, never a traceback."""
     from click.testing import CliRunner
 
-    pytest.importorskip("casadi")
-    from ocdsl.cli import main
-
     runner = CliRunner()
     brach = str(CONFIGS / "brachistochrone.yaml")
     r = runner.invoke(main, ["bench", brach, "--series-solve", "5"])

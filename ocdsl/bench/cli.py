@@ -22,17 +22,17 @@ import click
 def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, series_solve):
     """Compare ocdsl with a CasADi script generated from the same problem (needs `pip install casadi`)."""
     try:
-        import casadi  # noqa: F401
-    except ImportError:
-        raise click.ClickException("the CasADi comparison needs CasADi: pip install 'ocdsl[bench]'") from None
-    from .peers import main_peers
-
-    try:
         seg = [int(k) for k in scaling_segments.split(",") if k.strip()]
         solve = [int(k) for k in series_solve.split(",") if k.strip()]
     except ValueError as e:
         raise click.UsageError(f"--scaling-segments / --series-solve take integers separated by commas: {e}") from None
     if solve and scaling_file is None:
         raise click.UsageError("--series-solve needs --scaling FILE (the problem of the scaling series)")
+    try:
+        import casadi  # noqa: F401
+    except ImportError:
+        raise click.ClickException("the CasADi comparison needs CasADi: pip install 'ocdsl[bench]'") from None
+    from .peers import main_peers
+
     click.echo(main_peers([Path(f) for f in files], runs, Path(out), Path(scaling_file) if scaling_file else None,
                           seg, solve, scaling_repeat))
