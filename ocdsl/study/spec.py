@@ -34,7 +34,7 @@ from typing import Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import StrictBool, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 
 class StudyError(ValueError):
@@ -198,7 +198,7 @@ class StudySpec(_Strict):
     continuation: bool = False
     # one Pyomo model per worker, with the swept constants as mutable Params, re-solved at
     # each point of the same structure (ocdsl/solve/reuse.py; docs/studies.md)
-    reuse_model: bool = True
+    reuse_model: StrictBool = True
 
     @field_validator("starts", mode="before")
     @classmethod
