@@ -84,3 +84,30 @@ def test_gc_left_as_found_after_build_and_hand_over(configs):
     res = ocdsl.load(configs / "brachistochrone.yaml").solve()
     assert res.status == "optimal"
     assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_dropped_models_are_freed_by_the_next_build(configs):
+    """Models handed to the oldest generation by the gc levers bypass CPython's trigger for
+    full collections; the next build collects, so a process solving point after point does
+    not keep every dropped model (they hold reference cycles)."""
+    import weakref
+
+    from ocdsl.api import compile_file
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    f = compile_file(configs / "brachistochrone.yaml")
+    problem, method = f.problem, f.method
+
+    def one_model():
+        meshes = {ph.name: Mesh.uniform(method.transcription, 20, 4) for ph in problem.phases}
+        guesses = {ph.name: make_guess(problem, ph, None) for ph in problem.phases}
+        return build(problem, meshes, guesses).model
+
+    refs = []
+    for _ in range(3):
+        model = one_model()
+        refs.append(weakref.ref(model))
+        del model
+    assert refs[0]() is None and refs[1]() is None, "dropped models are still alive"
