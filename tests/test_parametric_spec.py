@@ -48,7 +48,10 @@ def test_integer_free_parameter_without_bounds_in_problem(tmp_path):
     from ocdsl.search.run import run
     p, _ = _variant(tmp_path, "N_rev: {free: true, integer: true, bounds: [5, 5], value: 5}",
                     "N_rev: {free: true, integer: true, value: 5}")
-    p.write_text(p.read_text().replace("  parameters: {N_rev: {integer: true, bounds: [3, 8]}}", ""))
+    method_line = "  parameters: {N_rev: {integer: true, bounds: [5, 5]}}"
+    text = p.read_text()
+    assert method_line in text
+    p.write_text("\n".join(l for l in text.splitlines() if not l.startswith(method_line)) + "\n")
     lf = load(p)
     res = run(lf.problem, lf.method, progress=False, integer_parameters={"N_rev"})
     assert res.status == "error" and "N_rev" in res.message and "bounds" in res.message
