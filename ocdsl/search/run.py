@@ -338,6 +338,16 @@ def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings)
     return x, summary, {k: np.asarray(v, float) for k, v in rows.items()}
 
 
+def _error_ratios(pp: ParametricProblem, X: np.ndarray, zeta: np.ndarray) -> np.ndarray:
+    """Terminal errors / zeta of a batch of decision vectors; a failed integration counts
+    as 1e6 on every constraint."""
+    Yf, status, _, var, tf = pp.final(X)
+    E, _ = pp.errors(Yf, var, tf)
+    R = E / zeta
+    R[(status < 0) | (status == 2)] = 1e6
+    return R
+
+
 def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, dict]:
     """Minimise tf subject to every |error|/zeta <= ``settings.target_ratio`` from ``x``.
 
@@ -374,11 +384,8 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
             U = np.vstack([u, u + h * np.eye(len(u))])
             X = np.tile(x, (len(U), 1))
             X[:, idx] = lo[idx] + U * width
-            Yf, status, _, var, tf = pp.final(X)
-            E, _ = pp.errors(Yf, var, tf)
+            R = _error_ratios(pp, X, zeta)
             n_evals[0] += len(U)
-            R = E / zeta
-            R[(status < 0) | (status == 2)] = 1e6
             cache.clear()
             cache[key] = (R[0], ((R[1:] - R[0]) / h).T)
             # SLSQP's iterates may leave the box and its line search may fail on noisy
@@ -460,12 +467,8 @@ def polish(pp: ParametricProblem, x: np.ndarray, settings, stop_ratio: float | N
     def residuals_batch(Z):
         if max_evaluations is not None and n_evals[0] >= max_evaluations:
             raise _Reached(None)
-        Yf, status, _, var, tf = pp.final(full(Z))
-        E, _ = pp.errors(Yf, var, tf)
         n_evals[0] += len(Z)
-        R = E / zeta
-        R[(status < 0) | (status == 2)] = 1e6
-        return R
+        return _error_ratios(pp, full(Z), zeta)
 
     def fun(z):
         r = residuals_batch(z[None, :])[0]
