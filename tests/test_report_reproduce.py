@@ -156,3 +156,21 @@ def test_index_only_and_paper_tables(tmp_path):
     assert R.main(["--out", str(tmp_path), "--index-only"]) == 0
     html = (tmp_path / "index.html").read_text()
     assert html.count("Seed 0 Table 4") == 5 and "2 of 5 numbers agree" in html
+
+
+def test_optimal_mode_files_run_after_their_paper_run(tmp_path):
+    """`# reproduce: refine <stem>`: the seed-1 optimal-mode files are warm-started from the
+    paper-mode example's run folder, so they run after it, and without it they fail with a
+    message naming what to run first (not a solve from a cold guess)."""
+    examples = R.find_examples(ROOT / "configs")
+    order = [e.stem for e in examples]
+    for n in (10, 5, 2):
+        opt = examples[order.index(f"seed1_{n}N_optimal")]
+        assert opt.kind == "refine" and opt.slow and opt.after == f"seed1_{n}N_paper"
+        assert order.index(f"seed1_{n}N_optimal") > order.index(f"seed1_{n}N_paper")
+    assert "seed1_10N_optimal" not in {e.stem for e in R.find_examples(ROOT / "configs", skip_slow=True)}
+    opt = examples[order.index("seed1_10N_optimal")]
+    (out,) = R.reproduce([opt], tmp_path / "reports", formats=(), log=lambda *_: None)
+    assert out.status == "error" and not out.ok
+    assert "reproduce seed1_10N_paper first" in out.message
+    assert not (tmp_path / "reports" / "seed1_10N_optimal").exists()

@@ -53,6 +53,9 @@ SLOW = frozenset({"seed0_rendezvous", "seed0_exact_euler", "seed0_table4",
 #: Every seed-0 file is a multi-start 6-DOF collocation (minutes), whatever its name.
 SLOW_PREFIXES = ("seed0_",)
 SLOW_MARK = re.compile(r"^#\s*reproduce:\s*slow\b", re.M | re.I)
+#: ``# reproduce: refine <paper stem>``: an optimal-mode file warm-started from another
+#: example's run folder (``ocdsl.search.refine_optimal``); it runs after that example.
+REFINE_MARK = re.compile(r"^#\s*reproduce:\s*refine\s+(\S+)", re.M | re.I)
 GOOD = ("optimal", "acceptable", "feasible", "stable")
 
 #: Paper numbers of study files, compared row by row with ``study.csv``: the study stem ->
@@ -79,9 +82,10 @@ PAPER_TABLES: dict[str, dict[str, Any]] = {
 @dataclass
 class Example:
     path: Path
-    kind: str            # "problem" | "controller" | "pareto" | "study"
+    kind: str            # "problem" | "controller" | "pareto" | "study" | "refine"
     slow: bool
     name: str = ""
+    after: str = ""      # refine: the example whose run folder warm-starts this one
 
     @property
     def stem(self) -> str:
@@ -114,6 +118,9 @@ def classify(path: Path) -> Example:
     else:
         kind = "problem"
     slow = path.stem in SLOW or path.stem.startswith(SLOW_PREFIXES) or bool(SLOW_MARK.search(text))
+    after = REFINE_MARK.search(text)
+    if after:           # minutes of collocation after a paper-mode run
+        return Example(path, "refine", True, str(data.get("name") or path.stem), after.group(1))
     return Example(path, kind, slow, str(data.get("name") or path.stem))
 
 
@@ -129,6 +136,7 @@ def find_examples(configs: Path = CONFIGS, only: Sequence[str] | None = None,
             raise SystemExit(f"reproduce: no such example in {configs}: {', '.join(sorted(unknown))}")
         files = [f for f in files if f.stem in wanted]
     out = [classify(f) for f in files]
+    out.sort(key=lambda e: e.kind == "refine")     # after the runs they start from
     return [e for e in out if not (skip_slow and e.slow)]
 
 
@@ -142,13 +150,25 @@ def _expect_ok(run_dir: Path) -> bool:
 
 
 def run_example(ex: Example, out_dir: Path, formats: Sequence[str], *, workers: int | None = None,
-                quiet: bool = True) -> Outcome:
+                quiet: bool = True, reports: Path = REPORTS) -> Outcome:
     """Solve one example into ``out_dir`` (which must not exist yet) and write its reports."""
     from ocdsl.report.build import make_comparison_report, make_report
 
     t0 = time.perf_counter()
     status, ok = "error", False
-    if ex.kind in ("problem", "controller"):
+    if ex.kind == "refine":
+        from ocdsl.search.refine_optimal import refine
+
+        paper = Path(reports) / ex.after
+        if not (paper / "trajectory.csv").is_file():
+            raise FileNotFoundError(f"{ex.stem} starts from the run folder of {ex.after}: "
+                                    f"reproduce {ex.after} first (no {paper / 'trajectory.csv'})")
+        res = refine(ex.path, paper, out_dir, warm_dir=Path(out_dir).with_name(ex.stem + ".warm"))
+        shutil.rmtree(Path(out_dir).with_name(ex.stem + ".warm"), ignore_errors=True)
+        status = res.status
+        ok = res.status in GOOD and all(c.get("passed") for c in res.expect)
+        files = make_report(out_dir, formats) if formats else []
+    elif ex.kind in ("problem", "controller"):
         from ocdsl.api import run_file
 
         res = run_file(ex.path, out_dir, quiet=quiet)
@@ -190,7 +210,7 @@ def reproduce(examples: Sequence[Example], reports: Path = REPORTS, formats: Seq
         log(f"[reproduce] {ex.stem} ({ex.kind}{', slow' if ex.slow else ''}) ...")
         t0 = time.perf_counter()
         try:
-            out = run_example(ex, scratch, formats, workers=workers)
+            out = run_example(ex, scratch, formats, workers=workers, reports=reports)
             old = reports / ".new" / f"{ex.stem}.old"
             shutil.rmtree(old, ignore_errors=True)
             if final.exists():
