@@ -420,7 +420,7 @@ def _criteria(rows: list[dict], meta: dict) -> tuple[str, str] | None:
                     if names[0] and names[1]:
                         return names[0], names[1]
     numeric = [k for k in rows[0] if k not in STUDY_OUTPUT_COLS and k != "t"
-               and sum(F._finite(r.get(k)) is not None for r in rows) >= max(1, len(rows) // 2)]
+               and sum(T.finite_or_none(r.get(k)) is not None for r in rows) >= max(1, len(rows) // 2)]
     return (numeric[0], numeric[1]) if len(numeric) >= 2 else None
 
 
