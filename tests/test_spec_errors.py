@@ -53,6 +53,8 @@ CASES = [
     ("bad method value", ("segments: 4, degree: 3", "segments: 4, degree: 0"), 18, "degree must be between"),
     ("misspelt Ipopt option", ("method: {", "solver: {options: {max_itr: 5}}\nmethod: {"), 18,
      "did you mean 'max_iter'"),
+    ("bad mesh warm start", ("degree: 3}", "degree: 3, mesh: {tolerance: 1.0e-6, warm_start: multiplier}}"), 18,
+     "warm_start: Input should be 'multipliers' or 'primal'"),
 ]
 
 

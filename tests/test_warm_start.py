@@ -10,7 +10,6 @@ from ocdsl.api import compile_file
 from ocdsl.solve import ipopt
 from ocdsl.solve import warm_start as ws
 from ocdsl.solve.costates import colloc_costates, path_scale
-from ocdsl.spec.errors import SpecError
 from ocdsl.transcribe.guess import make_guess
 from ocdsl.transcribe.mesh import Mesh
 from ocdsl.transcribe.pseudospectral import build
@@ -151,31 +150,3 @@ def test_mesh_refinement_multipliers_fewer_iterations_same_result(configs):
     assert [h["warm_start"] for h in hm] == ["none"] + ["multipliers"] * (len(hm) - 1)
     assert [h["warm_start"] for h in hp] == ["none"] + ["primal"] * (len(hp) - 1)
     assert sum(h["ipopt_iterations"] for h in hm) < sum(h["ipopt_iterations"] for h in hp)
-
-
-def test_bad_warm_start_value_is_a_clear_error(tmp_path):
-    p = tmp_path / "bad.yaml"
-    p.write_text("""name: t
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics:
-    x: v
-    v: u
-problem:
-  time: {t0: 0, tf: free}
-  constraints:
-    - -1 <= u <= 1
-    - x(t0) == 1
-    - v(t0) == 0
-    - x(tf) == 0
-    - v(tf) == 0
-    - 0.1 <= tf <= 10
-  objective: minimize tf
-method: {transcription: LGR, segments: 4, degree: 3, mesh: {tolerance: 1.0e-6, warm_start: multiplier}}
-""")
-    with pytest.raises(SpecError) as info:
-        compile_file(p)
-    text = str(info.value)
-    assert f"{p}:18:" in text
-    assert "warm_start" in text and "'multipliers' or 'primal'" in text
