@@ -46,19 +46,19 @@ class _CasadiPrinter(PythonCodePrinter):
     def _print_Abs(self, expr):
         return f"fabs({self._print(expr.args[0])})"
 
-    def _print_Max(self, expr):
+    def _nested(self, fn, expr):
+        """fn(fn(a, b), c) ...: CasADi's fmax/fmin take two arguments."""
         args = [self._print(a) for a in expr.args]
         out = args[0]
         for a in args[1:]:
-            out = f"fmax({out}, {a})"
+            out = f"{fn}({out}, {a})"
         return out
 
+    def _print_Max(self, expr):
+        return self._nested("fmax", expr)
+
     def _print_Min(self, expr):
-        args = [self._print(a) for a in expr.args]
-        out = args[0]
-        for a in args[1:]:
-            out = f"fmin({out}, {a})"
-        return out
+        return self._nested("fmin", expr)
 
 
 def function_source(name: str, args, exprs) -> str:
