@@ -228,3 +228,26 @@ def test_slsqp_refinement_reaches_the_lp_minimum(tmp_path):
     xb = np.array([1.0, 0.0, 0.0, 0.0])
     x3, info3 = refine_tf(pp, xb, RefineSpec(method="slsqp", max_iterations=3))
     assert np.array_equal(x3, xb) and info3["refine"].startswith("rejected")
+
+
+def test_refinement_restores_an_iterate_outside_the_zeta_box(tmp_path):
+    """SLSQP stopped after 2 iterations ends outside the zeta box below the best tf: least
+    squares at that tf brings it back inside and SLSQP restarts from there to the LP bound;
+    an iterate below the bound (1 iteration) cannot be restored and the start is kept."""
+    from ocdsl.search.run import refine_tf
+    from ocdsl.spec.parametric import RefineSpec
+
+    p = tmp_path / "toy.yaml"
+    p.write_text(TOY)
+    lf = load(p)
+    pp = build(lf.problem, lf.method)
+    x0 = np.array([3.0, 0.0, np.pi ** 2 / (2 * 9.0), 0.0])
+    tf_min = _lp_tf_min(1e-3)
+    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=2, restarts=0))
+    assert info["restorations"] == {"attempts": 1, "inside": 1}
+    assert np.all(pp.details(x)["ratio"] <= 1.0) and tf_min <= x[0] < 3.0
+    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=2, restarts=3))
+    assert info["restorations"]["inside"] >= 1 and info["slsqp_runs"] >= 2
+    assert np.all(pp.details(x)["ratio"] <= 1.0) and abs(x[0] - tf_min) <= 1e-4 * tf_min, (x[0], tf_min)
+    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=1))
+    assert info["restorations"] == {"attempts": 1, "inside": 0} and np.array_equal(x, x0)

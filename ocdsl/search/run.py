@@ -37,6 +37,7 @@ import sympy as sp
 from ocdsl.result import PhaseTrajectory, Result
 from ocdsl.simulate import ControlLayout, Event
 from ocdsl.simulate.sundman import sundman
+from ocdsl.spec.parametric import PolishSpec
 
 from .parametric import ParametricProblem, Terminal, Variable
 from .pso import PSOSettings, pso
@@ -395,6 +396,25 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
         return cache[key]
 
     target = settings.target_ratio
+    restoration = {"attempts": 0, "inside": 0}
+
+    def _restore(xe) -> bool:
+        """An iterate below the best tf but outside the zeta box: drive its errors back
+        inside at that tf (least squares over the coefficients, widened box)."""
+        if xe[itf] >= best[0] or np.all(np.abs(_error_ratios(pp, xe[None, :], zeta)[0]) <= 1.0):
+            return False
+        restoration["attempts"] += 1
+        xr, info = polish(pp, xe, PolishSpec(method="least_squares", max_iterations=settings.restore_iterations,
+                                             fd_step=settings.fd_step),
+                          stop_ratio=target, bounds=(wide_lo, wide_hi))
+        n_evals[0] += info["polish_evaluations"]
+        ratio = np.abs(_error_ratios(pp, xr[None, :], zeta)[0])
+        if np.all(ratio <= 1.0) and xr[itf] < best[0]:
+            restoration["inside"] += 1
+            best[0], best[1] = float(xr[itf]), xr.copy()
+            return True
+        return False
+
     constraints = [{"type": "ineq",
                     "fun": lambda u: np.concatenate([target - ratios_and_jacobian(u)[0], target + ratios_and_jacobian(u)[0]]),
                     "jac": lambda u: np.vstack([-ratios_and_jacobian(u)[1], ratios_and_jacobian(u)[1]])}]
@@ -413,10 +433,13 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
                            options={"maxiter": settings.max_iterations, "ftol": 1e-10})
             message = str(sol.message)
             xn = point(np.clip(sol.x, [b[0] for b in box], [b[1] for b in box]))
-            # a failed line search (exit mode 8) on noisy differences: start again from the
-            # fastest point inside the box, while that keeps improving
+            restored = _restore(xn)
+            # SLSQP's line search fails (exit mode 8) where the terminal errors curve faster
+            # than its linearisation (25 revolutions at 2 N: the differences themselves agree
+            # to 1e-4 between steps 1e-7 and 1e-5); start again from the fastest point inside
+            # the box, while that keeps improving
             improved = best[0] < last_best - 1e-6 * tf0
-            if sol.status != 8 or runs > settings.restarts or not improved:
+            if (sol.status != 8 and not restored) or runs > settings.restarts or not improved:
                 break
             last_best = best[0]
             u0 = (best[1][idx] - lo[idx]) / width
@@ -430,7 +453,7 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
                    else f"rejected ({message}; {final})")
     summary = {"refine": message, "evaluations": n_evals[0], "tf_start": tf0, "tf_end": float(xn[itf]),
                "max_error_over_zeta": float(dn["ratio"].max()), "box_scale": settings.box_scale,
-               "slsqp_runs": runs}
+               "slsqp_runs": runs, "restorations": restoration}
     return xn, summary
 
 
@@ -440,16 +463,20 @@ class _Reached(Exception):
 
 
 def polish(pp: ParametricProblem, x: np.ndarray, settings, stop_ratio: float | None = None,
-           max_evaluations: int | None = None) -> tuple[np.ndarray, dict]:
+           max_evaluations: int | None = None,
+           bounds: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """Drive the terminal errors / zeta to zero from ``x`` (integers and tf fixed).
 
     ``stop_ratio``: stop as soon as every |error|/zeta is at or below it (the continuation
     in tf needs points inside the box, not errors at zero). ``max_evaluations`` caps the
-    integrations (function and Jacobian) of this call.
+    integrations (function and Jacobian) of this call. ``bounds`` replaces the swarm's
+    box (the refinement's widened box).
     """
     from scipy.optimize import least_squares
 
     lo, hi, is_int = pp.bounds()
+    if bounds is not None:
+        lo, hi = bounds
     free = ~is_int
     if pp.tf_free and not getattr(settings, "free_tf", False):
         free[len(pp.variables)] = False

@@ -180,10 +180,12 @@ class RefineSpec(_Strict):
     against the terminal errors at once, i.e. it converges to a local minimum of the
     paper's problem (min tf inside the zeta box). ``box_scale`` widens the coefficient box
     about its centre for this stage only (the swarm's box is a search range, not a
-    constraint of the problem; 1 keeps it). When SLSQP stops on a failed line search (noisy
-    differences) it is restarted, up to ``restarts`` times, from the fastest point it
-    evaluated inside the zeta box. A result outside the box or with a larger tf than its
-    start is rejected.
+    constraint of the problem; 1 keeps it). When SLSQP stops with its last iterate outside
+    the zeta box at a lower tf than the best so far, that iterate is restored: least squares
+    over the coefficients (tf fixed, at most ``restore_iterations`` evaluations) drives its
+    errors back inside the box. When SLSQP stopped on a failed line search, or a restoration
+    succeeded, it is restarted, up to ``restarts`` times, from the fastest point inside the
+    zeta box. A result outside the box or with a larger tf than its start is rejected.
     """
 
     method: Literal["none", "slsqp"] = "none"
@@ -191,7 +193,8 @@ class RefineSpec(_Strict):
     target_ratio: float = Field(0.9, gt=0.0, le=1.0, description="bound on every |error|/zeta")
     box_scale: float = Field(1.0, ge=1.0, le=100.0, description="coefficient box widened about its centre by this factor")
     fd_step: float = Field(1e-6, gt=0.0, le=1e-2, description="forward-difference step, fraction of each box width")
-    restarts: int = Field(3, ge=0, le=100, description="SLSQP restarts from the fastest point inside the box after a failed line search")
+    restarts: int = Field(3, ge=0, le=100, description="SLSQP restarts from the fastest point inside the box after a failed line search or a restoration")
+    restore_iterations: int = Field(300, ge=1, le=100_000, description="least-squares evaluations to bring an iterate outside the zeta box back inside at its tf")
 
 
 class ParametricSpec(_Strict):
