@@ -20,7 +20,8 @@ from ocdsl.spec.compile import load
 from ocdsl.spec.parametric import PolishSpec
 
 
-def local_minima(path: str, starts: int, seed: int = 0, verbose: bool = True) -> list[float]:
+def local_minima(path: str, starts: int, seed: int = 0, verbose: bool = True,
+                 restore_iterations: int = 500) -> list[float]:
     """tf of the refined point of every start that least squares got inside the zeta box."""
     lf = load(path)
     integers = [n for n, p in lf.method.parameters.items() if p.integer]
@@ -32,7 +33,7 @@ def local_minima(path: str, starts: int, seed: int = 0, verbose: bool = True) ->
     itf = len(pp.variables)
     wide[0][itf], wide[1][itf] = lo[itf], hi[itf]
     rng = np.random.default_rng(seed)
-    restore = PolishSpec(method="least_squares", max_iterations=200, free_tf=True)
+    restore = PolishSpec(method="least_squares", max_iterations=restore_iterations, free_tf=True)
     minima = []
     for k in range(starts):
         x = lo + (hi - lo) * rng.random(len(lo))
