@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ocdsl.search.run import build, polish, refine_tf
+from ocdsl.search.run import build, polish, refine_box, refine_tf
 from ocdsl.spec.compile import load
 from ocdsl.spec.parametric import PolishSpec
 
@@ -28,10 +28,8 @@ def local_minima(path: str, starts: int, seed: int = 0, verbose: bool = True,
     pp = build(lf.problem, lf.method, integers)
     lo, hi, is_int = pp.bounds()
     refine = lf.method.refine
-    centre, half = (lo + hi) / 2, (hi - lo) / 2
-    wide = (centre - refine.box_scale * half, centre + refine.box_scale * half)
+    wide = refine_box(pp, refine.box_scale)
     itf = len(pp.variables)
-    wide[0][itf], wide[1][itf] = lo[itf], hi[itf]
     rng = np.random.default_rng(seed)
     restore = PolishSpec(method="least_squares", max_iterations=restore_iterations, free_tf=True)
     minima = []

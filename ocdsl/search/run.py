@@ -349,6 +349,17 @@ def _error_ratios(pp: ParametricProblem, X: np.ndarray, zeta: np.ndarray) -> np.
     return R
 
 
+def refine_box(pp: ParametricProblem, box_scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """The swarm's box widened about its centre by ``box_scale``; tf keeps its bounds."""
+    lo, hi, _ = pp.bounds()
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    wide_lo, wide_hi = centre - box_scale * half, centre + box_scale * half
+    if pp.tf_free:
+        itf = len(pp.variables)
+        wide_lo[itf], wide_hi[itf] = lo[itf], hi[itf]
+    return wide_lo, wide_hi
+
+
 def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, dict]:
     """Minimise tf subject to every |error|/zeta <= ``settings.target_ratio`` from ``x``.
 
@@ -364,9 +375,7 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
     itf = len(pp.variables)
     if not pp.tf_free or itf not in idx:
         return x, {"refine": "skipped: tf is fixed"}
-    centre, half = (lo + hi) / 2, (hi - lo) / 2
-    wide_lo, wide_hi = centre - settings.box_scale * half, centre + settings.box_scale * half
-    wide_lo[itf], wide_hi[itf] = lo[itf], hi[itf]          # tf keeps the problem's bounds
+    wide_lo, wide_hi = refine_box(pp, settings.box_scale)
     width = np.where(hi[idx] > lo[idx], hi[idx] - lo[idx], 1.0)
     zeta = np.array([t.zeta for t in pp.terminals])
     j_tf = int(np.flatnonzero(idx == itf)[0])
