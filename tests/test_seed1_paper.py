@@ -89,11 +89,11 @@ XFAIL_10N = ("10 N: N_rev 5, every terminal error inside zeta, but tf 1.94317 TU
              "starts that reached the zeta box end in the same Fourier-(5, 8) local minimum 1.9431-1.9432 "
              "(test_10N_local_minima_by_reading); under the atan2 reading the same stages end at 1.6896 "
              "(-7.5 %), so no reading puts 10 N within 2 % of a local minimum")
-XFAIL_2N = ("2 N: N_rev 25, every terminal error inside zeta, but tf 7.36844 TU is +7.2 % from 6.873 "
-            "(swarm 7.55380, continuation 7.36997, SLSQP 7.36844: its line search fails near tf 7.24 over "
-            "25 revolutions and none of its 3 restorations got back inside zeta; by hand one restoration "
-            "and a second SLSQP run reached 7.23534, +5.3 %). The class's unrestricted optimum is "
-            "6.83164 (optimal mode), 0.6 % below the paper")
+XFAIL_2N = ("2 N: N_rev 25, every terminal error inside zeta, but tf 7.24121 TU is +5.4 % from 6.873 "
+            "(swarm 7.55380, continuation 7.36997, SLSQP with restoration 7.24121: its line search fails "
+            "over 25 revolutions; one of two restorations got back inside zeta, the second did not; from "
+            "the previous run's point the same stage reached 7.22492, +5.1 %). The class's unrestricted "
+            "optimum is 6.83164 (optimal mode), 0.6 % below the paper")
 
 
 @pytest.mark.slow
