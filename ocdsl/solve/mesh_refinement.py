@@ -332,46 +332,6 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
 # located nonsmooth points: bang-bang switches (switching function) and control corners
 # ---------------------------------------------------------------------------------------
 
-def _switching_function(problem, ph, free_syms):
-    """Callable (x, u, t, lam, p) -> H_u per control, or None when it cannot be formed.
-
-    H = s * dJ/dI * L + lam . f with L the phase's running costs; s = +1 when minimising.
-    Only the zeros of H_u are used (a bang-bang switch of a control-affine problem), so the
-    overall sign does not matter; the relative sign of the running-cost term follows the
-    costate convention of ``solve.costates`` (tested on minimisation problems only).
-    """
-    from ..symbolic.model import TIME
-
-    lam = sp.symbols(f"_lam0:{len(ph.states)}", real=True)
-    H = sum(l * fi for l, fi in zip(lam, ph.rhs()))
-    sign = 1 if problem.objective.sense == "minimize" else -1
-    for I, L in ph.integrals.items():
-        w = sp.diff(problem.objective.expr, I)
-        if w.free_symbols:
-            return None
-        H = H + sign * float(w) * ph.substitute(L)
-    Hu = [sp.diff(H, u) for u in ph.controls]
-    args = list(ph.states) + list(ph.controls) + [TIME] + list(lam) + list(free_syms)
-    return sp.lambdify(args, Hu, "numpy")
-
-
-def _colloc_costates(tr, pb):
-    """Costates at the collocation points of one phase (as ``solve.costates``), or None (LGL)."""
-    m, lay, ph = tr.model, pb.layout, pb.phase
-    nx = len(ph.states)
-    lam = np.zeros((lay.n_colloc, nx))
-    for k in range(lay.mesh.segments):
-        sc = lay.mesh.scheme(k)
-        if sc.name == "LGL":
-            return None
-        for i, cn in enumerate(lay.colloc[k]):
-            for j in range(nx):
-                nu = m.dual.get(pb.defects[(k, i, j)], 0.0)
-                end = m.dual.get(pb.ends[(k, j)], 0.0) if pb.ends else 0.0
-                lam[cn, j] = -(nu / float(sc.weights[i]) + end)
-    return lam
-
-
 def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
     """Bang-bang switches of one phase in normalised time, located from the collocated control.
 
