@@ -398,8 +398,8 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
             n_evals[0] += len(U)
             cache.clear()
             cache[key] = (R[0], ((R[1:] - R[0]) / h).T)
-            # SLSQP's iterates may leave the box and its line search may fail on noisy
-            # finite differences: the fastest iterate inside the zeta box is kept
+            # SLSQP's iterates may leave the zeta box and its line search may fail: the
+            # fastest iterate inside the box is kept
             if np.all(np.abs(R[0]) <= 1.0) and X[0, itf] < best[0]:
                 best[0], best[1] = float(X[0, itf]), X[0].copy()
         return cache[key]
