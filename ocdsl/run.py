@@ -40,6 +40,12 @@ def _better(info, best, sense: str) -> bool:
     return info.objective < best.objective if sense == "minimize" else info.objective > best.objective
 
 
+def _start_record(start: int, seed, info) -> dict:
+    """One row of ``result.extra['starts']``."""
+    return {"start": start, "seed": seed, "status": info.status, "objective": info.objective,
+            "iterations": info.iterations, "solve_time_s": round(info.solve_time, 4)}
+
+
 def previous_phases(file: LoadedFile, warm_start=None) -> dict:
     """Phase name -> the PhaseTrajectory a phase's guess starts from: the ``warm_start`` run
     folder, else ``guess: {from: RUN_DIR}`` in the file (relative to the file), phase by phase."""
@@ -68,9 +74,7 @@ def solve_built(file: LoadedFile, tr, meshes, timer, *, verbose=False, progress=
                            progress=ipopt.Progress(progress, ""))
     with timer.measure("post"):
         result = _result(file, tr, info, timer, meshes)
-        result.extra["starts"] = [{"start": 0, "seed": None, "status": info.status,
-                                   "objective": info.objective, "iterations": info.iterations,
-                                   "solve_time_s": round(info.solve_time, 4)}]
+        result.extra["starts"] = [_start_record(0, None, info)]
     result.wall_time_s = timer.breakdown()
     return result
 
@@ -98,8 +102,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[{i + 1}/{starts}]" if starts > 1 else "")
             info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar)
-        records.append({"start": i, "seed": s, "status": info.status, "objective": info.objective,
-                        "iterations": info.iterations, "solve_time_s": round(info.solve_time, 4)})
+        records.append(_start_record(i, s, info))
         if _better(info, best, problem.objective.sense):
             best, best_tr = info, tr      # each start builds its own model, which keeps its values
     with timer.measure("post"):
