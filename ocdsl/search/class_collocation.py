@@ -1,0 +1,357 @@
+"""Seed 1 "class mode": the optimum of the paper's own control class, found by collocation.
+
+Paper mode searches the Fourier class (thrust angles delta, phi as half-range Fourier
+series in t/t_f, eq. 24) by single shooting: a swarm, then least squares and SLSQP on the
+shooting map. Over 5-25 revolutions that map is badly conditioned, and those local stages
+stop where their line searches fail. This module finds a local optimum of the *same*
+class (same series, same orders, same boundary states and revolution class) by direct
+collocation instead, and then checks it with the paper-mode fitness itself:
+
+1. the control of an optimal-mode run (unrestricted direction, LGR, synodic Cartesian, in
+   the Sundman variable) is written as the paper's angles (delta from the transverse
+   toward the radial direction of the Earth-centred rotating frame, phi from +z) and the
+   Fourier coefficients are fitted to it by ridge least squares (the half-range basis with
+   both cosines and sines is nearly dependent, so an unregularised fit has huge
+   cancelling coefficients);
+2. a penalty homotopy: the collocation problem ``minimize T + w * integral(R^k (ed^2 +
+   ep^2))`` with ``ed == delta - D(time/T)`` and ``ep == phi - P(time/T)`` at every node
+   (D, P the series, T the physical final time, a free parameter with ``time(tf) == T``) is
+   solved for increasing weights w, each from the previous solution. The deviations ed, ep
+   are auxiliary controls so that each series appears once per node (a penalty written
+   with the series inside the integral made Ipopt's iterations ~10x slower). Each step is
+   a problem file written into the run folder (``stages/``) and solved by the ordinary
+   pipeline, so every stage can be re-run with ``ocdsl run``;
+3. the hard problem (``delta == D``, ``phi == P``) from the last step;
+4. the coefficients and T are put into the paper-mode decision vector and the polar
+   dynamics are integrated by the paper-mode fitness (DOP853 at the file's tolerance);
+   if a terminal error is outside its zeta, least squares at fixed t_f brings it back.
+
+Why not the hard problem straight from the fit: the fitted series differs from the
+optimal control by 0.5-1.2 rad rms (order 5 cannot follow the per-revolution oscillation
+of the in-plane angle), so the start is far from consistent; measured at 10 N: Ipopt
+diverged into restoration within 35 iterations. Why not from the paper-mode shooting
+point: the collocation then stays in the basin the shooting stages already found.
+
+Why warm-start options after the first step (``mu_strategy monotone``, ``mu_init 1e-6``,
+bound pushes 1e-8): with Ipopt's defaults each re-solve starts by pushing the point away
+from its bounds and raising the barrier, and at weights >= 80 (10 N) that start diverged.
+
+Command line::
+
+    python -m ocdsl.search.class_collocation configs/seed1_10N_paper.yaml --optimal RUN --out OUT
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import math
+import sys
+import time as _time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..result import PhaseTrajectory, Result
+
+DEFAULT_WEIGHTS = (0.01, 0.1, 1, 10, 20, 40, 60)
+WARM_OPTIONS = {"mu_strategy": "monotone", "mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8,
+                "slack_bound_push": 1e-8, "slack_bound_frac": 1e-8}
+ANGLES = ("delta", "phi")
+DEVIATIONS = {"delta": "ed", "phi": "ep"}
+
+
+# ---------------------------------------------------------------------------------------
+# the series, as the paper-mode decision vector names them
+def coefficient_names(control: str, order: int) -> list[str]:
+    """``control_a0, control_a1..aN, control_b1..bN``: the paper-mode decision vector's names."""
+    return ([f"{control}_a0"] + [f"{control}_a{k}" for k in range(1, order + 1)]
+            + [f"{control}_b{k}" for k in range(1, order + 1)])
+
+
+def series_text(control: str, order: int, clock: str = "time", period: str = "T") -> str:
+    """The half-range Fourier series of eq. 24 in the problem language, argument clock/period."""
+    names = coefficient_names(control, order)
+    terms = [f"{names[0]}/2"]
+    terms += [f"{names[k]}*cos({k}*pi*{clock}/{period})" for k in range(1, order + 1)]
+    terms += [f"{names[order + k]}*sin({k}*pi*{clock}/{period})" for k in range(1, order + 1)]
+    return " + ".join(terms)
+
+
+def basis(order: int, t: np.ndarray, T: float) -> np.ndarray:
+    """Columns in the order of :func:`coefficient_names` (same as ocdsl.simulate's layout)."""
+    k = np.arange(1, order + 1)
+    w = np.pi * np.outer(t, k) / T
+    return np.hstack([np.full((len(t), 1), 0.5), np.cos(w), np.sin(w)])
+
+
+def fit_series(t: np.ndarray, values: np.ndarray, T: float, order: int, ridge: float = 1e-2,
+               samples: int = 2000) -> np.ndarray:
+    """Ridge least-squares coefficients of ``values(t)`` on [0, T], sampled uniformly in t."""
+    tu = np.linspace(0.0, T, samples)
+    vu = np.interp(tu, t, values)
+    B = basis(order, tu, T)
+    A = B.T @ B / samples + ridge * np.eye(B.shape[1])
+    return np.linalg.solve(A, B.T @ vu / samples)
+
+
+def ecrf_angles(x, y, ux, uy, uz, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's thrust angles of a synodic direction: delta (unwrapped), phi."""
+    x, y, ux, uy, uz = (np.asarray(a, float) for a in (x, y, ux, uy, uz))
+    rho = np.hypot(x + mu, y)
+    radial = (ux * (x + mu) + uy * y) / rho
+    transverse = (-ux * y + uy * (x + mu)) / rho
+    return np.unwrap(np.arctan2(radial, transverse)), np.arccos(np.clip(uz, -1.0, 1.0))
+
+
+# ---------------------------------------------------------------------------------------
+# the collocation problem file
+def _cartesian_model(parameters: dict[str, float], sundman_k: float) -> dict[str, Any]:
+    """Synodic CR3BP (eq. 8) in the Sundman variable, thrust along the ECRF angles."""
+    return {
+        "states": ["x", "y", "z", "vx", "vy", "vz", "m", "time"],
+        "controls": ["delta", "phi", "ed", "ep"],
+        "parameters": {k: float(v) for k, v in parameters.items()},
+        "expressions": {
+            "c": "Isp*g0*TU/(LU*1000)", "T_max": "thrust/m0*TU**2/(LU*1000)",
+            "r1": "sqrt((x + mu)**2 + y**2 + z**2)", "r2": "sqrt((x + mu - 1)**2 + y**2 + z**2)",
+            "rho": "sqrt((x + mu)**2 + y**2)", "rate": f"r1**{sundman_k}",
+            "ar": "sin(delta)*sin(phi)", "ath": "cos(delta)*sin(phi)",
+            "ux": "(ar*(x + mu) - ath*y)/rho", "uy": "(ar*y + ath*(x + mu))/rho", "uz": "cos(phi)"},
+        "dynamics": {
+            "x": "rate*vx", "y": "rate*vy", "z": "rate*vz",
+            "vx": "rate*(2*vy + x - (1 - mu)*(x + mu)/r1**3 - mu*(x + mu - 1)/r2**3 + T_max/m*ux)",
+            "vy": "rate*(-2*vx + y - (1 - mu)*y/r1**3 - mu*y/r2**3 + T_max/m*uy)",
+            "vz": "rate*(-(1 - mu)*z/r1**3 - mu*z/r2**3 + T_max/m*uz)",
+            "m": "-rate*T_max/c", "time": "rate"},
+        "units": {"x": "LU", "y": "LU", "z": "LU", "vx": "LU/TU", "vy": "LU/TU", "vz": "LU/TU",
+                  "m": "m0", "time": "TU", "delta": "rad", "phi": "rad"},
+        "positions": ["x", "y", "z"],
+    }
+
+
+def class_problem(optimal_doc: dict, orders: dict[str, int], values: dict[str, float],
+                  weight: float | None, coefficient_bound: float) -> dict[str, Any]:
+    """The collocation problem of the class: penalty step (``weight``) or hard (None)."""
+    model = optimal_doc["model"]
+    k = float(model.get("options", {}).get("sundman_k", 1.5))
+    boundary = [c for c in optimal_doc["problem"]["constraints"]
+                if not any(u in c for u in ("ux", "uy", "uz"))]
+    params: dict[str, Any] = {"T": {"value": float(values["T"]), "free": True, "bounds": [0.1, 100.0]}}
+    for control, order in orders.items():
+        for name in coefficient_names(control, order):
+            params[name] = {"value": float(values[name]), "free": True,
+                            "bounds": [-coefficient_bound, coefficient_bound]}
+    series = {c: series_text(c, n) for c, n in orders.items()}
+    if weight is None:
+        ties = [f"{c} == {series[c]}" for c in orders] + [f"{DEVIATIONS[c]} == 0" for c in orders]
+        objective = "minimize T"
+    else:
+        params["w"] = float(weight)
+        ties = [f"{DEVIATIONS[c]} == {c} - ({series[c]})" for c in orders]
+        dev = " + ".join(f"{DEVIATIONS[c]}**2" for c in orders)
+        objective = f"minimize T + w*integral(r1**{k}*({dev}))"
+    solver = copy.deepcopy(optimal_doc.get("solver", {}))
+    return {
+        "name": f"{optimal_doc['name']} - paper's Fourier class"
+                + ("" if weight is None else f", penalty weight {weight:g}"),
+        "model": _cartesian_model(model.get("parameters", {}), k),
+        "parameters": params,
+        "problem": {"time": optimal_doc["problem"]["time"],
+                    "constraints": boundary + ties + ["time(tf) == T"],
+                    "objective": objective},
+        "method": copy.deepcopy(optimal_doc["method"]),
+        "solver": solver,
+    }
+
+
+def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
+                ridge: float) -> dict[str, float]:
+    """Write the optimal-mode run as a run folder of the class problem; return the fit."""
+    tr = optimal.phase()
+    st, u = tr.states, tr.controls
+    t = np.asarray(st["time"], float)
+    delta, phi = ecrf_angles(st["x"], st["y"], u["ux"], u["uy"], u["uz"], mu)
+    T = float(t[-1])
+    keep = np.r_[True, np.diff(t) > 0]
+    angle = {"delta": delta, "phi": phi}
+    values: dict[str, float] = {"T": T}
+    controls = {}
+    for control, order in orders.items():
+        coef = fit_series(t[keep], angle[control][keep], T, order, ridge)
+        values.update(zip(coefficient_names(control, order), map(float, coef)))
+        controls[control] = angle[control]
+        controls[DEVIATIONS[control]] = angle[control] - basis(order, t, T) @ coef
+    states = {n: np.asarray(v, float) for n, v in st.items()}
+    warm = Result(f"{optimal.name} as angles", "optimal", tf=optimal.tf,
+                  phases=[PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls)],
+                  problem={"phases": {tr.name: {"states": list(states), "controls": list(controls)}}},
+                  parameters=values)
+    warm.write(out)
+    return values
+
+
+def _fit_rms(values: dict[str, float], warm: Result, orders: dict[str, int]) -> dict[str, float]:
+    tr = warm.phase()
+    return {c: float(np.sqrt(np.mean(tr.controls[DEVIATIONS[c]] ** 2))) for c in orders}
+
+
+# ---------------------------------------------------------------------------------------
+# the verification by the paper-mode fitness
+def shooting_check(paper_loaded, values: dict[str, float], polish_evaluations: int = 2000) -> dict[str, Any]:
+    """The paper-mode decision vector of the class solution, integrated by the paper's
+    fitness; least squares at fixed t_f if a terminal error is outside its zeta."""
+    from ..spec.schema import ParameterSpec
+    from .run import build, polish
+
+    spec = paper_loaded.method
+    integers = [n for n, p in paper_loaded.spec.parameters.items() if isinstance(p, ParameterSpec) and p.integer]
+    pp = build(paper_loaded.problem, spec, integers)
+    x = np.empty(len(pp.names()))
+    for i, name in enumerate(pp.names()):
+        if name == "tf":
+            x[i] = values["T"]
+        elif name in values:
+            x[i] = values[name]
+        else:  # a search parameter such as N_rev: its value in the file (held at the class)
+            var = next(v for v in pp.variables if v.name == name)
+            x[i] = var.lower if var.lower == var.upper else paper_loaded.spec.parameters[name].value
+    det = pp.details(x)
+    record = {"tf": float(det["tf"]), "max_error_over_zeta": float(det["ratio"].max()),
+              "errors": det["errors"].tolist(), "polished": False}
+    if det["ratio"].max() > 1.0:
+        margin = 10.0 * np.abs(x) + 1.0
+        x, info = polish(pp, x, spec.polish, max_evaluations=polish_evaluations,
+                         bounds=(x - margin, x + margin))
+        det = pp.details(x)
+        record.update({"polished": True, "polish": info,
+                       "max_error_over_zeta_after_polish": float(det["ratio"].max())})
+    return {"pp": pp, "x": x, "details": det, "record": record}
+
+
+# ---------------------------------------------------------------------------------------
+def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Path,
+                 weights: tuple[float, ...] = DEFAULT_WEIGHTS, ridge: float = 1e-2,
+                 coefficient_bound: float = 30.0, progress: bool = True, segments: int | None = None,
+                 solver_options: dict[str, Any] | None = None) -> Result:
+    """Class mode of ``paper_file`` from the optimal-mode run ``optimal_dir``; writes ``out``.
+
+    ``segments`` replaces the optimal-mode file's mesh; ``solver_options`` are added to its
+    Ipopt options in every step."""
+    import ocdsl
+    from ..api import write_run
+    from ..run import check_expectations
+
+    t_start = _time.perf_counter()
+    out = Path(out)
+    stages = out.with_name(out.name + "_stages")
+    stages.mkdir(parents=True, exist_ok=True)
+    paper = ocdsl.load(paper_file).file
+    orders = {c: s.order for c, s in paper.method.controls.items()}
+    if set(orders) != set(ANGLES) or any(s.series != "fourier" for s in paper.method.controls.values()):
+        raise ValueError(f"{paper_file}: class mode expects Fourier series of delta and phi, "
+                         f"got {sorted(orders)}")
+    optimal = Result.read(optimal_dir)
+    optimal_doc = yaml.safe_load((Path(optimal_dir) / "problem.yaml").read_text())
+    mu = float(optimal_doc["model"]["parameters"]["mu"])
+    warm_dir = stages / "fit"
+    values = warm_folder(optimal, mu, orders, warm_dir, ridge)
+    fit_rms = _fit_rms(values, Result.read(warm_dir), orders)
+    history: dict[str, list] = {"step": [], "weight": [], "status": [], "T": [], "penalty": [],
+                                "iterations": [], "wall_s": []}
+    previous = warm_dir
+    last_ok = None
+    for i, w in enumerate(list(weights) + [None]):
+        doc = class_problem(optimal_doc, orders, values, w, coefficient_bound)
+        if segments is not None:
+            doc["method"]["segments"] = int(segments)
+        doc["solver"].setdefault("options", {}).update(solver_options or {})
+        if i > 0:
+            doc["solver"]["options"].update(WARM_OPTIONS)
+        path = stages / (f"step{i:02d}.yaml" if w is not None else "hard.yaml")
+        path.write_text(yaml.safe_dump(doc, sort_keys=False, width=100000))
+        t0 = _time.perf_counter()
+        res = ocdsl.load(path).solve(stages / path.stem, warm_start=previous)
+        ok = res.status in ("optimal", "acceptable")
+        T = float(res.parameters.get("T", math.nan))
+        penalty = float(res.objective - T) if (ok and w is not None) else 0.0
+        for key, v in zip(history, (i, w if w is not None else math.inf, res.status, T, penalty,
+                                    res.iterations, _time.perf_counter() - t0)):
+            history[key].append(v)
+        if progress:
+            print(f"class mode step {i}: weight {'hard' if w is None else f'{w:g}'}, {res.status}, "
+                  f"T {T:.6f}, penalty {penalty:.3e}, {res.iterations} iterations", flush=True)
+        if not ok:
+            break
+        values.update({k: float(v) for k, v in res.parameters.items() if k in values})
+        previous, last_ok = stages / path.stem, w
+    hard_ok = history["weight"][-1] == math.inf and history["status"][-1] in ("optimal", "acceptable")
+    check = shooting_check(paper, values)
+    pp, x, det = check["pp"], check["x"], check["details"]
+    tr, U = pp.trajectory(x)
+    cm = pp.compiled
+    states = {n: tr.y[:, j] for j, n in enumerate(cm.state_names) if n != "time"}
+    controls = {c.name: U[:, j] for j, c in enumerate(pp.model.controls)}
+    feasible = bool(np.all(det["ratio"] <= 1.0)) and det["status"] >= 0 and det["status"] != 2
+    status = "feasible" if (feasible and hard_ok) else "infeasible"
+    m_col = cm.state_names.index("m")
+    extra = {
+        "class_mode": {"optimal_run": str(optimal_dir), "fit_rms_rad": fit_rms, "ridge": ridge,
+                       "coefficient_bound": coefficient_bound, "hard_solved": hard_ok,
+                       "last_weight": last_ok, "collocation_T": values["T"],
+                       "coefficients_at_bound": sum(abs(values[n]) >= 0.999 * coefficient_bound
+                                                    for c, o in orders.items() for n in coefficient_names(c, o)),
+                       "stages": str(stages)},
+        "shooting": check["record"],
+        "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
+        "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
+        "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
+        "decision_vector": dict(zip(pp.names(), map(float, x))),
+        "m_p": float(tr.y[0, m_col] - det["final"][m_col]),
+    }
+    for v in pp.variables:
+        if v.integer:
+            extra[v.name] = int(round(det["variables"][v.name]))
+    msg = (f"class mode: penalty homotopy over {len(history['step']) - 1} weights, "
+           f"hard class problem {'solved' if hard_ok else 'NOT solved'} (T {values['T']:.6g}); "
+           f"paper-mode fitness: tf {det['tf']:.6g}, terminal errors "
+           f"{'inside' if feasible else 'NOT inside'} zeta (max |e|/zeta {det['ratio'].max():.3g})")
+    params = {k: float(v) for k, v in pp.parameters.items()}
+    params.update({k: float(v) for k, v in det["variables"].items()})
+    result = Result(f"{paper.spec.name} - class mode", status, message=msg, objective=det["objective"],
+                    tf=det["tf"], iterations=int(sum(history["iterations"])),
+                    wall_time_s={"total": _time.perf_counter() - t_start},
+                    method=paper.method.model_dump(mode="json"), parameters=params,
+                    phases=[PhaseTrajectory("main", tr.t.copy(), states, controls)],
+                    problem=paper.problem.description, extra=extra, tables={"homotopy": history})
+    values_at = {ph.tf_symbol: float(det["tf"]) for ph in paper.problem.phases}
+    result.expect = check_expectations(paper, values_at, result.objective)
+    write_run(result, out, Path(paper_file))
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m ocdsl.search.class_collocation",
+                                 description="Seed 1 class mode: the paper's Fourier class by collocation")
+    ap.add_argument("paper", help="paper-mode problem file (method: parametric)")
+    ap.add_argument("--optimal", required=True, help="optimal-mode run folder to start from")
+    ap.add_argument("--out", required=True, help="run folder to write")
+    ap.add_argument("--weights", default=None, help="comma-separated penalty weights")
+    ap.add_argument("--segments", type=int, default=None, help="mesh of the class problem (default: the optimal run's)")
+    ap.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
+                    help="an Ipopt option for every step (repeatable)")
+    args = ap.parse_args(argv)
+    weights = DEFAULT_WEIGHTS if args.weights is None else tuple(float(w) for w in args.weights.split(","))
+    options = {}
+    for item in args.option:
+        name, _, value = item.partition("=")
+        options[name] = yaml.safe_load(value)
+    res = refine_class(args.paper, args.optimal, args.out, weights, segments=args.segments,
+                       solver_options=options)
+    print(res.message)
+    return 0 if res.ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
