@@ -17,8 +17,9 @@ collocation instead, and then checks it with the paper-mode fitness itself:
    ep^2))`` with ``ed == delta - D(time/T)`` and ``ep == phi - P(time/T)`` at every node
    (D, P the series, T the physical final time, a free parameter with ``time(tf) == T``) is
    solved for increasing weights w, each from the previous solution. The deviations ed, ep
-   are auxiliary controls so that each series appears once per node (a penalty written
-   with the series inside the integral made Ipopt's iterations ~10x slower). Each step is
+   are auxiliary controls so that each series appears once per node (with the series
+   inside the integral instead, the first 10 N step was not done after 210 s; this form
+   takes 45 s). Each step is
    a problem file written into the run folder (``stages/``) and solved by the ordinary
    pipeline, so every stage can be re-run with ``ocdsl run``;
 3. the hard problem (``delta == D``, ``phi == P``) from the last step;
