@@ -146,6 +146,14 @@ def test_stored_10N_class_solution_is_inside_zeta_by_the_paper_fitness():
     assert det["tf"] < 1.94317
 
 
+def test_class_mode_cli_bad_run_folder(tmp_path, capsys):
+    code = cc.main([str(CONFIGS / "seed1_10N_paper.yaml"), "--optimal", str(tmp_path / "nowhere"),
+                    "--out", str(tmp_path / "out")])
+    assert code == 2
+    assert "not an optimal-mode run folder" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+
+
 @pytest.mark.slow
 def test_10N_class_mode_homotopy(tmp_path):
     """Paper mode -> optimal mode -> class mode, 10 N. The penalty steps relax the class

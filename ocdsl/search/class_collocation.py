@@ -265,14 +265,17 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
     t_start = _time.perf_counter()
     out = Path(out)
     stages = out.with_name(out.name + "_stages")
-    stages.mkdir(parents=True, exist_ok=True)
     paper = ocdsl.load(paper_file).file
     orders = {c: s.order for c, s in paper.method.controls.items()}
     if set(orders) != set(ANGLES) or any(s.series != "fourier" for s in paper.method.controls.values()):
         raise ValueError(f"{paper_file}: class mode expects Fourier series of delta and phi, "
                          f"got {sorted(orders)}")
+    for needed in ("result.json", "problem.yaml"):
+        if not (Path(optimal_dir) / needed).exists():
+            raise ValueError(f"{optimal_dir}: not an optimal-mode run folder (no {needed})")
     optimal = Result.read(optimal_dir)
     optimal_doc = yaml.safe_load((Path(optimal_dir) / "problem.yaml").read_text())
+    stages.mkdir(parents=True, exist_ok=True)
     mu = float(optimal_doc["model"]["parameters"]["mu"])
     warm_dir = stages / "fit"
     values = warm_folder(optimal, mu, orders, warm_dir, ridge)
@@ -385,8 +388,14 @@ def main(argv: list[str] | None = None) -> int:
     for item in args.option:
         name, _, value = item.partition("=")
         options[name] = yaml.safe_load(value)
-    res = refine_class(args.paper, args.optimal, args.out, weights, segments=args.segments,
-                       solver_options=options)
+    from ..spec.errors import SpecError
+
+    try:
+        res = refine_class(args.paper, args.optimal, args.out, weights, segments=args.segments,
+                           solver_options=options)
+    except (SpecError, ValueError) as e:   # bad input: one message, nothing written
+        print(f"Error: {e}", file=sys.stderr)
+        return 2
     print(res.message)
     return 0 if res.ok else 1
 
