@@ -178,8 +178,9 @@ def class_problem(optimal_doc: dict, orders: dict[str, int], values: dict[str, f
 
 
 def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
-                ridge: float) -> dict[str, float]:
-    """Write the optimal-mode run as a run folder of the class problem; return the fit."""
+                ridge: float) -> tuple[dict[str, float], dict[str, float]]:
+    """Write the optimal-mode run as a run folder of the class problem; return the fit
+    (T and the coefficients) and its rms deviation from each angle (rad)."""
     tr = optimal.phase()
     st, u = tr.states, tr.controls
     t = np.asarray(st["time"], float)
@@ -200,12 +201,8 @@ def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
                   problem={"phases": {tr.name: {"states": list(states), "controls": list(controls)}}},
                   parameters=values)
     warm.write(out)
-    return values
-
-
-def _fit_rms(values: dict[str, float], warm: Result, orders: dict[str, int]) -> dict[str, float]:
-    tr = warm.phase()
-    return {c: float(np.sqrt(np.mean(tr.controls[DEVIATIONS[c]] ** 2))) for c in orders}
+    rms = {c: float(np.sqrt(np.mean(controls[DEVIATIONS[c]] ** 2))) for c in orders}
+    return values, rms
 
 
 # ---------------------------------------------------------------------------------------
@@ -213,12 +210,11 @@ def _fit_rms(values: dict[str, float], warm: Result, orders: dict[str, int]) -> 
 def shooting_check(paper_loaded, values: dict[str, float], polish_evaluations: int = 2000) -> dict[str, Any]:
     """The paper-mode decision vector of the class solution, integrated by the paper's
     fitness; least squares at fixed t_f if a terminal error is outside its zeta."""
-    from ..spec.schema import ParameterSpec
+    from .problem_file import integer_parameters
     from .run import build, polish
 
     spec = paper_loaded.method
-    integers = [n for n, p in paper_loaded.spec.parameters.items() if isinstance(p, ParameterSpec) and p.integer]
-    pp = build(paper_loaded.problem, spec, integers)
+    pp = build(paper_loaded.problem, spec, integer_parameters(paper_loaded))
     x = np.empty(len(pp.names()))
     for i, name in enumerate(pp.names()):
         if name == "tf":
@@ -261,6 +257,7 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
     import ocdsl
     from ..api import write_run
     from ..run import check_expectations
+    from .run import _inside, solution_record
 
     t_start = _time.perf_counter()
     out = Path(out)
@@ -278,8 +275,7 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
     stages.mkdir(parents=True, exist_ok=True)
     mu = float(optimal_doc["model"]["parameters"]["mu"])
     warm_dir = stages / "fit"
-    values = warm_folder(optimal, mu, orders, warm_dir, ridge)
-    fit_rms = _fit_rms(values, Result.read(warm_dir), orders)
+    values, fit_rms = warm_folder(optimal, mu, orders, warm_dir, ridge)
     # tables are numeric: the statuses go to extra, the table has solved = 1/0
     history: dict[str, list] = {"step": [], "weight": [], "solved": [], "T": [], "penalty": [],
                                 "iterations": [], "wall_s": []}
@@ -330,13 +326,9 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
         values = dict(hard_from[1])      # check the last penalty step's class member instead
     check = shooting_check(paper, values)
     pp, x, det = check["pp"], check["x"], check["details"]
-    tr, U = pp.trajectory(x)
-    cm = pp.compiled
-    states = {n: tr.y[:, j] for j, n in enumerate(cm.state_names) if n != "time"}
-    controls = {c.name: U[:, j] for j, c in enumerate(pp.model.controls)}
-    feasible = bool(np.all(det["ratio"] <= 1.0)) and det["status"] >= 0 and det["status"] != 2
+    phase, solution = solution_record(pp, x, det)
+    feasible = _inside(det)
     status = "feasible" if (feasible and hard_ok) else "infeasible"
-    m_col = cm.state_names.index("m")
     extra = {
         "class_mode": {"optimal_run": str(optimal_dir), "fit_rms_rad": fit_rms, "ridge": ridge,
                        "coefficient_bound": coefficient_bound, "hard_solved": hard_ok,
@@ -345,15 +337,8 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
                                                     for c, o in orders.items() for n in coefficient_names(c, o)),
                        "stages": str(stages)},
         "shooting": check["record"],
-        "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
-        "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
-        "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
-        "decision_vector": dict(zip(pp.names(), map(float, x))),
-        "m_p": float(tr.y[0, m_col] - det["final"][m_col]),
+        **solution,
     }
-    for v in pp.variables:
-        if v.integer:
-            extra[v.name] = int(round(det["variables"][v.name]))
     msg = (f"class mode: penalty homotopy over {sum(np.isfinite(history['weight']))} weights, "
            f"hard class problem {'solved' if hard_ok else 'NOT solved'} (T {values['T']:.6g}); "
            f"paper-mode fitness: tf {det['tf']:.6g}, terminal errors "
@@ -364,8 +349,7 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
                     tf=det["tf"], iterations=int(sum(history["iterations"])),
                     wall_time_s={"total": _time.perf_counter() - t_start},
                     method=paper.method.model_dump(mode="json"), parameters=params,
-                    phases=[PhaseTrajectory("main", tr.t.copy(), states, controls)],
-                    problem=paper.problem.description, extra=extra, tables={"homotopy": history})
+                    phases=[phase], problem=paper.problem.description, extra=extra, tables={"homotopy": history})
     values_at = {ph.tf_symbol: float(det["tf"]) for ph in paper.problem.phases}
     result.expect = check_expectations(paper, values_at, result.objective)
     write_run(result, out, Path(paper_file))

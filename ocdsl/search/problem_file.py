@@ -5,16 +5,20 @@ from ..methods import register_runner
 from ..result import Result
 
 
+def integer_parameters(file) -> list[str]:
+    """Names of the file's parameters declared ``integer: true`` (such as N_rev)."""
+    from ..spec.schema import ParameterSpec
+
+    return [n for n, p in file.spec.parameters.items() if isinstance(p, ParameterSpec) and p.integer]
+
+
 def run_parametric_file(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
     from ..run import check_expectations
     from .run import run
 
-    from ..spec.schema import ParameterSpec
-
-    integers = [n for n, p in file.spec.parameters.items() if isinstance(p, ParameterSpec) and p.integer]
     with timer.measure("solve"):
         result = run(file.problem, file.method, progress=progress, seed=seed, name=file.spec.name,
-                     integer_parameters=integers)
+                     integer_parameters=integer_parameters(file))
     values = {}
     for s, bv in file.problem.boundary_values.items():
         traj = next((p for p in result.phases if p.name == bv.phase), None)

@@ -222,24 +222,15 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         timings["refine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     det = pp.details(x_best)
-    tr, U = pp.trajectory(x_best)
-    cm = pp.compiled
-    states = {n: tr.y[:, i] for i, n in enumerate(cm.state_names) if n != "time"}
-    controls = {c.name: U[:, j] for j, c in enumerate(pp.model.controls)}
-    phase = PhaseTrajectory("main", tr.t.copy(), states, controls)
-    feasible = bool(np.all(det["ratio"] <= 1.0)) and det["status"] >= 0 and det["status"] != 2
+    phase, solution = solution_record(pp, x_best, det)
+    feasible = _inside(det)
     extra: dict[str, Any] = {
         "fitness": res.f, "stop_reason": res.stop_reason, "evaluations": res.n_evals,
         "evals_per_s": res.n_evals / timings["solve"] if timings["solve"] > 0 else None,
-        "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
-        "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
-        "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
-        "decision_vector": dict(zip(pp.names(), map(float, x_best))),
+        **solution,
         "fitness_final": det["fitness"],
         "integrator_steps": det["steps"], "seed": settings.seed,
     }
-    for n in int_names:
-        extra[n] = int(round(det["variables"][n]))
     if res.restarts:
         extra["restarts"] = res.restarts
     if pso_only is not None:
@@ -248,10 +239,6 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         extra["continuation"] = continuation
     if refined is not None:
         extra["refine"] = refined
-    if "m" in cm.state_names:
-        mf = float(det["final"][cm.state_names.index("m")])
-        extra["m_f"] = mf
-        extra["m_p"] = float(tr.y[0, cm.state_names.index("m")] - mf)
     timings["post"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     hist = dict(res.history)
@@ -273,6 +260,30 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
                   iterations=res.iterations, wall_time_s=timings,
                   method=spec.model_dump(mode="json"), parameters=params, phases=[phase],
                   problem=problem.description, extra=extra, tables=tables)
+
+
+def solution_record(pp: ParametricProblem, x: np.ndarray, det: dict) -> tuple[PhaseTrajectory, dict[str, Any]]:
+    """The run folder's view of one decision vector: its trajectory (phase ``main``) and the
+    ``extra`` entries every parametric result carries (terminal errors and their ratios to
+    zeta, the decision vector, the integer parameters, m_f and m_p when there is a mass)."""
+    tr, U = pp.trajectory(x)
+    cm = pp.compiled
+    states = {n: tr.y[:, i] for i, n in enumerate(cm.state_names) if n != "time"}
+    controls = {c.name: U[:, j] for j, c in enumerate(pp.model.controls)}
+    record: dict[str, Any] = {
+        "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
+        "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
+        "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
+        "decision_vector": dict(zip(pp.names(), map(float, x))),
+    }
+    for v in pp.variables:
+        if v.integer:
+            record[v.name] = int(round(det["variables"][v.name]))
+    if "m" in cm.state_names:
+        mf = float(det["final"][cm.state_names.index("m")])
+        record["m_f"] = mf
+        record["m_p"] = float(tr.y[0, cm.state_names.index("m")] - mf)
+    return PhaseTrajectory("main", tr.t.copy(), states, controls), record
 
 
 def _inside(det: dict) -> bool:
