@@ -118,6 +118,60 @@ def test_class_problem_files_compile(tmp_path, weight):
     assert ("integral" in objective) == (weight is not None)
 
 
+@pytest.mark.parametrize("case", ["10N", "5N", "2N"])
+def test_terminal_box_is_the_paper_files_terminal_conditions(case):
+    """The box written in the Cartesian states at tf is centred on the paper file's own polar
+    terminal values (r, theta mod 2 pi, z, rdot, thetadot, zdot) with half-width ratio * zeta:
+    the optimal and paper files of a case describe the same target."""
+    import ocdsl
+
+    optimal_doc = yaml.safe_load((CONFIGS / f"seed1_{case}_optimal.yaml").read_text())
+    paper_doc = yaml.safe_load((CONFIGS / f"seed1_{case}_paper.yaml").read_text())
+    paper = ocdsl.load(CONFIGS / f"seed1_{case}_paper.yaml").file
+    zeta, ratio = cc.paper_tolerances(paper)
+    assert ratio == paper.method.refine.target_ratio
+    relations, replaced = cc.terminal_box(optimal_doc, zeta, ratio)
+    assert len(relations) == 6 and len(replaced) == 6
+    target = {}
+    for c in optimal_doc["problem"]["constraints"]:
+        lhs, _, rhs = c.partition("==")
+        if lhs.strip().endswith("(tf)") and rhs:
+            target[lhs.strip()] = float(rhs)
+    n_rev = paper_doc["parameters"]["N_rev"]["value"]
+    printed = {}
+    for c in paper_doc["problem"]["constraints"]:
+        lhs, _, rhs = c.partition("==")
+        if lhs.strip().endswith("(tf)"):
+            printed[lhs.strip()[:-4]] = float(sp.sympify(rhs.replace("N_rev", str(n_rev))))
+    printed["theta"] = math.remainder(printed["theta"], 2 * math.pi)
+    at_target = {"mu": optimal_doc["model"]["parameters"]["mu"],
+                 **{k.replace("(tf)", "_tf"): v for k, v in target.items()}}
+    for name, relation in zip(cc.POLAR_TERMINALS, relations):
+        low, middle, high = (part.strip() for part in relation.split("<="))
+        value = float(sp.sympify(middle.replace("(tf)", "_tf")).subs(at_target))
+        assert math.isclose(value, printed[name], abs_tol=1e-9), (name, value, printed[name])
+        assert math.isclose(float(high) - float(low), 2 * ratio * zeta[name], rel_tol=1e-12)
+        assert math.isclose((float(high) + float(low)) / 2, value, abs_tol=1e-12)
+
+
+def test_class_problem_with_the_paper_box_replaces_the_exact_terminal_state(tmp_path):
+    import ocdsl
+
+    optimal_doc = yaml.safe_load((CONFIGS / "seed1_10N_optimal.yaml").read_text())
+    orders = {"delta": 5, "phi": 8}
+    values = {"T": 1.6, **{n: 0.1 for c, k in orders.items() for n in cc.coefficient_names(c, k)}}
+    exact = cc.class_problem(optimal_doc, orders, values, None, 30.0)
+    boxed = cc.class_problem(optimal_doc, orders, values, None, 30.0,
+                             ({n: 1e-3 for n in cc.POLAR_TERMINALS}, 0.9))
+    dropped = set(exact["problem"]["constraints"]) - set(boxed["problem"]["constraints"])
+    assert dropped == {c for c in exact["problem"]["constraints"]
+                       if c.split("(")[0] in cc.CARTESIAN_TERMINALS and "(tf) ==" in c}
+    path = tmp_path / "boxed.yaml"
+    path.write_text(yaml.safe_dump(boxed, sort_keys=False, width=100000))
+    loaded = ocdsl.load(path).file
+    assert sum(not c.is_equality for c in loaded.problem.boundary) >= 6
+
+
 def test_class_mode_refuses_a_non_fourier_file(tmp_path):
     doc = yaml.safe_load((CONFIGS / "seed1_10N_paper.yaml").read_text())
     doc["method"]["controls"]["delta"] = {"series": "polynomial", "order": 3}
@@ -144,6 +198,39 @@ def test_stored_10N_class_solution_is_inside_zeta_by_the_paper_fitness():
     assert det["variables"]["N_rev"] == 5
     assert math.isclose(det["tf"], 1.93943, rel_tol=1e-5)
     assert det["tf"] < 1.94317
+
+
+def test_class_mode_from_a_class_member(tmp_path):
+    """Start from a paper-mode run folder (here the stored 10 N class solution, written as one
+    by member_run): the start is a class member (ed = ep = 0, the angles are the series), only
+    the hard problem is solved, with the paper's terminal box, and its optimum, integrated by
+    the paper fitness, is inside zeta and no slower than the start (the box admits the start's
+    exact end state)."""
+    import json
+    import ocdsl
+    from ocdsl.result import Result
+
+    data = json.loads((ROOT / "tests" / "data" / "seed1_10N_class_solution.json").read_text())
+    values = {"T": data["tf"], **data["coefficients"]}
+    paper_file = CONFIGS / "seed1_10N_paper.yaml"
+    paper = ocdsl.load(paper_file).file
+    start = cc.member_run(paper, values, tmp_path / "member")
+    assert start.status == "feasible"
+    res = cc.refine_class(paper_file, CONFIGS / "seed1_10N_optimal.yaml", tmp_path / "c10",
+                          segments=60, paper_run=tmp_path / "member", progress=False)
+    warm = Result.read(tmp_path / "c10_stages" / "fit").phase()
+    t = np.asarray(warm.states["time"])
+    for control, order in (("delta", 5), ("phi", 8)):
+        coef = [values[n] for n in cc.coefficient_names(control, order)]
+        np.testing.assert_allclose(warm.controls[control], cc.basis(order, t, data["tf"]) @ coef, atol=1e-12)
+        assert np.all(warm.controls[cc.DEVIATIONS[control]] == 0.0)
+    assert math.isclose(t[-1], data["tf"], rel_tol=1e-8)
+    table = res.tables["homotopy"]
+    assert all(not np.isfinite(w) for w in table["weight"])     # no penalty steps
+    assert res.extra["class_mode"]["hard_solved"]
+    assert res.status == "feasible" and res.extra["N_rev"] == 5
+    assert res.extra["shooting"]["max_error_over_zeta"] <= 1.0
+    assert res.tf <= data["tf"] + 1e-6
 
 
 def test_class_mode_cli_bad_run_folder(tmp_path, capsys):

@@ -142,13 +142,65 @@ def _cartesian_model(parameters: dict[str, float], sundman_k: float) -> dict[str
     }
 
 
+#: the paper's terminal states (ECRF polar, eq. 28) in the synodic Cartesian states at tf
+POLAR_TERMINALS = ("r", "theta", "z", "rdot", "thetadot", "zdot")
+CARTESIAN_TERMINALS = ("x", "y", "z", "vx", "vy", "vz")
+
+
+def terminal_box(optimal_doc: dict, zeta: dict[str, float], ratio: float) -> tuple[list[str], list[str]]:
+    """The paper's terminal conditions ``|e_i| <= ratio * zeta_i`` on its polar states, written
+    in the Cartesian states at tf, in place of the optimal-mode file's exact equalities.
+
+    Returns (relations, the Cartesian equalities they replace). The targets are the polar
+    values of the file's Cartesian target (theta modulo 2 pi: the revolution class is held
+    by the continuity of the trajectory)."""
+    import sympy as sp
+
+    from ..symbolic import frames
+
+    mu = float(optimal_doc["model"]["parameters"]["mu"])
+    targets, replaced = {}, []
+    for c in optimal_doc["problem"]["constraints"]:
+        lhs, _, rhs = c.partition("==")
+        name = lhs.strip()[:-len("(tf)")] if lhs.strip().endswith("(tf)") else None
+        if name in CARTESIAN_TERMINALS and rhs:
+            targets[name] = float(rhs)
+            replaced.append(c)
+    if set(targets) != set(CARTESIAN_TERMINALS):
+        raise ValueError(f"class mode needs the optimal file's terminal {CARTESIAN_TERMINALS} as "
+                         f"'x(tf) == number'; found {sorted(targets)}")
+    at_tf = [sp.Symbol(f"{n}(tf)") for n in CARTESIAN_TERMINALS]
+    polar = frames.synodic_to_ecrf(*at_tf, sp.Symbol("mu"), lib=sp)
+    goal = frames.synodic_to_ecrf(*(targets[n] for n in CARTESIAN_TERMINALS), mu, lib=np)
+    relations = []
+    for name, expr, value in zip(POLAR_TERMINALS, polar, goal):
+        half = ratio * zeta[name]
+        relations.append(f"{float(value) - half!r} <= {sp.sstr(expr)} <= {float(value) + half!r}")
+    return relations, replaced
+
+
+def paper_tolerances(paper_loaded) -> tuple[dict[str, float], float]:
+    """zeta of each polar terminal state and the refine stage's target ratio, as paper mode uses them."""
+    spec = paper_loaded.method
+    default = float(spec.tolerances.get("default", 1e-3))
+    return ({n: float(spec.tolerances.get(n, default)) for n in POLAR_TERMINALS},
+            float(spec.refine.target_ratio))
+
+
 def class_problem(optimal_doc: dict, orders: dict[str, int], values: dict[str, float],
-                  weight: float | None, coefficient_bound: float) -> dict[str, Any]:
-    """The collocation problem of the class: penalty step (``weight``) or hard (None)."""
+                  weight: float | None, coefficient_bound: float,
+                  terminal: tuple[dict[str, float], float] | None = None) -> dict[str, Any]:
+    """The collocation problem of the class: penalty step (``weight``) or hard (None).
+
+    ``terminal`` = (zeta, ratio): the paper's terminal box instead of the optimal file's
+    exact terminal state (see :func:`terminal_box`)."""
     model = optimal_doc["model"]
     k = float(model.get("options", {}).get("sundman_k", 1.5))
     boundary = [c for c in optimal_doc["problem"]["constraints"]
                 if not any(u in c for u in ("ux", "uy", "uz"))]
+    if terminal is not None:
+        relations, replaced = terminal_box(optimal_doc, *terminal)
+        boundary = [c for c in boundary if c not in replaced] + relations
     params: dict[str, Any] = {"T": {"value": float(values["T"]), "free": True, "bounds": [0.1, 100.0]}}
     for control, order in orders.items():
         for name in coefficient_names(control, order):
@@ -205,16 +257,49 @@ def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
     return values, rms
 
 
+def paper_warm_folder(paper_run: str | Path, optimal_loaded, orders: dict[str, int],
+                      out: Path) -> dict[str, float]:
+    """Write a paper-mode run as a run folder of the class problem; return T and its coefficients.
+
+    The paper trajectory is converted to the Sundman variable and the Cartesian frame as
+    optimal mode's warm start is; the angles are the series themselves at the physical time
+    (the start is a member of the class: ed = ep = 0)."""
+    from .refine_optimal import paper_to_warm_start
+
+    paper = Result.read(paper_run)
+    vector = paper.extra.get("decision_vector")
+    if not vector or "tf" not in vector:
+        raise ValueError(f"{paper_run}: not a paper-mode run folder (no decision vector)")
+    cartesian = paper_to_warm_start(paper_run, optimal_loaded, out.with_name(out.name + "_cartesian"))
+    tr = cartesian.phase()
+    states = {n: np.asarray(v, float) for n, v in tr.states.items()}
+    T = float(vector["tf"])
+    values: dict[str, float] = {"T": T}
+    controls = {}
+    for control, order in orders.items():
+        names = coefficient_names(control, order)
+        missing = [n for n in names if n not in vector]
+        if missing:
+            raise ValueError(f"{paper_run}: its decision vector lacks {missing}")
+        coef = np.array([float(vector[n]) for n in names])
+        values.update(zip(names, map(float, coef)))
+        controls[control] = basis(order, states["time"], T) @ coef
+        controls[DEVIATIONS[control]] = np.zeros_like(states["time"])
+    Result(f"{paper.name} as a class member", "feasible", tf=cartesian.tf,
+           phases=[PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls)],
+           problem={"phases": {tr.name: {"states": list(states), "controls": list(controls)}}},
+           parameters=values).write(out)
+    return values
+
+
 # ---------------------------------------------------------------------------------------
 # the verification by the paper-mode fitness
-def shooting_check(paper_loaded, values: dict[str, float], polish_evaluations: int = 2000) -> dict[str, Any]:
-    """The paper-mode decision vector of the class solution, integrated by the paper's
-    fitness; least squares at fixed t_f if a terminal error is outside its zeta."""
+def _decision_vector(paper_loaded, values: dict[str, float]):
+    """The paper-mode problem and the decision vector of a class member (T and coefficients)."""
     from .problem_file import integer_parameters
-    from .run import build, polish
+    from .run import build
 
-    spec = paper_loaded.method
-    pp = build(paper_loaded.problem, spec, integer_parameters(paper_loaded))
+    pp = build(paper_loaded.problem, paper_loaded.method, integer_parameters(paper_loaded))
     x = np.empty(len(pp.names()))
     for i, name in enumerate(pp.names()):
         if name == "tf":
@@ -224,6 +309,32 @@ def shooting_check(paper_loaded, values: dict[str, float], polish_evaluations: i
         else:  # a search parameter such as N_rev: its value in the file (held at the class)
             var = next(v for v in pp.variables if v.name == name)
             x[i] = var.lower if var.lower == var.upper else paper_loaded.spec.parameters[name].value
+    return pp, x
+
+
+def member_run(paper_loaded, values: dict[str, float], out: str | Path) -> Result:
+    """Write a class member (T and coefficients), integrated by the paper-mode fitness, as a
+    paper-mode run folder: a start for :func:`refine_class` (``paper_run``) from any
+    coefficients, e.g. a stored solution or a random member."""
+    from .run import _inside, solution_record
+
+    pp, x = _decision_vector(paper_loaded, values)
+    det = pp.details(x)
+    phase, record = solution_record(pp, x, det)
+    res = Result(f"{paper_loaded.spec.name} - class member", "feasible" if _inside(det) else "infeasible",
+                 objective=det["objective"], tf=float(det["tf"]), phases=[phase], extra=record,
+                 problem={"phases": {"main": {"states": list(phase.states), "controls": list(phase.controls)}}})
+    res.write(out)
+    return res
+
+
+def shooting_check(paper_loaded, values: dict[str, float], polish_evaluations: int = 2000) -> dict[str, Any]:
+    """The paper-mode decision vector of the class solution, integrated by the paper's
+    fitness; least squares at fixed t_f if a terminal error is outside its zeta."""
+    from .run import polish
+
+    spec = paper_loaded.method
+    pp, x = _decision_vector(paper_loaded, values)
     det = pp.details(x)
     record = {"tf": float(det["tf"]), "max_error_over_zeta": float(det["ratio"].max()),
               "errors": det["errors"].tolist(), "polished": False}
@@ -246,14 +357,21 @@ def _reuse(path: Path, text: str) -> Result | None:
 
 
 # ---------------------------------------------------------------------------------------
-def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Path,
+def refine_class(paper_file: str | Path, optimal: str | Path, out: str | Path,
                  weights: tuple[float, ...] = DEFAULT_WEIGHTS, ridge: float = 1e-2,
                  coefficient_bound: float = 30.0, progress: bool = True, segments: int | None = None,
-                 solver_options: dict[str, Any] | None = None) -> Result:
-    """Class mode of ``paper_file`` from the optimal-mode run ``optimal_dir``; writes ``out``.
+                 solver_options: dict[str, Any] | None = None, paper_run: str | Path | None = None,
+                 terminal: str = "paper") -> Result:
+    """Class mode of ``paper_file``; writes ``out``.
 
-    ``segments`` replaces the optimal-mode file's mesh; ``solver_options`` are added to its
-    Ipopt options in every step."""
+    ``optimal``: an optimal-mode run folder (start: its control, fitted by the series, then
+    the penalty homotopy) or, with ``paper_run``, an optimal-mode run folder or problem file
+    that only supplies the Cartesian problem: the start is then the paper-mode run itself,
+    already a class member, and only the hard problem is solved. ``terminal``: ``paper``
+    (the paper's box |e_i| <= ratio * zeta_i on its polar terminal states, ratio and zeta of
+    the paper file, as paper mode's refine stage) or ``exact`` (the optimal file's terminal
+    state). ``segments`` replaces the optimal-mode file's mesh; ``solver_options`` are added
+    to its Ipopt options in every step."""
     import ocdsl
     from ..api import write_run
     from ..run import check_expectations
@@ -267,15 +385,25 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
     if set(orders) != set(ANGLES) or any(s.series != "fourier" for s in paper.method.controls.values()):
         raise ValueError(f"{paper_file}: class mode expects Fourier series of delta and phi, "
                          f"got {sorted(orders)}")
-    for needed in ("result.json", "problem.yaml"):
-        if not (Path(optimal_dir) / needed).exists():
-            raise ValueError(f"{optimal_dir}: not an optimal-mode run folder (no {needed})")
-    optimal = Result.read(optimal_dir)
-    optimal_doc = yaml.safe_load((Path(optimal_dir) / "problem.yaml").read_text())
+    if terminal not in ("paper", "exact"):
+        raise ValueError(f"terminal must be 'paper' or 'exact', got {terminal!r}")
+    optimal = Path(optimal)
+    problem_path = optimal if optimal.is_file() else optimal / "problem.yaml"
+    needed = [problem_path] + ([] if paper_run is not None else [optimal / "result.json"])
+    for path in needed:
+        if not path.exists():
+            raise ValueError(f"{optimal}: not an optimal-mode run folder (no {path.name})")
+    optimal_doc = yaml.safe_load(problem_path.read_text())
+    box = paper_tolerances(paper) if terminal == "paper" else None
     stages.mkdir(parents=True, exist_ok=True)
     mu = float(optimal_doc["model"]["parameters"]["mu"])
     warm_dir = stages / "fit"
-    values, fit_rms = warm_folder(optimal, mu, orders, warm_dir, ridge)
+    if paper_run is None:
+        values, fit_rms = warm_folder(Result.read(optimal), mu, orders, warm_dir, ridge)
+    else:
+        values = paper_warm_folder(paper_run, ocdsl.load(problem_path).file, orders, warm_dir)
+        fit_rms = {c: 0.0 for c in orders}
+        weights = ()
     # tables are numeric: the statuses go to extra, the table has solved = 1/0
     history: dict[str, list] = {"step": [], "weight": [], "solved": [], "T": [], "penalty": [],
                                 "iterations": [], "wall_s": []}
@@ -290,7 +418,7 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
             hard_from = (previous, dict(values))
         if w is None:          # every hard attempt starts from the last penalty step
             previous, values = hard_from[0], dict(hard_from[1])
-        doc = class_problem(optimal_doc, orders, values, w, coefficient_bound)
+        doc = class_problem(optimal_doc, orders, values, w, coefficient_bound, box)
         if segments is not None:
             doc["method"]["segments"] = int(segments)
         doc["solver"].setdefault("options", {}).update(solver_options or {})
@@ -330,7 +458,7 @@ def refine_class(paper_file: str | Path, optimal_dir: str | Path, out: str | Pat
     feasible = _inside(det)
     status = "feasible" if (feasible and hard_ok) else "infeasible"
     extra = {
-        "class_mode": {"optimal_run": str(optimal_dir), "fit_rms_rad": fit_rms, "ridge": ridge,
+        "class_mode": {"optimal": str(optimal), "start": str(paper_run or optimal), "terminal": terminal, "fit_rms_rad": fit_rms, "ridge": ridge,
                        "coefficient_bound": coefficient_bound, "hard_solved": hard_ok,
                        "last_weight": last_ok, "collocation_T": values["T"], "statuses": statuses,
                        "coefficients_at_bound": sum(abs(values[n]) >= 0.999 * coefficient_bound
@@ -360,7 +488,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m ocdsl.search.class_collocation",
                                  description="Seed 1 class mode: the paper's Fourier class by collocation")
     ap.add_argument("paper", help="paper-mode problem file (method: parametric)")
-    ap.add_argument("--optimal", required=True, help="optimal-mode run folder to start from")
+    ap.add_argument("--optimal", required=True,
+                    help="optimal-mode run folder to start from (with --from-paper: that folder or an optimal-mode problem file)")
+    ap.add_argument("--from-paper", default=None, metavar="RUN",
+                    help="start from this paper-mode run (a class member): the hard problem only")
+    ap.add_argument("--terminal", choices=("paper", "exact"), default="paper",
+                    help="the paper's terminal box (default) or the optimal file's exact terminal state")
     ap.add_argument("--out", required=True, help="run folder to write")
     ap.add_argument("--weights", default=None, help="comma-separated penalty weights")
     ap.add_argument("--segments", type=int, default=None, help="mesh of the class problem (default: the optimal run's)")
@@ -376,7 +509,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         res = refine_class(args.paper, args.optimal, args.out, weights, segments=args.segments,
-                           solver_options=options)
+                           solver_options=options, paper_run=args.from_paper, terminal=args.terminal)
     except (SpecError, ValueError) as e:   # bad input: one message, nothing written
         print(f"Error: {e}", file=sys.stderr)
         return 2
