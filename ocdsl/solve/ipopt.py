@@ -245,6 +245,7 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers) -> Solve
     status = STATUS_MAP.get(msg, "error")
     nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
                 "nonzeros": int(nlp.nnz_jacobian()),
+                "hessian_nonzeros": int(nlp.nnz_hessian_lag()),
                 "equality_constraints": int(nlp.n_eq_constraints()),
                 "inequality_constraints": int(nlp.n_ineq_constraints())}
     obj = None
