@@ -33,8 +33,21 @@ stage whose problem file is unchanged (resume after an interruption).
 Why not the hard problem straight from the fit: the fitted series differs from the
 optimal control by 0.5-1.2 rad rms (order 5 cannot follow the per-revolution oscillation
 of the in-plane angle), so the start is far from consistent; measured at 10 N: Ipopt
-diverged into restoration within 35 iterations. Why not from the paper-mode shooting
-point: the collocation then stays in the basin the shooting stages already found.
+diverged into restoration within 35 iterations.
+
+Start from a paper-mode run (``paper_run``, ``--from-paper``): its best particle is a class
+member, so its trajectory (converted to the Sundman variable and the Cartesian frame as
+optimal mode's warm start is) with ed = ep = 0 is a consistent start and only the hard
+problem is solved. It stays in the basin the shooting stages found but reaches that basin's
+minimum, where SLSQP on the shooting map stops early (measured, session 5: 2 N 7.24121 ->
+7.16780 in 31 iterations, 10 N 1.94317 -> 1.93775, 5 N 3.08085 -> 3.07607). Any class
+member can be written as such a start by :func:`member_run`; random members (10 at 10 N,
+shot from uniform coefficients) all ended infeasible.
+
+The terminal conditions are the paper's by default (``terminal="paper"``): its box
+``|e_i| <= ratio * zeta_i`` on the polar terminal states, the ratio of its refine stage,
+which is what paper mode's SLSQP solves; ``terminal="exact"`` keeps the optimal file's end
+state.
 
 Why warm-start options after the first step (``mu_strategy monotone``, ``mu_init 1e-6``,
 bound pushes 1e-8): with Ipopt's defaults each re-solve starts by pushing the point away
@@ -43,6 +56,8 @@ from its bounds and raising the barrier, and at weights >= 80 (10 N) that start 
 Command line::
 
     python -m ocdsl.search.class_collocation configs/seed1_10N_paper.yaml --optimal RUN --out OUT
+    python -m ocdsl.search.class_collocation configs/seed1_2N_paper.yaml \
+        --optimal configs/seed1_2N_optimal.yaml --from-paper PAPER_RUN --out OUT --segments 300
 """
 from __future__ import annotations
 
@@ -496,6 +511,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the paper's terminal box (default) or the optimal file's exact terminal state")
     ap.add_argument("--out", required=True, help="run folder to write")
     ap.add_argument("--weights", default=None, help="comma-separated penalty weights")
+    ap.add_argument("--coefficient-bound", type=float, default=30.0,
+                    help="bound on every |Fourier coefficient| (the paper states none; default 30)")
     ap.add_argument("--segments", type=int, default=None, help="mesh of the class problem (default: the optimal run's)")
     ap.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
                     help="an Ipopt option for every step (repeatable)")
@@ -509,6 +526,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         res = refine_class(args.paper, args.optimal, args.out, weights, segments=args.segments,
+                           coefficient_bound=args.coefficient_bound,
                            solver_options=options, paper_run=args.from_paper, terminal=args.terminal)
     except (SpecError, ValueError) as e:   # bad input: one message, nothing written
         print(f"Error: {e}", file=sys.stderr)
