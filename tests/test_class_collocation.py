@@ -298,3 +298,20 @@ def test_10N_class_mode_homotopy(tmp_path):
     if res.extra["class_mode"]["hard_solved"]:
         assert res.status == "feasible"
         assert 1.5448 < res.tf < 1.94317 + 1e-3
+
+
+def test_multistart_class_stage_from_a_member(tmp_path):
+    """The random-start study's class-mode stage (``multistart --class``): from a class member
+    inside zeta it returns the verified class-mode tf, with the optimal file found beside the
+    paper file."""
+    import json
+    import ocdsl
+    from ocdsl.search.multistart import _class_mode
+
+    data = json.loads((ROOT / "tests" / "data" / "seed1_10N_class_solution.json").read_text())
+    path = str(CONFIGS / "seed1_10N_paper.yaml")
+    lf = ocdsl.load(path).file
+    pp, x = cc._decision_vector(lf, {"T": data["tf"], **data["coefficients"]})
+    tf, how = _class_mode(lf, path, pp, x, 0, 60, str(tmp_path))
+    assert tf is not None and tf <= data["tf"] + 1e-6, how
+    assert (tmp_path / "class0" / "result.json").exists() and (tmp_path / "member0" / "result.json").exists()
