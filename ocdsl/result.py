@@ -153,6 +153,13 @@ class Result:
         return res
 
 
+def single_phase_result(name: str, status: str, phase: PhaseTrajectory, **fields: Any) -> Result:
+    """A Result of one phase whose problem description is just its state and control names:
+    what a warm-start run folder needs (``--warm-start`` reads the trajectory by name)."""
+    problem = {"phases": {phase.name: {"states": list(phase.states), "controls": list(phase.controls)}}}
+    return Result(name, status, phases=[phase], problem=problem, **fields)
+
+
 def _trajectory_file(phase: str, n_phases: int) -> str:
     return "trajectory.csv" if n_phases == 1 else f"trajectory_{phase}.csv"
 

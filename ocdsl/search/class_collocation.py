@@ -72,7 +72,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ..result import PhaseTrajectory, Result
+from ..result import PhaseTrajectory, Result, single_phase_result
 
 DEFAULT_WEIGHTS = (0.01, 0.1, 1, 10, 20, 40, 60)
 WARM_OPTIONS = {"mu_strategy": "monotone", "mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8,
@@ -263,11 +263,9 @@ def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
         controls[control] = angle[control]
         controls[DEVIATIONS[control]] = angle[control] - basis(order, t, T) @ coef
     states = {n: np.asarray(v, float) for n, v in st.items()}
-    warm = Result(f"{optimal.name} as angles", "optimal", tf=optimal.tf,
-                  phases=[PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls)],
-                  problem={"phases": {tr.name: {"states": list(states), "controls": list(controls)}}},
-                  parameters=values)
-    warm.write(out)
+    single_phase_result(f"{optimal.name} as angles", "optimal",
+                        PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls),
+                        tf=optimal.tf, parameters=values).write(out)
     rms = {c: float(np.sqrt(np.mean(controls[DEVIATIONS[c]] ** 2))) for c in orders}
     return values, rms
 
@@ -300,10 +298,9 @@ def paper_warm_folder(paper_run: str | Path, optimal_loaded, orders: dict[str, i
         values.update(zip(names, map(float, coef)))
         controls[control] = basis(order, states["time"], T) @ coef
         controls[DEVIATIONS[control]] = np.zeros_like(states["time"])
-    Result(f"{paper.name} as a class member", "feasible", tf=cartesian.tf,
-           phases=[PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls)],
-           problem={"phases": {tr.name: {"states": list(states), "controls": list(controls)}}},
-           parameters=values).write(out)
+    single_phase_result(f"{paper.name} as a class member", "feasible",
+                        PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls),
+                        tf=cartesian.tf, parameters=values).write(out)
     return values
 
 
@@ -336,9 +333,9 @@ def member_run(paper_loaded, values: dict[str, float], out: str | Path) -> Resul
     pp, x = _decision_vector(paper_loaded, values)
     det = pp.details(x)
     phase, record = solution_record(pp, x, det)
-    res = Result(f"{paper_loaded.spec.name} - class member", "feasible" if _inside(det) else "infeasible",
-                 objective=det["objective"], tf=float(det["tf"]), phases=[phase], extra=record,
-                 problem={"phases": {"main": {"states": list(phase.states), "controls": list(phase.controls)}}})
+    res = single_phase_result(f"{paper_loaded.spec.name} - class member",
+                              "feasible" if _inside(det) else "infeasible", phase,
+                              objective=det["objective"], tf=float(det["tf"]), extra=record)
     res.write(out)
     return res
 

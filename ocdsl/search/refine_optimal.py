@@ -42,7 +42,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 from scipy.interpolate import BarycentricInterpolator
 
-from ..result import PhaseTrajectory, Result
+from ..result import PhaseTrajectory, Result, single_phase_result
 from ..symbolic import frames
 
 POLAR = ("r", "theta", "z", "rdot", "thetadot", "zdot", "m")
@@ -150,11 +150,10 @@ def paper_to_warm_start(paper_dir: str | Path, loaded, out: str | Path, points: 
         controls = {"ux": ux, "uy": uy, "uz": uz}
     states[CLOCK] = X[-1]
     controls = {n: v for n, v in controls.items() if n in num.controls}
-    res = Result(name=f"warm start from {paper_dir}", status="feasible", tf=s_f,
-                 phases=[PhaseTrajectory("main", s, states=states, controls=controls)],
-                 problem={"phases": {"main": {"states": list(states), "controls": list(controls)}}},
-                 extra={"source": str(paper_dir), "paper_tf": tf_paper, "s_f": s_f,
-                        "clock_error_at_end": float(X[-1, -1] - tf_paper)})
+    res = single_phase_result(f"warm start from {paper_dir}", "feasible",
+                              PhaseTrajectory("main", s, states=states, controls=controls), tf=s_f,
+                              extra={"source": str(paper_dir), "paper_tf": tf_paper, "s_f": s_f,
+                                     "clock_error_at_end": float(X[-1, -1] - tf_paper)})
     res.write(out)
     return res
 
