@@ -242,8 +242,7 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
         b.tf = pyo.Param(initialize=ph.tf, mutable=True)
     scalars[ph.t0_symbol] = b.t0
     scalars[ph.tf_symbol] = b.tf
-    free_duration = ph.t0 is None or ph.tf is None
-    duration = b.tf - b.t0 if free_duration else float(ph.tf - ph.t0)
+    duration = b.tf - b.t0 if (ph.t0 is None or ph.tf is None) else float(ph.tf - ph.t0)
 
     free = sorted(problem.free_parameters, key=str)
     # constants kept as symbols (``build(mutable=...)``) are arguments like free parameters
@@ -307,8 +306,7 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
                 # 800 segments: 10.3 M nonzeros, 430 ms per evaluation); per node it is sparse
                 weight = float(sc.weights[i]) * half_h
                 for q, e in enumerate(L(*vals)):
-                    term = weight * duration * e if free_duration else (weight * duration) * e
-                    integral_terms[q] = integral_terms[q] + term
+                    integral_terms[q] = integral_terms[q] + weight * duration * e
         if integral_form:
             # LGL (Lobatto IIIA): D on the Lobatto points is rank-deficient, so the collocation
             # equations are imposed in integral form, X_i = X_0 + scale * sum_j A_ij F_j.
