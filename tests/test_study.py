@@ -350,3 +350,34 @@ def test_unreachable_scheduler(tmp_path):
     with pytest.raises(StudyError, match="bad scheduler address"):
         run_study(f, out, scheduler="tcp://nohostport", quiet=True, point_fn=demo_point)
     assert not out.exists()
+
+
+def test_workers_exit_when_the_study_process_is_killed(tmp_path):
+    """A study killed with SIGKILL cannot shut its pool down; its workers (children of the
+    fork server, not of the study) must still go, instead of idling for good."""
+    code = ("import os, sys, time\n"
+            "from ocdsl.study.executor import Executor\n"
+            "ex = Executor(workers=2)\n"
+            "hs = [ex.submit(os.getpid) for _ in range(8)]\n"
+            "pending = set(hs)\n"
+            "while pending:\n"
+            "    _, pending = ex.wait(pending, timeout=5)\n"
+            "print(' '.join(str(p) for p in sorted({h.result() for h in hs})), flush=True)\n"
+            "time.sleep(120)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    workers = [int(p) for p in proc.stdout.readline().split()]
+    assert workers and proc.pid not in workers
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+    def alive(pid):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    deadline = time.time() + 20
+    while time.time() < deadline and any(alive(p) for p in workers):
+        time.sleep(0.1)
+    assert not any(alive(p) for p in workers), workers

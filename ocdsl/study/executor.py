@@ -114,6 +114,29 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+OWNER_POLL_S = 1.0
+
+
+def _exit_with_owner(owner: int) -> None:
+    """Worker initializer: end this worker when the process that owns the pool is gone.
+
+    A worker's parent is the fork server, not the study process, so a study killed with
+    SIGKILL (no shutdown) left its idle workers, and with them the fork server, running
+    for good (measured: a forkserver and two workers per killed study, still there an hour
+    later). A daemon thread polls the owner and exits the worker once it has disappeared."""
+    def watch() -> None:
+        while True:
+            time.sleep(OWNER_POLL_S)
+            try:
+                os.kill(owner, 0)
+            except ProcessLookupError:
+                os._exit(0)
+            except PermissionError:   # the pid is alive (reused by another user's process)
+                pass
+
+    threading.Thread(target=watch, name="ocdsl-owner-watch", daemon=True).start()
+
+
 class Executor:
     """``Executor(workers=None, serial=False, scheduler=None)``; a context manager.
 
@@ -185,7 +208,8 @@ class Executor:
         ctx = multiprocessing.get_context("forkserver")
         # modules imported once in the fork server, inherited by every worker it forks
         ctx.set_forkserver_preload(self.PRELOAD)
-        self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+        self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
+                                            initializer=_exit_with_owner, initargs=(os.getpid(),))
 
     # ---- tasks -----------------------------------------------------------------------
     @property
