@@ -23,10 +23,10 @@ def measure(config: str | Path = DEFAULT, particles: int = 64, scipy_evals: int 
     from ocdsl.simulate import scipy_final_state
     from ocdsl.spec.compile import load
 
-    from .run import build
+    from .problem_file import shooting_problem
 
     lf = load(config)
-    pp = build(lf.problem, lf.method, {n for n, p in lf.spec.parameters.items() if getattr(p, "integer", False)})
+    pp = shooting_problem(lf)
     pp.threads = False
     lo, hi, is_int = pp.bounds()
     rng = np.random.default_rng(seed)

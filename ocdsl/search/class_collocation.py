@@ -195,11 +195,16 @@ def terminal_box(optimal_doc: dict, zeta: dict[str, float], ratio: float) -> tup
 
 
 def paper_tolerances(paper_loaded) -> tuple[dict[str, float], float]:
-    """zeta of each polar terminal state and the refine stage's target ratio, as paper mode uses them."""
-    spec = paper_loaded.method
-    default = float(spec.tolerances.get("default", 1e-3))
-    return ({n: float(spec.tolerances.get(n, default)) for n in POLAR_TERMINALS},
-            float(spec.refine.target_ratio))
+    """zeta of each polar terminal state and the refine stage's target ratio: read from the
+    paper-mode problem's own terminal conditions, so they are the ones its fitness uses."""
+    from .problem_file import shooting_problem
+
+    pp = shooting_problem(paper_loaded)
+    zeta = {t.state: float(t.zeta) for t in pp.terminals if t.state in POLAR_TERMINALS}
+    missing = set(POLAR_TERMINALS) - set(zeta)
+    if missing:
+        raise ValueError(f"class mode needs terminal conditions on {sorted(missing)} in the paper file")
+    return zeta, float(paper_loaded.method.refine.target_ratio)
 
 
 def class_problem(optimal_doc: dict, orders: dict[str, int], values: dict[str, float],
@@ -308,10 +313,9 @@ def paper_warm_folder(paper_run: str | Path, optimal_loaded, orders: dict[str, i
 # the verification by the paper-mode fitness
 def _decision_vector(paper_loaded, values: dict[str, float]):
     """The paper-mode problem and the decision vector of a class member (T and coefficients)."""
-    from .problem_file import integer_parameters
-    from .run import build
+    from .problem_file import shooting_problem
 
-    pp = build(paper_loaded.problem, paper_loaded.method, integer_parameters(paper_loaded))
+    pp = shooting_problem(paper_loaded)
     x = np.empty(len(pp.names()))
     for i, name in enumerate(pp.names()):
         if name == "tf":

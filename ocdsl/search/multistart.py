@@ -20,7 +20,8 @@ import time
 
 import numpy as np
 
-from ocdsl.search.run import build, polish, refine_box, refine_tf
+from ocdsl.search.problem_file import shooting_problem
+from ocdsl.search.run import polish, refine_box, refine_tf
 from ocdsl.spec.compile import load
 from ocdsl.spec.parametric import PolishSpec
 
@@ -30,8 +31,7 @@ def local_minima(path: str, starts: int, seed: int = 0, verbose: bool = True,
     """tf of the refined point of every start that least squares got inside the zeta box
     (with ``class_mode`` = (segments, out): of the verified class-mode solution)."""
     lf = load(path)
-    integers = [n for n, p in lf.method.parameters.items() if p.integer]
-    pp = build(lf.problem, lf.method, integers)
+    pp = shooting_problem(lf)
     lo, hi, is_int = pp.bounds()
     refine = lf.method.refine
     wide = refine_box(pp, refine.box_scale)

@@ -12,6 +12,14 @@ def integer_parameters(file) -> list[str]:
     return [n for n, p in file.spec.parameters.items() if isinstance(p, ParameterSpec) and p.integer]
 
 
+def shooting_problem(file):
+    """The paper-mode shooting problem (``search.run.ParametricProblem``) of a loaded
+    parametric file, built as ``ocdsl run`` builds it."""
+    from .run import build
+
+    return build(file.problem, file.method, integer_parameters(file))
+
+
 def run_parametric_file(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
     from ..run import check_expectations
     from .run import run
