@@ -3,8 +3,6 @@
 ``ocdsl.transcribe.pseudospectral.FAST`` switches the levers of reports/bench/levers.md;
 both settings must reach the same optimum (to 1e-8) on the examples. Not timed.
 """
-from pathlib import Path
-
 import pytest
 
 import ocdsl
@@ -117,7 +115,7 @@ def test_dropped_models_are_freed_by_the_next_build(configs):
 
 @pytest.mark.ipopt
 @pytest.mark.parametrize("transcription", ["LGR", "flat-bspline"])
-def test_lagrange_cost_with_free_time_keeps_the_hessian_sparse(tmp_path, transcription):
+def test_lagrange_cost_with_free_time_keeps_the_hessian_sparse(configs, tmp_path, transcription):
     """A free final time times the quadrature of a Lagrange cost, written in front of the sum,
     made one nonlinear element of all the nodes' variables, whose ASL Hessian is dense
     (moon landing, 800 segments: 10.3 M nonzeros, solve 29 s; per node: 32 k, 2.6 s).
@@ -126,7 +124,7 @@ def test_lagrange_cost_with_free_time_keeps_the_hessian_sparse(tmp_path, transcr
     import yaml
 
     if transcription == "LGR":
-        doc = yaml.safe_load((Path(__file__).parent.parent / "configs" / "moon_landing.yaml").read_text())
+        doc = yaml.safe_load((configs / "moon_landing.yaml").read_text())
         sizes, key = (20, 80), "segments"
     else:
         doc = {"name": "minimum time and energy, double integrator",
