@@ -315,3 +315,18 @@ def test_multistart_class_stage_from_a_member(tmp_path):
     tf, how = _class_mode(lf, path, pp, x, 0, 60, str(tmp_path))
     assert tf is not None and tf <= data["tf"] + 1e-6, how
     assert (tmp_path / "class0" / "result.json").exists() and (tmp_path / "member0" / "result.json").exists()
+
+
+def test_class_mode_cli_bad_paper_run(tmp_path, capsys):
+    """--from-paper with a missing folder, or with a run that is not paper mode's (no decision
+    vector): one error line, exit 2, nothing written."""
+    from ocdsl.result import PhaseTrajectory, single_phase_result
+
+    not_paper = tmp_path / "not_paper"
+    single_phase_result("some run", "optimal", PhaseTrajectory("main", np.linspace(0, 1, 3))).write(not_paper)
+    for start, message in ((tmp_path / "nowhere", "no result.json"), (not_paper, "no decision vector")):
+        code = cc.main([str(CONFIGS / "seed1_10N_paper.yaml"), "--optimal", str(CONFIGS / "seed1_10N_optimal.yaml"),
+                        "--from-paper", str(start), "--out", str(tmp_path / "out")])
+        assert code == 2
+        assert message in capsys.readouterr().err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["not_paper"]

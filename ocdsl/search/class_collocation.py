@@ -275,38 +275,42 @@ def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
     return values, rms
 
 
-def paper_warm_folder(paper_run: str | Path, optimal_loaded, orders: dict[str, int],
-                      out: Path) -> dict[str, float]:
-    """Write a paper-mode run as a run folder of the class problem; return T and its coefficients.
+def paper_start(paper_run: str | Path, orders: dict[str, int]) -> tuple[Result, dict[str, float]]:
+    """The paper-mode run ``paper_run`` and its class member (T and coefficients); a
+    ValueError naming the folder if it is not a paper-mode run of these series."""
+    if not (Path(paper_run) / "result.json").exists():
+        raise ValueError(f"{paper_run}: not a paper-mode run folder (no result.json)")
+    paper = Result.read(paper_run)
+    vector = paper.extra.get("decision_vector")
+    if not vector or "tf" not in vector:
+        raise ValueError(f"{paper_run}: not a paper-mode run folder (no decision vector)")
+    names = [n for control, order in orders.items() for n in coefficient_names(control, order)]
+    missing = [n for n in names if n not in vector]
+    if missing:
+        raise ValueError(f"{paper_run}: its decision vector lacks {missing}")
+    return paper, {"T": float(vector["tf"]), **{n: float(vector[n]) for n in names}}
+
+
+def paper_warm_folder(paper_run: str | Path, paper: Result, values: dict[str, float], optimal_loaded,
+                      orders: dict[str, int], out: Path) -> None:
+    """Write the paper-mode run (:func:`paper_start`) as a run folder of the class problem.
 
     The paper trajectory is converted to the Sundman variable and the Cartesian frame as
     optimal mode's warm start is; the angles are the series themselves at the physical time
     (the start is a member of the class: ed = ep = 0)."""
     from .refine_optimal import paper_to_warm_start
 
-    paper = Result.read(paper_run)
-    vector = paper.extra.get("decision_vector")
-    if not vector or "tf" not in vector:
-        raise ValueError(f"{paper_run}: not a paper-mode run folder (no decision vector)")
     cartesian = paper_to_warm_start(paper_run, optimal_loaded, out.with_name(out.name + "_cartesian"))
     tr = cartesian.phase()
     states = {n: np.asarray(v, float) for n, v in tr.states.items()}
-    T = float(vector["tf"])
-    values: dict[str, float] = {"T": T}
     controls = {}
     for control, order in orders.items():
-        names = coefficient_names(control, order)
-        missing = [n for n in names if n not in vector]
-        if missing:
-            raise ValueError(f"{paper_run}: its decision vector lacks {missing}")
-        coef = np.array([float(vector[n]) for n in names])
-        values.update(zip(names, map(float, coef)))
-        controls[control] = basis(order, states["time"], T) @ coef
+        coef = np.array([values[n] for n in coefficient_names(control, order)])
+        controls[control] = basis(order, states["time"], values["T"]) @ coef
         controls[DEVIATIONS[control]] = np.zeros_like(states["time"])
     single_phase_result(f"{paper.name} as a class member", "feasible",
                         PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls),
                         tf=cartesian.tf, parameters=values).write(out)
-    return values
 
 
 # ---------------------------------------------------------------------------------------
@@ -411,13 +415,16 @@ def refine_class(paper_file: str | Path, optimal: str | Path, out: str | Path,
             raise ValueError(f"{optimal}: not an optimal-mode run folder (no {path.name})")
     optimal_doc = yaml.safe_load(problem_path.read_text())
     box = paper_tolerances(paper) if terminal == "paper" else None
+    if paper_run is not None:   # every check before anything is written
+        start, values = paper_start(paper_run, orders)
+        optimal_loaded = ocdsl.load(problem_path).file
     stages.mkdir(parents=True, exist_ok=True)
     mu = float(optimal_doc["model"]["parameters"]["mu"])
     warm_dir = stages / "fit"
     if paper_run is None:
         values, fit_rms = warm_folder(Result.read(optimal), mu, orders, warm_dir, ridge)
     else:
-        values = paper_warm_folder(paper_run, ocdsl.load(problem_path).file, orders, warm_dir)
+        paper_warm_folder(paper_run, start, values, optimal_loaded, orders, warm_dir)
         fit_rms = {c: 0.0 for c in orders}
         weights = ()
     # tables are numeric: the statuses go to extra, the table has solved = 1/0
