@@ -70,7 +70,7 @@ def solve_built(file: LoadedFile, tr, meshes, timer, *, verbose=False, progress=
     from .solve import ipopt
 
     with timer.measure("solve"):
-        info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose,
+        info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, transcription=tr,
                            progress=ipopt.Progress(progress, ""))
     with timer.measure("post"):
         result = _result(file, tr, info, timer, meshes)
@@ -101,7 +101,8 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
             tr = build(problem, meshes, guesses)
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[{i + 1}/{starts}]" if starts > 1 else "")
-            info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar)
+            info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar,
+                               transcription=tr)
         records.append(_start_record(i, s, info))
         if _better(info, best, problem.objective.sense):
             best, best_tr = info, tr      # each start builds its own model, which keeps its values

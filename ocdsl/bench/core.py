@@ -65,7 +65,7 @@ def run_case(config: Path, segments: int, tmp: Path) -> dict:
     log = tmp / f"{config.stem}_{segments}.ipopt.txt"
     opts = {**file.spec.solver.options, **ipopt_log.options(log)}
     t = _clock()
-    info = ipopt.solve(tr.model, opts)
+    info = ipopt.solve(tr.model, opts, transcription=tr)
     row["solve"], row["solve_cpu"] = _since(t)
     t = _clock()
     phases = extract(tr)

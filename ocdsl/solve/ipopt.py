@@ -158,7 +158,7 @@ def _component_map():
 
 def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
           progress: Progress | None = None, on_iteration: Callable | None = None,
-          multipliers: Multipliers | None = None) -> SolveInfo:
+          multipliers: Multipliers | None = None, transcription=None) -> SolveInfo:
     """Solve a Pyomo model with Ipopt; never raises for a failed solve (status 'error').
 
     With ``multipliers`` the solve starts from them as well as from the variables' values
@@ -167,7 +167,11 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
     acceptable, the variables are reset to their starting values and the model is solved
     again without the multipliers (the message says so, the iterations of both count). Bound
     multipliers are loaded into the model's ``ipopt_zL_out`` / ``ipopt_zU_out`` suffixes when
-    it has them (both paths)."""
+    it has them (both paths).
+
+    ``transcription``: the pseudospectral Transcription that built ``model``; Ipopt then
+    evaluates the NLP through ``transcribe.direct_nlp`` where it covers the model (the
+    message of ``SolveInfo.nlp["evaluation"]`` says which route was taken)."""
     import logging
 
     import pyomo.environ as pyo
@@ -186,16 +190,16 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
     opts = options_with(DEFAULT_OPTIONS, options or {})
     try:
         if multipliers is None:
-            return _attempt(model, opts, verbose, progress, on_iteration, None)
+            return _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
         start = [(v, v.value) for v in model.component_data_objects(pyo.Var) if not v.fixed]
         warm = _attempt(model, options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {}), verbose,
-                        progress, on_iteration, multipliers)
+                        progress, on_iteration, multipliers, transcription)
         if warm.status in ("optimal", "acceptable"):
             return warm
         # never worse than without the multipliers: the same primal start, Ipopt's own duals
         for v, x in start:
             v.set_value(x, skip_validation=True)
-        info = _attempt(model, opts, verbose, progress, on_iteration, None)
+        info = _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
         info.message = (f"{info.message} (started from the given multipliers Ipopt ended '{warm.status}' "
                         f"after {warm.iterations} iterations; solved again without them, iterations "
                         "counted together)")
@@ -208,8 +212,10 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
             progress.close()
 
 
-def _attempt(model, opts, verbose, progress, on_iteration, multipliers) -> SolveInfo:
+def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcription=None) -> SolveInfo:
     import pyomo.environ as pyo
+
+    from ..transcribe import pseudospectral
 
     history: list[tuple[int, float, float, float]] = []
 
@@ -224,30 +230,39 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers) -> Solve
             on_iteration(it, obj, inf_pr, inf_du)
         return True
 
-    from ..transcribe.pseudospectral import gc_frozen
-
     t = time.perf_counter()
     try:
         # gc_frozen: the hand-over's full collections do not walk the built model again
         # (reports/bench/levers.md section 11)
-        with gc_frozen():
-            if multipliers is not None:
+        with pseudospectral.gc_frozen():
+            direct, why = None, "no transcription given"
+            if transcription is not None and not pseudospectral.FAST["direct_nlp"]:
+                why = "direct evaluation turned off"
+            elif transcription is not None:
+                from ..transcribe.direct_nlp import DirectNLP
+
+                direct, why = DirectNLP.of(transcription)
+            if direct is not None:
+                msg, nlp_info = _solve_numpy(direct, opts, verbose, callback, multipliers)
+            elif multipliers is not None:
                 msg, nlp = _solve_direct(model, opts, verbose, callback, multipliers)
             else:
                 solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
                 results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
                 msg = results.solver.message
+            if direct is None:
+                nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
+                            "nonzeros": int(nlp.nnz_jacobian()),
+                            "hessian_nonzeros": int(nlp.nnz_hessian_lag()),
+                            "equality_constraints": int(nlp.n_eq_constraints()),
+                            "inequality_constraints": int(nlp.n_ineq_constraints()),
+                            "evaluation": f"PyNumero (ASL): {why}"}
     except Exception as e:  # evaluation errors, bad options...
         return SolveInfo("error", f"{type(e).__name__}: {e}", len(history) and history[-1][0],
                          None, time.perf_counter() - t, history=history)
     elapsed = time.perf_counter() - t
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     status = STATUS_MAP.get(msg, "error")
-    nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
-                "nonzeros": int(nlp.nnz_jacobian()),
-                "hessian_nonzeros": int(nlp.nnz_hessian_lag()),
-                "equality_constraints": int(nlp.n_eq_constraints()),
-                "inequality_constraints": int(nlp.n_ineq_constraints())}
     obj = None
     try:
         obj = float(pyo.value(next(model.component_data_objects(pyo.Objective, active=True))))
@@ -255,6 +270,36 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers) -> Solve
         pass
     iterations = history[-1][0] if history else 0
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
+
+
+def _solve_numpy(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
+                 multipliers: Multipliers | None):
+    """Ipopt on a ``DirectNLP`` (cyipopt.Problem), starting from the model's values and, when
+    given, the multipliers; the solution, duals and bound multipliers are loaded into the
+    model as ``_solve_direct`` does. Returns (Ipopt's status message, the NLP's sizes)."""
+    import cyipopt
+    import numpy as np
+    from pyomo.common.tee import capture_output
+
+    nlp.intermediate = callback
+    problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
+    for k, v in opts.items():
+        problem.add_option(k, v)
+    kwargs = {}
+    if multipliers is not None:
+        kwargs["lagrange"] = np.array([float(multipliers.constraints.get(c, 0.0)) for c in nlp.rows], float)
+        zl = np.array([max(0.0, float(multipliers.lower.get(v, 0.0))) for v in nlp.variables], float)
+        zu = np.array([max(0.0, float(multipliers.upper.get(v, 0.0))) for v in nlp.variables], float)
+        zl[nlp.xl <= -1e19] = 0.0
+        zu[nlp.xu >= 1e19] = 0.0
+        kwargs["zl"], kwargs["zu"] = zl, zu
+    try:
+        with capture_output(sys.stdout if verbose else None, capture_fd=True):
+            x, info = problem.solve(nlp.x0, **kwargs)
+        nlp.load(x, info["mult_g"], info["mult_x_L"], info["mult_x_U"])
+    finally:
+        problem.close()
+    return info["status_msg"], nlp.info()
 
 
 def _solve_direct(model, opts: dict[str, Any], verbose: bool, callback: Callable,

@@ -1355,7 +1355,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             mult = ws.apply(snapshot, tr) if snapshot is not None else None
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[mesh {it}]")
-            info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult)
+            info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult,
+                               transcription=tr)
         reg_value = None
         if reg is not None and info.objective is not None:
             # the objective of the problem itself: the regularisation term taken out

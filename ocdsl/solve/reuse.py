@@ -187,7 +187,8 @@ class _Entry:
         by_name = {ph.name: ph for ph in problem.phases}
         blocks = [PhaseBlock(by_name[pb.phase.name], pb.layout, pb.block, pb.defects, pb.ends,
                              pb.integral_exprs) for pb in self.tr.phases]
-        return Transcription(problem, self.tr.model, blocks, self.tr.scalars)
+        return Transcription(problem, self.tr.model, blocks, self.tr.scalars, self.tr.boundary_general,
+                             defining=self.tr)
 
 
 def _guesses(file, seed, warm_start):

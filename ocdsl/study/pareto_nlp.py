@@ -108,7 +108,7 @@ def _solve(file, guesses):
     from ocdsl.transcribe.pseudospectral import build
 
     tr = build(file.problem, _meshes(file), guesses)
-    info = ipopt.solve(tr.model, file.spec.solver.options)
+    info = ipopt.solve(tr.model, file.spec.solver.options, transcription=tr)
     return tr, info
 
 

@@ -43,6 +43,12 @@ class Transcription:
     model: Any
     phases: list[PhaseBlock]
     scalars: dict[sp.Symbol, Any]        # boundary values, t0/tf, integrals, free params -> Pyomo
+    # the boundary constraints that are rows of ``model.boundary`` (in its order); the others
+    # became variable bounds or fixed variables
+    boundary_general: list = field(default_factory=list)
+    # the transcription whose symbolic problem defines the NLP: itself, or for a reused
+    # model's per-point view (ocdsl/solve/reuse.py) the built one, whose constants are Params
+    defining: "Transcription | None" = None
 
 
 def _bound(v: float):
@@ -64,6 +70,9 @@ FAST = {
     # collection after gc.enable() walk them all and promote them generation by generation
     # (0.3 s CPU of a 0.9 s build at 2,000 segments)
     "gc_to_oldest": True,
+    # Ipopt evaluates the NLP through NumPy, node-vectorised (direct_nlp.py), instead of
+    # Pyomo's NL writer and the ASL, wherever direct_nlp covers the model
+    "direct_nlp": True,
 }
 
 
@@ -177,7 +186,7 @@ def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGu
     _check_known(syms, scalars, "objective")
     e = pyomo_function(syms, [obj.expr])(*[scalars[s] for s in syms])[0]
     m.objective = pyo.Objective(expr=e, sense=pyo.minimize if obj.sense == "minimize" else pyo.maximize)
-    return Transcription(problem, m, blocks, scalars)
+    return Transcription(problem, m, blocks, scalars, general)
 
 
 def _is_vardata(x) -> bool:

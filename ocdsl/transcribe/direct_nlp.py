@@ -1,0 +1,688 @@
+"""The NLP of a pseudospectral Transcription evaluated with NumPy, for Ipopt through cyipopt.
+
+Why: the PyNumero route (Pyomo's NL writer, then the ASL) walks the Pyomo expression tree of
+every node to write the NL file, and the ASL then interprets one expression graph per
+constraint at every evaluation. At 40k variables that is 2.4 s of hand-over and 1.7 s of
+function evaluations, against CasADi's 0.1 s (reports/bench/levers.md section 17). Every
+collocation node evaluates the same few functions, so here each is differentiated once by
+SymPy (first and second derivatives) and evaluated for all nodes at once by NumPy; the
+sparse Jacobian and Hessian are assembled with precomputed scatter indices.
+
+This is a fast path of ``ocdsl.solve.ipopt.solve``, not a second transcription: the Pyomo
+model that ``pseudospectral.build`` made stays the definition. The structure read here (which
+variables, rows and coefficients) is taken from that model's variables and the mesh, the row
+order is the model's constraint data, and solutions, duals and bound multipliers are loaded
+back into it, so everything downstream (costates, warm starts, the certificate) is unchanged.
+``DirectNLP.of`` returns ``None`` with a reason when a model is outside what it covers (extra
+constraints added after the build, a maximised objective, functions without a NumPy
+derivative here, an objective or boundary constraint nonlinear in an integral); the caller
+then takes the PyNumero route. ``tests/test_direct_nlp.py`` checks values, Jacobians and
+Hessians against PyNumero's at random points on every example in ``configs/``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..symbolic.model import TIME
+
+INF = 1e20
+# functions whose NumPy form and SymPy derivatives agree with the ASL's everywhere they are
+# smooth; anything else (Abs, Min/Max, Piecewise, sign...) stays on the PyNumero route
+_SMOOTH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
+           "asinh", "acosh", "atanh", "exp", "log", "sqrt"}
+
+
+# Below this many collocation rows (defect and end equations) the PyNumero route is kept:
+# SymPy's second derivatives cost 0.05 s (brachistochrone) to 2.2 s (seed 0's attitude and
+# orbit model) once per problem, while the NL writer and the ASL cost about 0.03 ms (0.5 ms)
+# per row for the hand-over and as much again per ten Ipopt iterations (levers.md section 17).
+MIN_ROWS = 3000
+
+
+class Unsupported(Exception):
+    pass
+
+
+def _check_smooth(exprs, what: str) -> None:
+    for e in exprs:
+        for f in sp.sympify(e).atoms(sp.Function):
+            if type(f).__name__ not in _SMOOTH:
+                raise Unsupported(f"{what} uses {type(f).__name__}")
+        if sp.sympify(e).has(sp.Piecewise):
+            raise Unsupported(f"{what} is piecewise")
+
+
+@dataclass
+class _Family:
+    """Expressions of one node's local variables w (and the node's normalised time S),
+    with their nonzero first and (lower-triangle) second derivatives, evaluated for many
+    nodes at once."""
+
+    n_out: int
+    jac: np.ndarray       # (E1, 2): output, local variable
+    hess: np.ndarray      # (E2, 3): output, local a, local b (b <= a)
+    _values: Any
+    _first: Any
+    _second: Any
+
+    @classmethod
+    def compile(cls, exprs: list, wsyms: list, S: sp.Symbol) -> "_Family":
+        jac, jexprs, hess, hexprs = [], [], [], []
+        for o, e in enumerate(exprs):
+            for a, w in enumerate(wsyms):
+                d = sp.diff(e, w)
+                if d == 0:
+                    continue
+                jac.append((o, a))
+                jexprs.append(d)
+                for b in range(a + 1):
+                    d2 = sp.diff(d, wsyms[b])
+                    if d2 != 0:
+                        hess.append((o, a, b))
+                        hexprs.append(d2)
+        args = list(wsyms) + [S]
+
+        def fn(es):
+            return sp.lambdify(args, list(es), modules="numpy", cse=True, docstring_limit=0) if es else None
+
+        return cls(len(exprs), np.array(jac, int).reshape(-1, 2), np.array(hess, int).reshape(-1, 3),
+                   fn(exprs), fn(jexprs), fn(hexprs))
+
+    @staticmethod
+    def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
+        if fn is None or n_rows == 0:
+            return np.zeros((0, nodes))
+        out = fn(*cols)
+        return np.stack([np.broadcast_to(np.asarray(v, float), (nodes,)) for v in out])
+
+    def values(self, cols, nodes):
+        return self._stack(self._values, self.n_out, cols, nodes)
+
+    def first(self, cols, nodes):
+        return self._stack(self._first, len(self.jac), cols, nodes)
+
+    def second(self, cols, nodes):
+        return self._stack(self._second, len(self.hess), cols, nodes)
+
+
+@dataclass
+class _Scalars:
+    """The objective (output 0) and the general boundary constraints (outputs 1..) as
+    functions of the scalar symbols: y entries (boundary values, t0/tf, parameters) and
+    integrals, which may only enter linearly (their coefficients are constants)."""
+
+    n_out: int            # 1 + number of general boundary constraints
+    symbols: list         # ("y", y index) or ("I", (phase, integral)) of each argument
+    y_of: list            # index in y of each non-integral symbol
+    jac: list             # (output, symbol position, ) nonzero first derivatives in y symbols
+    hess: list            # (output, a, b) b <= a, y symbols only
+    integral_coef: list   # (output, phase index, integral index, constant coefficient)
+    _values: Any
+    _first: Any
+    _second: Any
+
+    def evaluate(self, z, which):
+        fn = {"values": self._values, "first": self._first, "second": self._second}[which]
+        return np.array([float(v) for v in fn(*z)], float) if fn is not None else np.zeros(0)
+
+
+class DirectNLP:
+    """The NLP of a Transcription as cyipopt's problem object (objective, gradient,
+    constraints, jacobian, jacobianstructure, hessian, hessianstructure)."""
+
+    def __init__(self, tr, compiled, extra_rows=()):
+        import pyomo.environ as pyo
+        from pyomo.core.base.var import VarData
+
+        self.tr = tr
+        c = compiled
+        # --- y: every Pyomo VarData / Param the rows use; x: the unfixed VarData ---------
+        entries = c["entries"]
+        self.entries = entries
+        is_var = np.array([isinstance(e, VarData) for e in entries])
+        fixed = np.array([(not v) or entries[i].fixed for i, v in enumerate(is_var)])
+        self.free = np.flatnonzero(~fixed)
+        self.n = len(self.free)
+        self.xmap = np.full(len(entries), -1)
+        self.xmap[self.free] = np.arange(self.n)
+        self.y = np.array([float(pyo.value(e)) if pyo.value(e, exception=False) is not None else 0.0
+                           for e in entries], float)
+        free_vars = [entries[i] for i in self.free]
+        self.x0 = self.y[self.free].copy()
+        self.xl = np.array([-INF if v.lb is None else float(v.lb) for v in free_vars])
+        self.xu = np.array([INF if v.ub is None else float(v.ub) for v in free_vars])
+        self.variables = free_vars
+        self.phases = c["phases"]
+        self.scalars = c["scalars"]
+        # Pyomo constraint data in row order: the transcription's, then the added linear ones
+        self.rows = list(c["rows"]) + [r[0] for r in extra_rows]
+        self.m = len(self.rows)
+        self.gl = np.concatenate([np.asarray(c["gl"], float), [r[2] for r in extra_rows]])
+        self.gu = np.concatenate([np.asarray(c["gu"], float), [r[3] for r in extra_rows]])
+        base = len(c["rows"])
+        self._extra_lin = [(base + i, y, coef) for i, r in enumerate(extra_rows) for y, coef in r[1]]
+        self.boundary_base = c["boundary_base"]
+        self._assemble()
+        self._cache_x = None
+
+    # -- compilation (once per Transcription, kept on it) -----------------------------------
+    @classmethod
+    def of(cls, tr) -> tuple["DirectNLP | None", str]:
+        """(the NLP, "") or (None, why this model takes the PyNumero route)."""
+        import pyomo.environ as pyo
+
+        tr = tr.defining or tr
+        rows = sum(len(pb.defects) + len(pb.ends) for pb in tr.phases)
+        if rows < MIN_ROWS:
+            return None, f"{rows} collocation rows, below {MIN_ROWS}"
+        try:
+            compiled = getattr(tr, "_direct_nlp", None)
+            if compiled is None:
+                compiled = _compile(tr)
+                tr._direct_nlp = compiled
+            if isinstance(compiled, str):
+                return None, compiled
+            # every row the transcription built must still be active; rows added to the built
+            # model since (mesh refinement's control junctions) are taken if they are linear
+            ids = compiled.setdefault("row_ids", {id(c) for c in compiled["rows"]})
+            active = list(tr.model.component_data_objects(pyo.Constraint, active=True))
+            extra = [c for c in active if id(c) not in ids]
+            if len(active) - len(extra) != len(ids):
+                return None, "a row the transcription built is no longer active"
+            extra_rows = [_linear_row(c, compiled) for c in extra]
+            if any(r is None for r in extra_rows):
+                return None, "a nonlinear constraint was added to the built model"
+            objs = list(tr.model.component_data_objects(pyo.Objective, active=True))
+            if len(objs) != 1 or objs[0] is not tr.model.objective:
+                return None, "the model's objective was replaced"
+            return cls(tr, compiled, extra_rows), ""
+        except Unsupported as e:
+            tr._direct_nlp = str(e)
+            return None, str(e)
+
+    # -- assembly of the scatter indices ------------------------------------------------------
+    def _assemble(self) -> None:
+        n, xmap = self.n, self.xmap
+        jrow, jcol, jsrc, jcoef = [], [], [], []      # Jacobian contributions
+        grow_col, grow_src, grow_coef = [], [], []    # objective gradient contributions
+        hr, hc, hsrc = [], [], []                     # Hessian contributions (value = source)
+        lin_rows, lin_cols, lin_coef = [], [], []
+        vrow, vsrc, vcoef = [], [], []                # constraint value contributions
+        off_j = 0        # offsets into the Jacobian source vector
+        off_v = 0        # into the value source vector
+        off_h = 0        # into the Hessian source vector
+        self._layout = []
+        if self._extra_lin:
+            r, y, k = zip(*self._extra_lin)
+            lin_rows.append(np.array(r, int)); lin_cols.append(np.array(y, int)); lin_coef.append(np.array(k, float))
+        for ph in self.phases:
+            C = ph["nodes"]
+            W = ph["W"]                               # (C, nl) y index of each local variable
+            lay = {}
+            G, g, H = ph["G"], ph["g"], ph["H"]
+            # linear parts of the collocation rows
+            lin_rows.append(ph["lin_row"]); lin_cols.append(ph["lin_y"]); lin_coef.append(ph["lin_coef"])
+            # terms coef * G_j(w_n) in rows
+            t_row, t_node, t_out, t_coef = ph["t_row"], ph["t_node"], ph["t_out"], ph["t_coef"]
+            lay["G_val"] = off_v
+            vrow.append(t_row); vsrc.append(off_v + t_out * C + t_node); vcoef.append(t_coef)
+            off_v += G.n_out * C
+            lay["G_jac"] = off_j
+            for e, (o, a) in enumerate(G.jac):
+                sel = t_out == o
+                jrow.append(t_row[sel]); jcol.append(W[t_node[sel], a])
+                jsrc.append(off_j + e * C + t_node[sel]); jcoef.append(t_coef[sel])
+            off_j += len(G.jac) * C
+            lay["G_hess"] = off_h
+            for e, (o, a, b) in enumerate(G.hess):
+                hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + np.arange(C))
+            off_h += len(G.hess) * C
+            # path constraints g_c(w_n): row = path_base + n * npath + c
+            if g is not None:
+                npath = g.n_out
+                base = ph["path_base"]
+                nodes = np.arange(C)
+                lay["g_val"] = off_v
+                for q in range(npath):
+                    vrow.append(base + nodes * npath + q); vsrc.append(off_v + q * C + nodes)
+                    vcoef.append(np.ones(C))
+                off_v += npath * C
+                lay["g_jac"] = off_j
+                for e, (o, a) in enumerate(g.jac):
+                    jrow.append(base + nodes * npath + o); jcol.append(W[:, a])
+                    jsrc.append(off_j + e * C + nodes); jcoef.append(np.ones(C))
+                off_j += len(g.jac) * C
+                lay["g_hess"] = off_h
+                for e, (o, a, b) in enumerate(g.hess):
+                    hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + nodes)
+                off_h += len(g.hess) * C
+            # integrals I_q = sum_n weight_n H_q(w_n): enter rows/objective with constant coefficients
+            if H is not None:
+                lay["H_jac"] = off_j
+                for out, ph_i, q, coef in self.scalars.integral_coef:
+                    if ph_i != ph["index"]:
+                        continue
+                    for e, (o, a) in enumerate(H.jac):
+                        if o != q:
+                            continue
+                        src = off_j + e * C + np.arange(C)
+                        if out == 0:
+                            grow_col.append(W[:, a]); grow_src.append(src); grow_coef.append(coef * ph["weights"])
+                        else:
+                            jrow.append(np.full(C, self._boundary_row(out)))
+                            jcol.append(W[:, a]); jsrc.append(src); jcoef.append(coef * ph["weights"])
+                off_j += len(H.jac) * C
+                lay["H_hess"] = off_h
+                for e, (o, a, b) in enumerate(H.hess):
+                    hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + np.arange(C))
+                off_h += len(H.hess) * C
+            self._layout.append(lay)
+        # scalar level: objective (output 0) and boundary rows
+        s = self.scalars
+        self._s_jac = off_j
+        for e, (out, a) in enumerate(s.jac):
+            ycol = s.y_of[a]
+            if out == 0:
+                grow_col.append(np.array([ycol])); grow_src.append(np.array([off_j + e])); grow_coef.append(np.ones(1))
+            else:
+                jrow.append(np.array([self._boundary_row(out)])); jcol.append(np.array([ycol]))
+                jsrc.append(np.array([off_j + e])); jcoef.append(np.ones(1))
+        off_j += len(s.jac)
+        self._s_val = off_v
+        for out in range(1, s.n_out):
+            vrow.append(np.array([self._boundary_row(out)])); vsrc.append(np.array([off_v + out]))
+            vcoef.append(np.ones(1))
+        off_v += s.n_out
+        self._s_hess = off_h
+        for e, (out, a, b) in enumerate(s.hess):
+            hr.append(np.array([s.y_of[a]])); hc.append(np.array([s.y_of[b]])); hsrc.append(np.array([off_h + e]))
+        off_h += len(s.hess)
+        self._n_jsrc, self._n_vsrc, self._n_hsrc = off_j, off_v, off_h
+
+        cat = lambda parts, dtype=float: (np.concatenate(parts).astype(dtype) if parts  # noqa: E731
+                                          else np.zeros(0, dtype))
+        # constraint values: A_lin @ y + bincount(vrow, vcoef * vsource[vsrc])
+        import scipy.sparse as sps
+
+        self._A = sps.csr_matrix((cat(lin_coef), (cat(lin_rows, int), cat(lin_cols, int))),
+                                 shape=(self.m, len(self.entries)))
+        self._vrow, self._vsrc, self._vcoef = cat(vrow, int), cat(vsrc, int), cat(vcoef)
+        # Jacobian: linear contributions (source = 1) and nonlinear ones, in x columns
+        lr, lc, lk = cat(lin_rows, int), cat(lin_cols, int), cat(lin_coef)
+        rows = np.concatenate([lr, cat(jrow, int)])
+        cols_y = np.concatenate([lc, cat(jcol, int)])
+        src = np.concatenate([np.full(len(lr), -1), cat(jsrc, int)])
+        coef = np.concatenate([lk, cat(jcoef)])
+        cols = xmap[cols_y]
+        keep = cols >= 0
+        rows, cols, src, coef = rows[keep], cols[keep], src[keep], coef[keep]
+        key = rows.astype(np.int64) * max(n, 1) + cols
+        uniq, slot = np.unique(key, return_inverse=True)
+        self._jrows, self._jcols = (uniq // max(n, 1)).astype(np.int32), (uniq % max(n, 1)).astype(np.int32)
+        lin = src < 0
+        self._jconst = np.bincount(slot[lin], weights=coef[lin], minlength=len(uniq))
+        self._jslot, self._jsrc, self._jcoef = slot[~lin], src[~lin], coef[~lin]
+        # objective gradient
+        gc_ = xmap[cat(grow_col, int)]
+        keep = gc_ >= 0
+        self._gcol, self._gsrc, self._gcoef = gc_[keep], cat(grow_src, int)[keep], cat(grow_coef)[keep]
+        # Hessian (lower triangle in x)
+        a, b = xmap[cat(hr, int)], xmap[cat(hc, int)]
+        hs = cat(hsrc, int)
+        keep = (a >= 0) & (b >= 0)
+        a, b, hs = a[keep], b[keep], hs[keep]
+        r, cc = np.maximum(a, b), np.minimum(a, b)
+        key = r.astype(np.int64) * max(n, 1) + cc
+        uniq, slot = np.unique(key, return_inverse=True)
+        self._hrows, self._hcols = (uniq // max(n, 1)).astype(np.int32), (uniq % max(n, 1)).astype(np.int32)
+        self._hslot, self._hsrc = slot, hs
+
+    def _boundary_row(self, out: int) -> int:
+        return self.boundary_base + out - 1
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def _set(self, x) -> None:
+        if self._cache_x is not None and np.array_equal(x, self._cache_x):
+            return
+        self._cache_x = np.array(x, float)
+        self.y[self.free] = x
+        self._vals = self._firsts = None
+        self._seconds = None
+
+    def _cols(self, ph):
+        return [self.y[ph["W"][:, a]] for a in range(ph["W"].shape[1])] + [ph["S"]]
+
+    def _scalar_z(self):
+        s = self.scalars
+        z = []
+        for kind, ref in s.symbols:
+            if kind == "y":
+                z.append(self.y[ref])
+            else:
+                ph_i, q = ref
+                z.append(self._integrals[ph_i][q])
+        return z
+
+    def _eval_first(self) -> None:
+        if self._vals is not None:
+            return
+        vparts, jparts = [], []
+        self._integrals = {}
+        with np.errstate(all="ignore"):
+            for ph in self.phases:
+                C, cols = ph["nodes"], self._cols(ph)
+                vparts.append(ph["G"].values(cols, C).ravel())
+                jparts.append(ph["G"].first(cols, C).ravel())
+                if ph["g"] is not None:
+                    vparts.append(ph["g"].values(cols, C).ravel())
+                    jparts.append(ph["g"].first(cols, C).ravel())
+                if ph["H"] is not None:
+                    Hv = ph["H"].values(cols, C)
+                    self._integrals[ph["index"]] = Hv @ ph["weights"]
+                    jparts.append(ph["H"].first(cols, C).ravel())
+            z = self._scalar_z()
+            vparts.append(self.scalars.evaluate(z, "values"))
+            jparts.append(self.scalars.evaluate(z, "first"))
+        self._vals = np.concatenate(vparts)
+        self._firsts = np.concatenate(jparts)
+
+    def objective(self, x):
+        self._set(x)
+        self._eval_first()
+        return float(self._vals[self._s_val])
+
+    def gradient(self, x):
+        self._set(x)
+        self._eval_first()
+        return np.bincount(self._gcol, weights=self._gcoef * self._firsts[self._gsrc], minlength=self.n)
+
+    def constraints(self, x):
+        self._set(x)
+        self._eval_first()
+        return self._A @ self.y + np.bincount(self._vrow, weights=self._vcoef * self._vals[self._vsrc],
+                                              minlength=self.m)
+
+    def jacobianstructure(self):
+        return self._jrows, self._jcols
+
+    def jacobian(self, x):
+        self._set(x)
+        self._eval_first()
+        return self._jconst + np.bincount(self._jslot, weights=self._jcoef * self._firsts[self._jsrc],
+                                          minlength=len(self._jrows))
+
+    def hessianstructure(self):
+        return self._hrows, self._hcols
+
+    def hessian(self, x, lagrange, obj_factor):
+        self._set(x)
+        self._eval_first()
+        lam = np.asarray(lagrange, float)
+        parts = []
+        with np.errstate(all="ignore"):
+            for ph, lay in zip(self.phases, self._layout):
+                C, cols = ph["nodes"], self._cols(ph)
+                G = ph["G"]
+                # mu_{j,n}: the rows' multipliers gathered onto each node's G_j
+                mu = np.bincount(ph["t_out"] * C + ph["t_node"], weights=ph["t_coef"] * lam[ph["t_row"]],
+                                 minlength=G.n_out * C).reshape(G.n_out, C)
+                parts.append((G.second(cols, C) * mu[G.hess[:, 0]]).ravel())
+                if ph["g"] is not None:
+                    g = ph["g"]
+                    lp = lam[ph["path_base"]: ph["path_base"] + g.n_out * C].reshape(C, g.n_out).T
+                    parts.append((g.second(cols, C) * lp[g.hess[:, 0]]).ravel())
+                if ph["H"] is not None:
+                    H = ph["H"]
+                    mq = np.zeros(H.n_out)
+                    for out, ph_i, q, coef in self.scalars.integral_coef:
+                        if ph_i == ph["index"]:
+                            mq[q] += coef * (obj_factor if out == 0 else lam[self._boundary_row(out)])
+                    parts.append((H.second(cols, C) * (mq[H.hess[:, 0]][:, None] * ph["weights"][None, :])).ravel())
+            s = self.scalars
+            w_out = np.array([obj_factor] + [lam[self._boundary_row(o)] for o in range(1, s.n_out)])
+            hv = s.evaluate(self._scalar_z(), "second")
+            parts.append(hv * w_out[np.array([h[0] for h in s.hess], int)] if len(s.hess) else np.zeros(0))
+        source = np.concatenate(parts)
+        return np.bincount(self._hslot, weights=source[self._hsrc], minlength=len(self._hrows))
+
+    def intermediate(self, *args):
+        return True
+
+    # -- results back into the Pyomo model ----------------------------------------------------
+    def load(self, x, mult_g, zl, zu) -> None:
+        from pyomo.core.base.suffix import active_import_suffix_generator
+
+        for v, val in zip(self.variables, x):
+            v.set_value(float(val), skip_validation=True)
+        model = self.tr.model
+        suffixes = dict(active_import_suffix_generator(model))
+        if "dual" in suffixes:
+            suffixes["dual"].clear()
+            suffixes["dual"].update(zip(self.rows, (float(v) for v in mult_g)))
+        for name, values in (("ipopt_zL_out", zl), ("ipopt_zU_out", zu)):
+            if name in suffixes:
+                suffixes[name].clear()
+                suffixes[name].update(zip(self.variables, (float(v) for v in values)))
+
+    def info(self) -> dict:
+        eq = int(np.sum(self.gl == self.gu))
+        return {"variables": self.n, "constraints": self.m, "nonzeros": len(self._jrows),
+                "hessian_nonzeros": len(self._hrows), "equality_constraints": eq,
+                "inequality_constraints": self.m - eq, "evaluation": "direct (NumPy)"}
+
+
+# ------------------------------------------------------------------------------------------
+# reading the structure of a built Transcription
+# ------------------------------------------------------------------------------------------
+
+def _compile(tr):
+    """The structure and compiled functions of ``tr``; a string when it is not covered."""
+    import pyomo.environ as pyo
+    from pyomo.core.base.var import VarData
+
+    from .nodes import lobatto_integration_matrix
+
+    problem, model = tr.problem, tr.model
+    if problem.objective.sense != "minimize":
+        raise Unsupported("a maximised objective")
+    entries: list = []
+    index: dict[int, int] = {}
+
+    def y_of(obj) -> int:
+        k = id(obj)
+        if k not in index:
+            index[k] = len(entries)
+            entries.append(obj)
+        return index[k]
+
+    free = sorted(problem.free_parameters, key=str)
+    times = {sym for pb in tr.phases for sym in (pb.phase.t0_symbol, pb.phase.tf_symbol)}
+    # constants kept as symbols (build(mutable=...)) are mutable Params, arguments like parameters
+    consts = sorted([s for s, v in tr.scalars.items() if _is_param(v) and s not in times], key=str)
+    T0, TF, S = sp.Dummy("t0"), sp.Dummy("tf"), sp.Dummy("s")
+    rows: list = []
+    gl: list = []
+    gu: list = []
+    phases = []
+    for ip, pb in enumerate(tr.phases):
+        ph, lay, b = pb.phase, pb.layout, pb.block
+        mesh = lay.mesh
+        nx, nu = len(ph.states), len(ph.controls)
+        C = lay.n_colloc
+        X = np.array([[y_of(b.X[nn, j]) for j in range(nx)] for nn in range(lay.n_state_nodes)], int).reshape(-1, nx)
+        U = np.array([[y_of(b.U[i, j]) for j in range(nu)] for i in range(C)], int).reshape(C, nu)
+        t0i, tfi = y_of(b.t0), y_of(b.tf)
+        pidx = [y_of(tr.scalars[s]) for s in free + consts]
+        colloc_state = np.concatenate(lay.colloc_state)
+        W = np.concatenate([X[colloc_state], U, np.full((C, 1), t0i), np.full((C, 1), tfi),
+                            np.tile(np.array(pidx, int), (C, 1)).reshape(C, len(pidx))], axis=1)
+        wsyms = list(ph.states) + list(ph.controls) + [T0, TF] + free + consts
+        path_exprs = [c.expr for c in ph.path]
+        G, g, H = _families(ph, wsyms, (T0, TF, S))
+        # rows: the model's defect, end and path constraint data, in this order
+        lin_row, lin_y, lin_coef = [], [], []
+        t_row, t_node, t_out, t_coef = [], [], [], []
+        weights = np.zeros(C)
+
+        def add_row(con, lo, hi):
+            rows.append(con)
+            gl.append(-INF if not math.isfinite(lo) else lo)
+            gu.append(INF if not math.isfinite(hi) else hi)
+            return len(rows) - 1
+
+        row_of_defect = {}
+        for key, con in pb.defects.items():
+            row_of_defect[key] = add_row(con, 0.0, 0.0)
+        row_of_end = {key: add_row(con, 0.0, 0.0) for key, con in pb.ends.items()}
+        for k in range(mesh.segments):
+            sc = mesh.scheme(k)
+            half_h = (mesh.breakpoints[k + 1] - mesh.breakpoints[k]) / 2.0
+            sup = lay.support[k]
+            cns = lay.colloc[k]
+            weights[cns] = np.asarray(sc.weights, float) * half_h
+            if sc.name == "LGL":
+                A = lobatto_integration_matrix(sc.degree)
+                for i in range(1, len(sup)):
+                    for j in range(nx):
+                        r = row_of_defect[(k, i, j)]
+                        lin_row += [r, r]; lin_y += [X[sup[i], j], X[sup[0], j]]; lin_coef += [1.0, -1.0]
+                        for li in range(len(cns)):
+                            if A[i, li] != 0.0:
+                                t_row.append(r); t_node.append(cns[li]); t_out.append(j)
+                                t_coef.append(-half_h * float(A[i, li]))
+            else:
+                for i, cn in enumerate(cns):
+                    for j in range(nx):
+                        r = row_of_defect[(k, i, j)]
+                        for li in range(len(sup)):
+                            if sc.D[i, li] != 0.0:
+                                lin_row.append(r); lin_y.append(X[sup[li], j]); lin_coef.append(float(sc.D[i, li]))
+                        t_row.append(r); t_node.append(cn); t_out.append(j); t_coef.append(-half_h)
+            if not sc.end_from_support:
+                for j in range(nx):
+                    r = row_of_end[(k, j)]
+                    lin_row += [r, r]; lin_y += [X[lay.end[k], j], X[sup[0], j]]; lin_coef += [1.0, -1.0]
+                    for i, cn in enumerate(cns):
+                        t_row.append(r); t_node.append(cn); t_out.append(j)
+                        t_coef.append(-half_h * float(sc.weights[i]))
+        path_base = len(rows)
+        if path_exprs:
+            for i in range(C * len(path_exprs)):
+                c = ph.path[i % len(path_exprs)]
+                add_row(b.path[i], c.lower, c.upper)
+        phases.append({"index": ip, "nodes": C, "W": W, "S": np.asarray(lay.s_colloc, float),
+                       "G": G, "g": g, "H": H, "weights": weights, "path_base": path_base,
+                       "integral_symbols": list(ph.integrals),
+                       "lin_row": np.array(lin_row, int), "lin_y": np.array(lin_y, int),
+                       "lin_coef": np.array(lin_coef, float),
+                       "t_row": np.array(t_row, int), "t_node": np.array(t_node, int),
+                       "t_out": np.array(t_out, int), "t_coef": np.array(t_coef, float)})
+    # scalar level: objective and the general boundary constraints (the model's m.boundary)
+    boundary_base = len(rows)
+    general = tr.boundary_general
+    cons = list(model.boundary.values())
+    if len(cons) != len(general):
+        raise Unsupported("the boundary constraints do not match the problem's")
+    for con, c in zip(cons, general):
+        add_row(con, c.lower, c.upper)
+    exprs = [problem.objective.expr] + [c.expr for c in general]
+    _check_smooth(exprs, "the objective or a boundary constraint")
+    integral_of = {s: (ip, q) for ip, pb in enumerate(tr.phases) for q, s in enumerate(pb.phase.integrals)}
+    syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs]), key=str)
+    ysyms = [s for s in syms if s not in integral_of]
+    isyms = [s for s in syms if s in integral_of]
+    for s in ysyms:
+        target = tr.scalars.get(s)
+        if target is None or not (isinstance(target, VarData) or _is_param(target)):
+            raise Unsupported(f"the objective or a boundary constraint uses {s}")
+    y_of_sym = [y_of(tr.scalars[s]) for s in ysyms]
+    jac, jexprs, hess, hexprs, icoef = [], [], [], [], []
+    for out, e in enumerate(exprs):
+        e = sp.sympify(e)
+        for s in isyms:
+            d = sp.diff(e, s)
+            if d.free_symbols:
+                raise Unsupported("the objective or a boundary constraint is nonlinear in an integral")
+            if d != 0:
+                ip, q = integral_of[s]
+                icoef.append((out, ip, q, float(d)))
+        for a, s in enumerate(ysyms):
+            d = sp.diff(e, s)
+            if d == 0:
+                continue
+            jac.append((out, a))
+            jexprs.append(d)
+            for bb in range(a + 1):
+                d2 = sp.diff(d, ysyms[bb])
+                if d2 != 0:
+                    hess.append((out, a, bb))
+                    hexprs.append(d2)
+    args = ysyms + isyms
+
+    def fn(es):
+        return sp.lambdify(args, list(es), modules="numpy", cse=True, docstring_limit=0) if es else None
+
+    symbols = [("y", y) for y in y_of_sym] + [("I", integral_of[s]) for s in isyms]
+    scal = _Scalars(len(exprs), symbols, y_of_sym, jac, hess, icoef, fn(exprs), fn(jexprs), fn(hexprs))
+    # every variable the model has must be an entry (unused ones too: PyNumero drops them,
+    # Ipopt keeps them at their start)
+    for v in model.component_data_objects(pyo.Var):
+        y_of(v)
+    return {"entries": entries, "phases": phases, "scalars": scal, "rows": rows, "gl": gl, "gu": gu,
+            "boundary_base": boundary_base}
+
+
+def _families(ph, wsyms, times):
+    """The phase's dynamics, path and integrand families; compiled once per Phase object
+    (kept on it), so that rebuilt meshes (mesh refinement, multi-start) and the points of a
+    reused study model do not differentiate again."""
+    key = (tuple(wsyms[len(ph.states) + len(ph.controls) + 2:]),)
+    cached = getattr(ph, "_direct_families", None)
+    if cached is not None and cached[0] == key:
+        return cached[1]         # positional functions: which dummy symbols made them is moot
+    T0, TF, S = times
+    t_sub = {TIME: T0 + (TF - T0) * S}
+    duration = TF - T0
+    rhs = list(ph.rhs())
+    _check_smooth(rhs, "the dynamics")
+    G = _Family.compile([duration * sp.sympify(e).subs(t_sub) for e in rhs], wsyms, S)
+    path_exprs = [c.expr for c in ph.path]
+    _check_smooth(path_exprs, "a path constraint")
+    g = _Family.compile([sp.sympify(e).subs(t_sub) for e in path_exprs], wsyms, S) if path_exprs else None
+    integrands = list(ph.integrals.values())
+    _check_smooth(integrands, "an integral")
+    H = _Family.compile([duration * sp.sympify(e).subs(t_sub) for e in integrands], wsyms, S) if integrands else None
+    ph._direct_families = (key, (G, g, H))
+    return G, g, H
+
+
+def _linear_row(con, compiled):
+    """(con, [(y index, coefficient)], lower, upper) of a linear constraint data, else None."""
+    from pyomo.repn import generate_standard_repn
+
+    repn = generate_standard_repn(con.body, compute_values=True, quadratic=False)
+    if not repn.is_linear():
+        return None
+    index = compiled.setdefault("entry_index", {id(e): i for i, e in enumerate(compiled["entries"])})
+    terms = []
+    for v, coef in zip(repn.linear_vars, repn.linear_coefs):
+        if id(v) not in index:
+            return None
+        terms.append((index[id(v)], float(coef)))
+    const = float(repn.constant)
+    lo = -INF if con.lb is None else float(con.lb) - const
+    hi = INF if con.ub is None else float(con.ub) - const
+    # the constant moves into the bounds: the row's value is the linear part alone
+    return con, terms, lo, hi
+
+
+def _is_param(obj) -> bool:
+    from pyomo.core.base.param import ParamData, ScalarParam
+
+    return isinstance(obj, (ParamData, ScalarParam))
+

@@ -1,0 +1,145 @@
+"""The direct (NumPy) evaluation of a pseudospectral NLP is the PyNumero/ASL one.
+
+``ocdsl.transcribe.direct_nlp`` must give, at any point, the same objective, gradient,
+constraint residuals, Jacobian and Lagrangian Hessian as PyNumero reads from Pyomo's NL file,
+and Ipopt on it the same optimum as the plain route. Not timed (the bench measures speed).
+"""
+import numpy as np
+import pytest
+import scipy.sparse as sps
+
+import ocdsl
+from ocdsl.api import compile_file
+from ocdsl.transcribe import direct_nlp, pseudospectral
+from ocdsl.transcribe.guess import make_guess
+from ocdsl.transcribe.mesh import Mesh
+
+pytestmark = pytest.mark.ipopt
+
+# every pseudospectral file in configs/ (the others are flat, parametric or feedback methods)
+PSEUDOSPECTRAL = ["brachistochrone", "bryson_denham", "double_integrator", "goddard", "mesh_bryson_denham",
+                  "mesh_double_integrator", "mesh_goddard", "mesh_moon_landing", "minimal_double_integrator",
+                  "moon_landing", "seed0_exact_euler", "seed0_rendezvous", "seed1_10N_optimal",
+                  "seed4_two_burn_nlp", "seed4_unrestricted", "study_moon_landing_sweep",
+                  "two_phase_double_integrator"]
+
+
+def _built(configs, name, segments=3, transcription=None):
+    file = compile_file(configs / f"{name}.yaml")
+    problem, method = file.problem, file.method
+    meshes = {ph.name: Mesh.uniform(transcription or method.transcription, segments, method.degree)
+              for ph in problem.phases}
+    guesses = {ph.name: make_guess(problem, ph) for ph in problem.phases}
+    return pseudospectral.build(problem, meshes, guesses)
+
+
+def _compare_with_pynumero(tr, trials=2):
+    from ocdsl.solve import ipopt
+
+    ipopt.check_available()
+    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
+
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is not None, why
+    ref = PyomoNLP(tr.model)
+    col = {id(v): i for i, v in enumerate(nlp.variables)}
+    row = {id(c): i for i, c in enumerate(nlp.rows)}
+    vp = np.array([col[id(v)] for v in ref.get_pyomo_variables()])
+    cp = np.array([row[id(c)] for c in ref.get_pyomo_constraints()])
+    assert len(vp) == nlp.n and len(cp) == nlp.m
+    # the NL writer moves constants between a row's body and its bounds: compare residuals
+    lo, hi = ref.constraints_lb(), ref.constraints_ub()
+    ref_side = np.where(np.isfinite(lo), lo, hi)
+    own_side = np.where(nlp.gl > -1e19, nlp.gl, nlp.gu)[cp]
+    rng = np.random.default_rng(3)
+    for _ in range(trials):
+        x = nlp.x0 * (1 + 0.05 * rng.standard_normal(nlp.n)) + 0.01 * rng.standard_normal(nlp.n)
+        lam, sigma = rng.standard_normal(nlp.m), 0.7
+        ref.set_primals(x[vp])
+        ref.set_duals(lam[cp])
+        ref.set_obj_factor(sigma)
+
+        def close(a, b):
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            assert np.max(np.abs(a - b), initial=0.0) <= 1e-9 * max(1.0, np.max(np.abs(b), initial=0.0))
+
+        close(nlp.objective(x), ref.evaluate_objective())
+        close(nlp.gradient(x)[vp], ref.evaluate_grad_objective())
+        close(nlp.constraints(x)[cp] - own_side, ref.evaluate_constraints() - ref_side)
+        J = sps.coo_matrix((nlp.jacobian(x), nlp.jacobianstructure()), shape=(nlp.m, nlp.n)).tocsr()[cp][:, vp]
+        close(J.toarray(), ref.evaluate_jacobian().toarray())
+        lower = sps.coo_matrix((nlp.hessian(x, lam, sigma), nlp.hessianstructure()), shape=(nlp.n, nlp.n))
+        H = (lower + sps.triu(lower.T, k=1)).tocsr()[vp][:, vp]
+        close(H.toarray(), ref.evaluate_hessian_lag().toarray())
+    return nlp
+
+
+@pytest.mark.parametrize("name", PSEUDOSPECTRAL)
+def test_direct_evaluation_equals_pynumero(configs, name, monkeypatch):
+    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
+    tr = _built(configs, name)
+    if tr.problem.objective.sense == "maximize":
+        nlp, why = direct_nlp.DirectNLP.of(tr)
+        assert nlp is None and "maximised" in why
+        return
+    _compare_with_pynumero(tr)
+
+
+@pytest.mark.parametrize("scheme", ["LG", "LGL", "LGR"])
+def test_direct_evaluation_equals_pynumero_per_scheme(configs, scheme, monkeypatch):
+    """LG's end equations and LGL's integral form, with a Lagrange cost and a free final time."""
+    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
+    _compare_with_pynumero(_built(configs, "moon_landing", segments=4, transcription=scheme))
+    _compare_with_pynumero(_built(configs, "two_phase_double_integrator", segments=4, transcription=scheme))
+
+
+def _solve(configs, name, direct: bool, monkeypatch, text=None, tmp_path=None):
+    monkeypatch.setitem(pseudospectral.FAST, "direct_nlp", direct)
+    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
+    path = configs / f"{name}.yaml"
+    if text is not None:
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(text)
+    res = ocdsl.load(path).solve()
+    assert res.status == "optimal", res.message
+    return res
+
+
+@pytest.mark.parametrize("name", ["brachistochrone", "moon_landing", "two_phase_double_integrator",
+                                  "seed4_unrestricted", "mesh_moon_landing"])
+def test_direct_route_same_optimum(configs, name, monkeypatch):
+    plain = _solve(configs, name, False, monkeypatch)
+    fast = _solve(configs, name, True, monkeypatch)
+    assert plain.nlp["evaluation"].startswith("PyNumero")
+    assert fast.nlp["evaluation"].startswith("direct"), fast.nlp["evaluation"]
+    assert fast.objective == pytest.approx(plain.objective, rel=1e-8, abs=1e-10)
+    assert fast.nlp["variables"] == plain.nlp["variables"]
+    assert fast.nlp["constraints"] == plain.nlp["constraints"]
+    for ph in plain.phases:
+        other = fast.phase(ph.name)
+        for s in ph.states:
+            assert other.states[s] == pytest.approx(ph.states[s], rel=1e-6, abs=1e-6)
+        # duals loaded into the model: the costates agree
+        for s in ph.costates or {}:
+            assert other.costates[s] == pytest.approx(ph.costates[s], rel=1e-4, abs=1e-4)
+
+
+def test_direct_route_keeps_its_threshold_and_exclusions(configs, monkeypatch):
+    import pyomo.environ as pyo
+
+    tr = _built(configs, "brachistochrone")
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is None and "below" in why              # small NLPs keep the PyNumero route
+    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
+    X = tr.model.phase_main.X
+    # a linear row added after the build (as mesh refinement's junctions) is taken, constant and all
+    tr.model.added = pyo.Constraint(expr=2.0 * X[1, 0] - X[2, 1] + 0.5 >= -10.0)
+    nlp = _compare_with_pynumero(tr)
+    assert nlp.m == len(tr.phases[0].defects) + 1
+    tr.model.nonlinear = pyo.Constraint(expr=X[1, 0] * X[2, 1] >= -10.0)
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is None and "nonlinear" in why
+    tr.model.nonlinear.deactivate()
+    tr.phases[0].block.defect[0, 0, 0].deactivate()
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is None and "no longer active" in why
