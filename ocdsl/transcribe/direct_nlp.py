@@ -144,18 +144,33 @@ class DirectNLP:
         # --- y: every Pyomo VarData / Param the rows use; x: the unfixed VarData ---------
         entries = c["entries"]
         self.entries = entries
-        is_var = np.array([isinstance(e, VarData) for e in entries])
-        fixed = np.array([(not v) or entries[i].fixed for i, v in enumerate(is_var)])
-        self.free = np.flatnonzero(~fixed)
+        values, fixed, lower, upper = [], [], [], []
+        for e in entries:                      # one pass: 0.1 s at 100k variables
+            if isinstance(e, VarData):
+                values.append(e.value)
+                fixed.append(e.fixed)
+                lower.append(e.lb)
+                upper.append(e.ub)
+            else:                              # a Param: a constant of this solve
+                values.append(pyo.value(e))
+                fixed.append(True)
+                lower.append(None)
+                upper.append(None)
+
+        def array(xs, none):
+            a = np.array(xs, dtype=float)      # None -> nan
+            a[np.isnan(a)] = none
+            return a
+
+        self.free = np.flatnonzero(~np.array(fixed, bool))
         self.n = len(self.free)
         self.xmap = np.full(len(entries), -1)
         self.xmap[self.free] = np.arange(self.n)
-        self.y = np.array([float(pyo.value(e)) if pyo.value(e, exception=False) is not None else 0.0
-                           for e in entries], float)
-        free_vars = [entries[i] for i in self.free]
+        self.y = array(values, 0.0)
         self.x0 = self.y[self.free].copy()
-        self.xl = np.array([-INF if v.lb is None else float(v.lb) for v in free_vars])
-        self.xu = np.array([INF if v.ub is None else float(v.ub) for v in free_vars])
+        self.xl = array(lower, -INF)[self.free]
+        self.xu = array(upper, INF)[self.free]
+        free_vars = [entries[i] for i in self.free]
         self.variables = free_vars
         self.phases = c["phases"]
         self.scalars = c["scalars"]
@@ -485,8 +500,6 @@ def _compile(tr):
     import pyomo.environ as pyo
     from pyomo.core.base.var import VarData
 
-    from .nodes import lobatto_integration_matrix
-
     problem, model = tr.problem, tr.model
     if problem.objective.sense != "minimize":
         raise Unsupported("a maximised objective")
@@ -511,11 +524,10 @@ def _compile(tr):
     phases = []
     for ip, pb in enumerate(tr.phases):
         ph, lay, b = pb.phase, pb.layout, pb.block
-        mesh = lay.mesh
         nx, nu = len(ph.states), len(ph.controls)
         C = lay.n_colloc
-        X = np.array([[y_of(b.X[nn, j]) for j in range(nx)] for nn in range(lay.n_state_nodes)], int).reshape(-1, nx)
-        U = np.array([[y_of(b.U[i, j]) for j in range(nu)] for i in range(C)], int).reshape(C, nu)
+        X = _indexed(b.X, (lay.n_state_nodes, nx), entries, index)
+        U = _indexed(b.U, (C, nu), entries, index)
         t0i, tfi = y_of(b.t0), y_of(b.tf)
         pidx = [y_of(tr.scalars[s]) for s in free + consts]
         colloc_state = np.concatenate(lay.colloc_state)
@@ -525,63 +537,22 @@ def _compile(tr):
         path_exprs = [c.expr for c in ph.path]
         G, g, H = _families(ph, wsyms, (T0, TF, S))
         # rows: the model's defect, end and path constraint data, in this order
-        lin_row, lin_y, lin_coef = [], [], []
-        t_row, t_node, t_out, t_coef = [], [], [], []
-        weights = np.zeros(C)
-
-        def add_row(con, lo, hi):
-            rows.append(con)
-            gl.append(-INF if not math.isfinite(lo) else lo)
-            gu.append(INF if not math.isfinite(hi) else hi)
-            return len(rows) - 1
-
-        row_of_defect = {}
-        for key, con in pb.defects.items():
-            row_of_defect[key] = add_row(con, 0.0, 0.0)
-        row_of_end = {key: add_row(con, 0.0, 0.0) for key, con in pb.ends.items()}
-        for k in range(mesh.segments):
-            sc = mesh.scheme(k)
-            half_h = (mesh.breakpoints[k + 1] - mesh.breakpoints[k]) / 2.0
-            sup = lay.support[k]
-            cns = lay.colloc[k]
-            weights[cns] = np.asarray(sc.weights, float) * half_h
-            if sc.name == "LGL":
-                A = lobatto_integration_matrix(sc.degree)
-                for i in range(1, len(sup)):
-                    for j in range(nx):
-                        r = row_of_defect[(k, i, j)]
-                        lin_row += [r, r]; lin_y += [X[sup[i], j], X[sup[0], j]]; lin_coef += [1.0, -1.0]
-                        for li in range(len(cns)):
-                            if A[i, li] != 0.0:
-                                t_row.append(r); t_node.append(cns[li]); t_out.append(j)
-                                t_coef.append(-half_h * float(A[i, li]))
-            else:
-                for i, cn in enumerate(cns):
-                    for j in range(nx):
-                        r = row_of_defect[(k, i, j)]
-                        for li in range(len(sup)):
-                            if sc.D[i, li] != 0.0:
-                                lin_row.append(r); lin_y.append(X[sup[li], j]); lin_coef.append(float(sc.D[i, li]))
-                        t_row.append(r); t_node.append(cn); t_out.append(j); t_coef.append(-half_h)
-            if not sc.end_from_support:
-                for j in range(nx):
-                    r = row_of_end[(k, j)]
-                    lin_row += [r, r]; lin_y += [X[lay.end[k], j], X[sup[0], j]]; lin_coef += [1.0, -1.0]
-                    for i, cn in enumerate(cns):
-                        t_row.append(r); t_node.append(cn); t_out.append(j)
-                        t_coef.append(-half_h * float(sc.weights[i]))
+        base = len(rows)
+        rows.extend(pb.defects.values())
+        rows.extend(pb.ends.values())
+        gl.extend([0.0] * (len(rows) - base))
+        gu.extend([0.0] * (len(rows) - base))
+        lin, terms, weights = _collocation_rows(pb, X, base)
         path_base = len(rows)
         if path_exprs:
-            for i in range(C * len(path_exprs)):
-                c = ph.path[i % len(path_exprs)]
-                add_row(b.path[i], c.lower, c.upper)
+            rows.extend(b.path[i] for i in range(C * len(path_exprs)))
+            gl.extend([-INF if not math.isfinite(c.lower) else c.lower for c in ph.path] * C)
+            gu.extend([INF if not math.isfinite(c.upper) else c.upper for c in ph.path] * C)
         phases.append({"index": ip, "nodes": C, "W": W, "S": np.asarray(lay.s_colloc, float),
                        "G": G, "g": g, "H": H, "weights": weights, "path_base": path_base,
                        "integral_symbols": list(ph.integrals),
-                       "lin_row": np.array(lin_row, int), "lin_y": np.array(lin_y, int),
-                       "lin_coef": np.array(lin_coef, float),
-                       "t_row": np.array(t_row, int), "t_node": np.array(t_node, int),
-                       "t_out": np.array(t_out, int), "t_coef": np.array(t_coef, float)})
+                       "lin_row": lin[0], "lin_y": lin[1], "lin_coef": lin[2],
+                       "t_row": terms[0], "t_node": terms[1], "t_out": terms[2], "t_coef": terms[3]})
     # scalar level: objective and the general boundary constraints (the model's m.boundary)
     boundary_base = len(rows)
     general = tr.boundary_general
@@ -589,7 +560,9 @@ def _compile(tr):
     if len(cons) != len(general):
         raise Unsupported("the boundary constraints do not match the problem's")
     for con, c in zip(cons, general):
-        add_row(con, c.lower, c.upper)
+        rows.append(con)
+        gl.append(-INF if not math.isfinite(c.lower) else c.lower)
+        gu.append(INF if not math.isfinite(c.upper) else c.upper)
     exprs = [problem.objective.expr] + [c.expr for c in general]
     _check_smooth(exprs, "the objective or a boundary constraint")
     integral_of = {s: (ip, q) for ip, pb in enumerate(tr.phases) for q, s in enumerate(pb.phase.integrals)}
@@ -635,6 +608,89 @@ def _compile(tr):
         y_of(v)
     return {"entries": entries, "phases": phases, "scalars": scal, "rows": rows, "gl": gl, "gu": gu,
             "boundary_base": boundary_base}
+
+
+def _indexed(var, shape, entries, index) -> np.ndarray:
+    """y indices of a 2-index Var's data, appended to ``entries`` in one pass."""
+    out = np.full(shape, -1, int)
+    keys = list(var.keys())
+    if keys:
+        k = np.array(keys, int).reshape(-1, 2)
+        out[k[:, 0], k[:, 1]] = np.arange(len(entries), len(entries) + len(keys))
+        for v in var.values():
+            index[id(v)] = len(entries)
+            entries.append(v)
+    return out
+
+
+def _collocation_rows(pb, X, base):
+    """The defect and end rows of one phase, vectorised over rows of the same scheme: linear
+    parts (row, y index, coefficient) and terms coef * G_j(w_node) (row, node, j, coefficient),
+    as ``pseudospectral._build_phase`` writes them, plus each collocation node's quadrature
+    weight (for the integrals). Rows are numbered from ``base`` in the order of
+    ``pb.defects`` then ``pb.ends``."""
+    from .nodes import lobatto_integration_matrix
+
+    lay = pb.layout
+    mesh = lay.mesh
+    K = mesh.segments
+    half_h = np.diff(mesh.breakpoints) / 2.0
+    weights = np.zeros(lay.n_colloc)
+    for k in range(K):
+        weights[lay.colloc[k]] = np.asarray(mesh.scheme(k).weights, float) * half_h[k]
+    lin, terms = [], []
+    # defect rows (k, i, j), grouped by their segment's degree
+    keys = np.array(list(pb.defects.keys()), int).reshape(-1, 3)
+    rows = base + np.arange(len(keys))
+    degrees = np.asarray(mesh.degrees)
+    for d in np.unique(degrees):
+        sc = _scheme_of(mesh, d)
+        segs = np.flatnonzero(degrees == d)
+        pos = np.full(K, -1)
+        pos[segs] = np.arange(len(segs))
+        sup = np.array([lay.support[k] for k in segs], int)          # (segments, m)
+        col = np.array([lay.colloc[k] for k in segs], int)           # (segments, n)
+        sel = degrees[keys[:, 0]] == d
+        r, k, i, j = rows[sel], keys[sel, 0], keys[sel, 1], keys[sel, 2]
+        p = pos[k]
+        if sc.name == "LGL":
+            # X_i - X_0 - h/2 * sum_l A_il (tf - t0) F_l
+            lin.append((np.concatenate([r, r]), np.concatenate([X[sup[p, i], j], X[sup[p, 0], j]]),
+                        np.concatenate([np.ones(len(r)), -np.ones(len(r))])))
+            A = lobatto_integration_matrix(sc.degree)
+            coef = -half_h[k][:, None] * A[i, :]                       # (rows, n)
+            nz = coef != 0.0
+            terms.append((np.broadcast_to(r[:, None], coef.shape)[nz], col[p][nz],
+                          np.broadcast_to(j[:, None], coef.shape)[nz], coef[nz]))
+        else:
+            # D_i . X - h/2 (tf - t0) F_i
+            D = np.asarray(sc.D, float)[i, :]                          # (rows, m)
+            nz = D != 0.0
+            ys = X[sup[p], j[:, None]]                                 # (rows, m)
+            lin.append((np.broadcast_to(r[:, None], D.shape)[nz], ys[nz], D[nz]))
+            terms.append((r, col[p, i], j, -half_h[k]))
+    # LG end rows (k, j): X_end - X_0 - h/2 sum_i w_i (tf - t0) F_i
+    if pb.ends:
+        ekeys = np.array(list(pb.ends.keys()), int).reshape(-1, 2)
+        r = base + len(keys) + np.arange(len(ekeys))
+        k, j = ekeys[:, 0], ekeys[:, 1]
+        start = np.array([lay.support[kk][0] for kk in k], int)
+        endn = np.array([lay.end[kk] for kk in k], int)
+        lin.append((np.concatenate([r, r]), np.concatenate([X[endn, j], X[start, j]]),
+                    np.concatenate([np.ones(len(r)), -np.ones(len(r))])))
+        for kk_r, kk, jj in zip(r, k, j):
+            sc = mesh.scheme(kk)
+            cns = np.asarray(lay.colloc[kk], int)
+            terms.append((np.full(len(cns), kk_r), cns, np.full(len(cns), jj),
+                          -half_h[kk] * np.asarray(sc.weights, float)))
+    cat = lambda parts, t: np.concatenate([np.asarray(q[t]) for q in parts]) if parts else np.zeros(0)  # noqa: E731
+    return ((cat(lin, 0).astype(int), cat(lin, 1).astype(int), cat(lin, 2).astype(float)),
+            (cat(terms, 0).astype(int), cat(terms, 1).astype(int), cat(terms, 2).astype(int),
+             cat(terms, 3).astype(float)), weights)
+
+
+def _scheme_of(mesh, degree):
+    return next(mesh.scheme(k) for k in range(mesh.segments) if mesh.degrees[k] == degree)
 
 
 def _families(ph, wsyms, times):
