@@ -75,38 +75,26 @@ def _compare_with_pynumero(tr, trials=2):
 
 
 @pytest.mark.parametrize("name", PSEUDOSPECTRAL)
-def test_direct_evaluation_equals_pynumero(configs, name, monkeypatch):
-    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
-    tr = _built(configs, name)
-    if tr.problem.objective.sense == "maximize":
-        nlp, why = direct_nlp.DirectNLP.of(tr)
-        assert nlp is None and "maximised" in why
-        return
-    _compare_with_pynumero(tr)
+def test_direct_evaluation_equals_pynumero(configs, name):
+    _compare_with_pynumero(_built(configs, name))
 
 
 @pytest.mark.parametrize("scheme", ["LG", "LGL", "LGR"])
-def test_direct_evaluation_equals_pynumero_per_scheme(configs, scheme, monkeypatch):
+def test_direct_evaluation_equals_pynumero_per_scheme(configs, scheme):
     """LG's end equations and LGL's integral form, with a Lagrange cost and a free final time."""
-    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
     _compare_with_pynumero(_built(configs, "moon_landing", segments=4, transcription=scheme))
     _compare_with_pynumero(_built(configs, "two_phase_double_integrator", segments=4, transcription=scheme))
 
 
-def _solve(configs, name, direct: bool, monkeypatch, text=None, tmp_path=None):
+def _solve(configs, name, direct: bool, monkeypatch):
     monkeypatch.setitem(pseudospectral.FAST, "direct_nlp", direct)
-    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
-    path = configs / f"{name}.yaml"
-    if text is not None:
-        path = tmp_path / f"{name}.yaml"
-        path.write_text(text)
-    res = ocdsl.load(path).solve()
+    res = ocdsl.load(configs / f"{name}.yaml").solve()
     assert res.status == "optimal", res.message
     return res
 
 
 @pytest.mark.parametrize("name", ["brachistochrone", "moon_landing", "two_phase_double_integrator",
-                                  "seed4_unrestricted", "mesh_moon_landing"])
+                                  "seed4_unrestricted", "mesh_moon_landing", "goddard"])
 def test_direct_route_same_optimum(configs, name, monkeypatch):
     plain = _solve(configs, name, False, monkeypatch)
     fast = _solve(configs, name, True, monkeypatch)
@@ -124,13 +112,10 @@ def test_direct_route_same_optimum(configs, name, monkeypatch):
             assert other.costates[s] == pytest.approx(ph.costates[s], rel=1e-4, abs=1e-4)
 
 
-def test_direct_route_keeps_its_threshold_and_exclusions(configs, monkeypatch):
+def test_direct_route_takes_added_linear_rows_only(configs):
     import pyomo.environ as pyo
 
     tr = _built(configs, "brachistochrone")
-    nlp, why = direct_nlp.DirectNLP.of(tr)
-    assert nlp is None and "below" in why              # small NLPs keep the PyNumero route
-    monkeypatch.setattr(direct_nlp, "MIN_ROWS", 0)
     X = tr.model.phase_main.X
     # a linear row added after the build (as mesh refinement's junctions) is taken, constant and all
     tr.model.added = pyo.Constraint(expr=2.0 * X[1, 0] - X[2, 1] + 0.5 >= -10.0)

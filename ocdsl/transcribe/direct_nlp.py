@@ -14,9 +14,9 @@ variables, rows and coefficients) is taken from that model's variables and the m
 order is the model's constraint data, and solutions, duals and bound multipliers are loaded
 back into it, so everything downstream (costates, warm starts, the certificate) is unchanged.
 ``DirectNLP.of`` returns ``None`` with a reason when a model is outside what it covers (extra
-constraints added after the build, a maximised objective, functions without a NumPy
-derivative here, an objective or boundary constraint nonlinear in an integral); the caller
-then takes the PyNumero route. ``tests/test_direct_nlp.py`` checks values, Jacobians and
+nonlinear constraints added after the build, functions without a smooth NumPy form here,
+an objective or boundary constraint nonlinear in an integral); the caller then takes the
+PyNumero route. ``tests/test_direct_nlp.py`` checks values, Jacobians and
 Hessians against PyNumero's at random points on every example in ``configs/``.
 """
 from __future__ import annotations
@@ -35,13 +35,6 @@ INF = 1e20
 # smooth; anything else (Abs, Min/Max, Piecewise, sign...) stays on the PyNumero route
 _SMOOTH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
            "asinh", "acosh", "atanh", "exp", "log", "sqrt"}
-
-
-# Below this many collocation rows (defect and end equations) the PyNumero route is kept:
-# SymPy's second derivatives cost 0.05 s (brachistochrone) to 2.2 s (seed 0's attitude and
-# orbit model) once per problem, while the NL writer and the ASL cost about 0.03 ms (0.5 ms)
-# per row for the hand-over and as much again per ten Ipopt iterations (levers.md section 17).
-MIN_ROWS = 3000
 
 
 class Unsupported(Exception):
@@ -192,9 +185,6 @@ class DirectNLP:
         import pyomo.environ as pyo
 
         tr = tr.defining or tr
-        rows = sum(len(pb.defects) + len(pb.ends) for pb in tr.phases)
-        if rows < MIN_ROWS:
-            return None, f"{rows} collocation rows, below {MIN_ROWS}"
         try:
             compiled = getattr(tr, "_direct_nlp", None)
             if compiled is None:
@@ -501,8 +491,6 @@ def _compile(tr):
     from pyomo.core.base.var import VarData
 
     problem, model = tr.problem, tr.model
-    if problem.objective.sense != "minimize":
-        raise Unsupported("a maximised objective")
     entries: list = []
     index: dict[int, int] = {}
 
@@ -563,7 +551,10 @@ def _compile(tr):
         rows.append(con)
         gl.append(-INF if not math.isfinite(c.lower) else c.lower)
         gu.append(INF if not math.isfinite(c.upper) else c.upper)
-    exprs = [problem.objective.expr] + [c.expr for c in general]
+    # a maximised objective is minimised negated, as PyNumero does, so that the multipliers
+    # Ipopt returns have PyNumero's signs on both routes
+    sign = 1 if problem.objective.sense == "minimize" else -1
+    exprs = [sign * problem.objective.expr] + [c.expr for c in general]
     _check_smooth(exprs, "the objective or a boundary constraint")
     integral_of = {s: (ip, q) for ip, pb in enumerate(tr.phases) for q, s in enumerate(pb.phase.integrals)}
     syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs]), key=str)
