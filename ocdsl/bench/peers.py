@@ -147,18 +147,21 @@ def table(cases: list[dict]) -> str:
 
 
 def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
-    """In a fresh process: build + hand-over (PyomoNLP) at K segments, ``repeat`` times.
+    """In a fresh process: build + hand-over at K segments, ``repeat`` times.
 
     CPU seconds (``time.process_time``), medians over the repeats; as ``ocdsl run`` does
-    (``ocdsl.run.solve_pseudospectral``): guess + ``build`` is the build, ``PyomoNLP`` inside
-    ``gc_frozen`` the hand-over (NL writer + ASL)."""
+    (``ocdsl.run.solve_pseudospectral``, ``ocdsl.solve.ipopt.solve``): guess + ``build`` is the
+    build; the hand-over, inside ``gc_frozen``, is the route the solve takes: ``DirectNLP.of``
+    (its first call in a process includes the SymPy compile), or ``PyomoNLP`` (NL writer +
+    ASL) where it declines."""
     import gc
 
     from ..api import compile_file
     from ..solve import ipopt
     from ..transcribe.guess import make_guess
     from ..transcribe.mesh import Mesh
-    from ..transcribe.pseudospectral import build, gc_frozen
+    from ..transcribe.direct_nlp import DirectNLP
+    from ..transcribe.pseudospectral import FAST, build, gc_frozen
 
     ipopt.check_available()
     from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
@@ -174,9 +177,11 @@ def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
         b.append(time.process_time() - c)
         c = time.process_time()
         with gc_frozen():
-            nlp = PyomoNLP(tr.model)
+            nlp, _ = DirectNLP.of(tr) if FAST["direct_nlp"] else (None, "")
+            if nlp is None:
+                nlp = PyomoNLP(tr.model)
         h.append(time.process_time() - c)
-        n = int(nlp.n_primals())
+        n = int(nlp.n) if isinstance(nlp, DirectNLP) else int(nlp.n_primals())
         del nlp, tr
         gc.collect()
     return {"K": K, "vars": n, "build": statistics.median(b), "handover": statistics.median(h),
@@ -255,7 +260,9 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             f"{runs} runs each, alternating, medians; seconds.\n\n"
             "Whole processes. ocdsl: start-up+imports = process wall minus `ocdsl run`'s own total, plus the "
             "lazy imports inside it (Pyomo, cyipopt); hand-over = solve stage minus Ipopt's own total "
-            "(PyNumero NL writer + ASL + cyipopt set-up); post includes costates, certificate and expect "
+            "(the NLP set-up of the route the solve took, `result.json` nlp.evaluation: the direct NumPy "
+            "route's SymPy compile and index assembly, or PyNumero's NL writer + ASL; cyipopt set-up); "
+            "post includes costates, certificate and expect "
             "checks. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
             "Ipopt CPU = user + sys seconds from Ipopt's timing statistics (the wall columns "
             "mostly measure the machine's other load); Ipopt CPU/iter = that without function evaluations "
