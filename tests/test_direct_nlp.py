@@ -128,3 +128,42 @@ def test_direct_route_takes_added_linear_rows_only(configs):
     tr.phases[0].block.defect[0, 0, 0].deactivate()
     nlp, why = direct_nlp.DirectNLP.of(tr)
     assert nlp is None and "no longer active" in why
+
+
+TANK = """name: Draining tank
+model:
+  states: [h]
+  controls: [q]
+  dynamics:
+    h: q - sqrt(h)
+problem:
+  time: {t0: 0, tf: 2}
+  constraints:
+    - 0 <= q <= 1
+    - h(t0) == 1
+  objective: minimize integral(q**2) + (h(tf) - 0.2)**2
+method: {transcription: LGR, segments: 4, degree: 3}
+"""
+
+
+def test_a_node_function_outside_its_domain_is_an_evaluation_error(tmp_path):
+    """sqrt of a negative level: Ipopt must get its evaluation error (it then cuts the step
+    back), not NaNs, as on the PyNumero route."""
+    import cyipopt
+
+    path = tmp_path / "tank.yaml"
+    path.write_text(TANK)
+    file = compile_file(path)
+    problem, method = file.problem, file.method
+    meshes = {ph.name: Mesh.uniform(method.transcription, method.segments, method.degree) for ph in problem.phases}
+    tr = pseudospectral.build(problem, meshes, {ph.name: make_guess(problem, ph) for ph in problem.phases})
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is not None, why
+    x = np.abs(nlp.x0) + 0.1
+    assert np.all(np.isfinite(nlp.constraints(x)))
+    x[:] = -0.5
+    for call in (nlp.constraints, nlp.jacobian, lambda y: nlp.hessian(y, np.ones(nlp.m), 1.0)):
+        with pytest.raises(cyipopt.CyIpoptEvaluationError):
+            call(x)
+    res = ocdsl.load(path).solve()
+    assert res.status == "optimal" and res.nlp["evaluation"].startswith("direct")

@@ -399,18 +399,19 @@ class DirectNLP:
     def objective(self, x):
         self._set(x)
         self._eval_first()
-        return float(self._vals[self._s_val])
+        return _finite(float(self._vals[self._s_val]), "objective")
 
     def gradient(self, x):
         self._set(x)
         self._eval_first()
-        return np.bincount(self._gcol, weights=self._gcoef * self._firsts[self._gsrc], minlength=self.n)
+        return _finite(np.bincount(self._gcol, weights=self._gcoef * self._firsts[self._gsrc], minlength=self.n),
+                       "objective gradient")
 
     def constraints(self, x):
         self._set(x)
         self._eval_first()
-        return self._A @ self.y + np.bincount(self._vrow, weights=self._vcoef * self._vals[self._vsrc],
-                                              minlength=self.m)
+        return _finite(self._A @ self.y + np.bincount(self._vrow, weights=self._vcoef * self._vals[self._vsrc],
+                                                      minlength=self.m), "constraints")
 
     def jacobianstructure(self):
         return self._jrows, self._jcols
@@ -418,8 +419,8 @@ class DirectNLP:
     def jacobian(self, x):
         self._set(x)
         self._eval_first()
-        return self._jconst + np.bincount(self._jslot, weights=self._jcoef * self._firsts[self._jsrc],
-                                          minlength=len(self._jrows))
+        return _finite(self._jconst + np.bincount(self._jslot, weights=self._jcoef * self._firsts[self._jsrc],
+                                                  minlength=len(self._jrows)), "Jacobian")
 
     def hessianstructure(self):
         return self._hrows, self._hcols
@@ -453,7 +454,7 @@ class DirectNLP:
             hv = s.evaluate(self._scalar_z(), "second")
             parts.append(hv * w_out[np.array([h[0] for h in s.hess], int)] if len(s.hess) else np.zeros(0))
         source = np.concatenate(parts)
-        return np.bincount(self._hslot, weights=source[self._hsrc], minlength=len(self._hrows))
+        return _finite(np.bincount(self._hslot, weights=source[self._hsrc], minlength=len(self._hrows)), "Hessian")
 
     def intermediate(self, *args):
         return True
@@ -479,6 +480,17 @@ class DirectNLP:
         return {"variables": self.n, "constraints": self.m, "nonzeros": len(self._jrows),
                 "hessian_nonzeros": len(self._hrows), "equality_constraints": eq,
                 "inequality_constraints": self.m - eq, "evaluation": "direct (NumPy)"}
+
+
+def _finite(values, what):
+    """``values``, or Ipopt's evaluation error where a node function left its domain (a
+    square root or logarithm of a negative number, an overflow): Ipopt then cuts its step
+    back, as it does for the ASL's evaluation errors on the PyNumero route."""
+    if np.all(np.isfinite(values)):
+        return values
+    import cyipopt
+
+    raise cyipopt.CyIpoptEvaluationError(f"non-finite {what}")
 
 
 # ------------------------------------------------------------------------------------------
