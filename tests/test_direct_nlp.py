@@ -125,6 +125,19 @@ def test_direct_route_takes_added_linear_rows_only(configs):
     nlp, why = direct_nlp.DirectNLP.of(tr)
     assert nlp is None and "nonlinear" in why
     tr.model.nonlinear.deactivate()
+    # a term added to the built objective (mesh refinement's regularisation does) is PyNumero's
+    before = tr.model.objective.expr
+    tr.model.objective.expr = before + 1e-3 * X[1, 0] ** 2
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is None and "objective was changed" in why
+    tr.model.objective.expr = before
+    assert direct_nlp.DirectNLP.of(tr)[0] is not None
+    # also when the term is added before the first solve (mesh refinement regularises a
+    # freshly built mesh)
+    fresh = _built(configs, "brachistochrone")
+    fresh.model.objective.expr = fresh.model.objective.expr + 1e-3 * fresh.model.phase_main.X[1, 0] ** 2
+    nlp, why = direct_nlp.DirectNLP.of(fresh)
+    assert nlp is None and "objective was changed" in why
     tr.phases[0].block.defect[0, 0, 0].deactivate()
     nlp, why = direct_nlp.DirectNLP.of(tr)
     assert nlp is None and "no longer active" in why

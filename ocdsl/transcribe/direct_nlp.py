@@ -14,7 +14,8 @@ variables, rows and coefficients) is taken from that model's variables and the m
 order is the model's constraint data, and solutions, duals and bound multipliers are loaded
 back into it, so everything downstream (costates, warm starts, the certificate) is unchanged.
 ``DirectNLP.of`` returns ``None`` with a reason when a model is outside what it covers (extra
-nonlinear constraints added after the build, functions without a smooth NumPy form here,
+nonlinear constraints added after the build, an objective changed after it (mesh
+refinement's regularisation), functions without a smooth NumPy form here,
 an objective or boundary constraint nonlinear in an integral); the caller then takes the
 PyNumero route. ``tests/test_direct_nlp.py`` checks values, Jacobians and
 Hessians against PyNumero's at random points on every example in ``configs/``.
@@ -50,6 +51,30 @@ def _check_smooth(exprs, what: str) -> None:
             raise Unsupported(f"{what} is piecewise")
 
 
+def _derivatives(exprs, syms):
+    """Nonzero first derivatives [(output, a)], their expressions, and nonzero lower-triangle
+    second derivatives [(output, a, b)] with b <= a, their expressions."""
+    jac, jexprs, hess, hexprs = [], [], [], []
+    for o, e in enumerate(exprs):
+        for a, w in enumerate(syms):
+            d = sp.diff(sp.sympify(e), w)
+            if d == 0:
+                continue
+            jac.append((o, a))
+            jexprs.append(d)
+            for b in range(a + 1):
+                d2 = sp.diff(d, syms[b])
+                if d2 != 0:
+                    hess.append((o, a, b))
+                    hexprs.append(d2)
+    return jac, jexprs, hess, hexprs
+
+
+def _numpy_function(args, exprs):
+    """One NumPy function of ``args`` returning the list of ``exprs`` (None for no exprs)."""
+    return sp.lambdify(list(args), list(exprs), modules="numpy", cse=True, docstring_limit=0) if exprs else None
+
+
 @dataclass
 class _Family:
     """Expressions of one node's local variables w (and the node's normalised time S),
@@ -65,26 +90,10 @@ class _Family:
 
     @classmethod
     def compile(cls, exprs: list, wsyms: list, S: sp.Symbol) -> "_Family":
-        jac, jexprs, hess, hexprs = [], [], [], []
-        for o, e in enumerate(exprs):
-            for a, w in enumerate(wsyms):
-                d = sp.diff(e, w)
-                if d == 0:
-                    continue
-                jac.append((o, a))
-                jexprs.append(d)
-                for b in range(a + 1):
-                    d2 = sp.diff(d, wsyms[b])
-                    if d2 != 0:
-                        hess.append((o, a, b))
-                        hexprs.append(d2)
+        jac, jexprs, hess, hexprs = _derivatives(exprs, wsyms)
         args = list(wsyms) + [S]
-
-        def fn(es):
-            return sp.lambdify(args, list(es), modules="numpy", cse=True, docstring_limit=0) if es else None
-
         return cls(len(exprs), np.array(jac, int).reshape(-1, 2), np.array(hess, int).reshape(-1, 3),
-                   fn(exprs), fn(jexprs), fn(hexprs))
+                   _numpy_function(args, exprs), _numpy_function(args, jexprs), _numpy_function(args, hexprs))
 
     @staticmethod
     def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
@@ -205,6 +214,9 @@ class DirectNLP:
             objs = list(tr.model.component_data_objects(pyo.Objective, active=True))
             if len(objs) != 1 or objs[0] is not tr.model.objective:
                 return None, "the model's objective was replaced"
+            # mesh refinement's regularisation, for one, adds a term to the built objective
+            if tr.model.objective.expr is not tr.built_objective:
+                return None, "the objective was changed after the build"
             return cls(tr, compiled, extra_rows), ""
         except Unsupported as e:
             tr._direct_nlp = str(e)
@@ -221,29 +233,24 @@ class DirectNLP:
         off_j = 0        # offsets into the Jacobian source vector
         off_v = 0        # into the value source vector
         off_h = 0        # into the Hessian source vector
-        self._layout = []
         if self._extra_lin:
             r, y, k = zip(*self._extra_lin)
             lin_rows.append(np.array(r, int)); lin_cols.append(np.array(y, int)); lin_coef.append(np.array(k, float))
         for ph in self.phases:
             C = ph["nodes"]
             W = ph["W"]                               # (C, nl) y index of each local variable
-            lay = {}
             G, g, H = ph["G"], ph["g"], ph["H"]
             # linear parts of the collocation rows
             lin_rows.append(ph["lin_row"]); lin_cols.append(ph["lin_y"]); lin_coef.append(ph["lin_coef"])
             # terms coef * G_j(w_n) in rows
             t_row, t_node, t_out, t_coef = ph["t_row"], ph["t_node"], ph["t_out"], ph["t_coef"]
-            lay["G_val"] = off_v
             vrow.append(t_row); vsrc.append(off_v + t_out * C + t_node); vcoef.append(t_coef)
             off_v += G.n_out * C
-            lay["G_jac"] = off_j
             for e, (o, a) in enumerate(G.jac):
                 sel = t_out == o
                 jrow.append(t_row[sel]); jcol.append(W[t_node[sel], a])
                 jsrc.append(off_j + e * C + t_node[sel]); jcoef.append(t_coef[sel])
             off_j += len(G.jac) * C
-            lay["G_hess"] = off_h
             for e, (o, a, b) in enumerate(G.hess):
                 hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + np.arange(C))
             off_h += len(G.hess) * C
@@ -252,23 +259,19 @@ class DirectNLP:
                 npath = g.n_out
                 base = ph["path_base"]
                 nodes = np.arange(C)
-                lay["g_val"] = off_v
                 for q in range(npath):
                     vrow.append(base + nodes * npath + q); vsrc.append(off_v + q * C + nodes)
                     vcoef.append(np.ones(C))
                 off_v += npath * C
-                lay["g_jac"] = off_j
                 for e, (o, a) in enumerate(g.jac):
                     jrow.append(base + nodes * npath + o); jcol.append(W[:, a])
                     jsrc.append(off_j + e * C + nodes); jcoef.append(np.ones(C))
                 off_j += len(g.jac) * C
-                lay["g_hess"] = off_h
                 for e, (o, a, b) in enumerate(g.hess):
                     hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + nodes)
                 off_h += len(g.hess) * C
             # integrals I_q = sum_n weight_n H_q(w_n): enter rows/objective with constant coefficients
             if H is not None:
-                lay["H_jac"] = off_j
                 for out, ph_i, q, coef in self.scalars.integral_coef:
                     if ph_i != ph["index"]:
                         continue
@@ -282,14 +285,11 @@ class DirectNLP:
                             jrow.append(np.full(C, self._boundary_row(out)))
                             jcol.append(W[:, a]); jsrc.append(src); jcoef.append(coef * ph["weights"])
                 off_j += len(H.jac) * C
-                lay["H_hess"] = off_h
                 for e, (o, a, b) in enumerate(H.hess):
                     hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + np.arange(C))
                 off_h += len(H.hess) * C
-            self._layout.append(lay)
         # scalar level: objective (output 0) and boundary rows
         s = self.scalars
-        self._s_jac = off_j
         for e, (out, a) in enumerate(s.jac):
             ycol = s.y_of[a]
             if out == 0:
@@ -303,11 +303,9 @@ class DirectNLP:
             vrow.append(np.array([self._boundary_row(out)])); vsrc.append(np.array([off_v + out]))
             vcoef.append(np.ones(1))
         off_v += s.n_out
-        self._s_hess = off_h
         for e, (out, a, b) in enumerate(s.hess):
             hr.append(np.array([s.y_of[a]])); hc.append(np.array([s.y_of[b]])); hsrc.append(np.array([off_h + e]))
         off_h += len(s.hess)
-        self._n_jsrc, self._n_vsrc, self._n_hsrc = off_j, off_v, off_h
 
         cat = lambda parts, dtype=float: (np.concatenate(parts).astype(dtype) if parts  # noqa: E731
                                           else np.zeros(0, dtype))
@@ -431,7 +429,7 @@ class DirectNLP:
         lam = np.asarray(lagrange, float)
         parts = []
         with np.errstate(all="ignore"):
-            for ph, lay in zip(self.phases, self._layout):
+            for ph in self.phases:
                 C, cols = ph["nodes"], self._cols(ph)
                 G = ph["G"]
                 # mu_{j,n}: the rows' multipliers gathered onto each node's G_j
@@ -550,7 +548,6 @@ def _compile(tr):
             gu.extend([INF if not math.isfinite(c.upper) else c.upper for c in ph.path] * C)
         phases.append({"index": ip, "nodes": C, "W": W, "S": np.asarray(lay.s_colloc, float),
                        "G": G, "g": g, "H": H, "weights": weights, "path_base": path_base,
-                       "integral_symbols": list(ph.integrals),
                        "lin_row": lin[0], "lin_y": lin[1], "lin_coef": lin[2],
                        "t_row": terms[0], "t_node": terms[1], "t_out": terms[2], "t_coef": terms[3]})
     # scalar level: objective and the general boundary constraints (the model's m.boundary)
@@ -577,34 +574,20 @@ def _compile(tr):
         if target is None or not (isinstance(target, VarData) or _is_param(target)):
             raise Unsupported(f"the objective or a boundary constraint uses {s}")
     y_of_sym = [y_of(tr.scalars[s]) for s in ysyms]
-    jac, jexprs, hess, hexprs, icoef = [], [], [], [], []
+    icoef = []
     for out, e in enumerate(exprs):
-        e = sp.sympify(e)
         for s in isyms:
-            d = sp.diff(e, s)
+            d = sp.diff(sp.sympify(e), s)
             if d.free_symbols:
                 raise Unsupported("the objective or a boundary constraint is nonlinear in an integral")
             if d != 0:
                 ip, q = integral_of[s]
                 icoef.append((out, ip, q, float(d)))
-        for a, s in enumerate(ysyms):
-            d = sp.diff(e, s)
-            if d == 0:
-                continue
-            jac.append((out, a))
-            jexprs.append(d)
-            for bb in range(a + 1):
-                d2 = sp.diff(d, ysyms[bb])
-                if d2 != 0:
-                    hess.append((out, a, bb))
-                    hexprs.append(d2)
+    jac, jexprs, hess, hexprs = _derivatives(exprs, ysyms)
     args = ysyms + isyms
-
-    def fn(es):
-        return sp.lambdify(args, list(es), modules="numpy", cse=True, docstring_limit=0) if es else None
-
     symbols = [("y", y) for y in y_of_sym] + [("I", integral_of[s]) for s in isyms]
-    scal = _Scalars(len(exprs), symbols, y_of_sym, jac, hess, icoef, fn(exprs), fn(jexprs), fn(hexprs))
+    scal = _Scalars(len(exprs), symbols, y_of_sym, jac, hess, icoef, _numpy_function(args, exprs),
+                    _numpy_function(args, jexprs), _numpy_function(args, hexprs))
     # every variable the model has must be an entry (unused ones too: PyNumero drops them,
     # Ipopt keeps them at their start)
     for v in model.component_data_objects(pyo.Var):

@@ -49,6 +49,9 @@ class Transcription:
     # the transcription whose symbolic problem defines the NLP: itself, or for a reused
     # model's per-point view (ocdsl/solve/reuse.py) the built one, whose constants are Params
     defining: "Transcription | None" = None
+    # the objective expression as built: one changed later (mesh refinement's regularisation
+    # adds a term) is no longer the symbolic problem's, so direct_nlp declines the model
+    built_objective: Any = None
 
 
 def _bound(v: float):
@@ -186,7 +189,7 @@ def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGu
     _check_known(syms, scalars, "objective")
     e = pyomo_function(syms, [obj.expr])(*[scalars[s] for s in syms])[0]
     m.objective = pyo.Objective(expr=e, sense=pyo.minimize if obj.sense == "minimize" else pyo.maximize)
-    return Transcription(problem, m, blocks, scalars, general)
+    return Transcription(problem, m, blocks, scalars, general, built_objective=m.objective.expr)
 
 
 def _is_vardata(x) -> bool:
