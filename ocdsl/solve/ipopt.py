@@ -162,7 +162,7 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
     """Solve a Pyomo model with Ipopt; never raises for a failed solve (status 'error').
 
     With ``multipliers`` the solve starts from them as well as from the variables' values
-    (``_solve_direct``: Pyomo's ``SolverFactory('cyipopt')`` cannot pass them), with
+    (Pyomo's ``SolverFactory('cyipopt')`` cannot pass them), with
     ``WARM_START_OPTIONS`` under the caller's options; if that solve does not end optimal or
     acceptable, the variables are reset to their starting values and the model is solved
     again without the multipliers (the message says so, the iterations of both count). Bound
@@ -243,9 +243,9 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
 
                 direct, why = DirectNLP.of(transcription)
             if direct is not None:
-                msg, nlp_info = _solve_numpy(direct, opts, verbose, callback, multipliers)
+                msg, nlp_info = _solve_direct_nlp(direct, opts, verbose, callback, multipliers)
             elif multipliers is not None:
-                msg, nlp = _solve_direct(model, opts, verbose, callback, multipliers)
+                msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
             else:
                 solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
                 results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
@@ -272,11 +272,12 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
 
 
-def _solve_numpy(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
-                 multipliers: Multipliers | None):
+def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
+                      multipliers: Multipliers | None):
     """Ipopt on a ``DirectNLP`` (cyipopt.Problem), starting from the model's values and, when
     given, the multipliers; the solution, duals and bound multipliers are loaded into the
-    model as ``_solve_direct`` does. Returns (Ipopt's status message, the NLP's sizes)."""
+    model as ``_solve_pynumero_with_multipliers`` does. Returns (Ipopt's status message, the
+    NLP's sizes)."""
     import cyipopt
     import numpy as np
     from pyomo.common.tee import capture_output
@@ -302,8 +303,8 @@ def _solve_numpy(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
     return info["status_msg"], nlp.info()
 
 
-def _solve_direct(model, opts: dict[str, Any], verbose: bool, callback: Callable,
-                  multipliers: Multipliers):
+def _solve_pynumero_with_multipliers(model, opts: dict[str, Any], verbose: bool, callback: Callable,
+                                     multipliers: Multipliers):
     """What Pyomo's cyipopt solver does (pynumero ``algorithms/solvers/cyipopt_solver.py``,
     ``PyomoCyIpoptSolver.solve``: PyomoNLP -> CyIpoptNLP -> options -> solve -> load the
     primals, duals and bound multipliers into the model), except that cyipopt's ``solve``
