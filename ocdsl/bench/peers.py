@@ -151,7 +151,7 @@ def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
 
     CPU seconds (``time.process_time``), medians over the repeats; as ``ocdsl run`` does
     (``ocdsl.run.solve_pseudospectral``, ``ocdsl.solve.ipopt.solve``): guess + ``build`` is the
-    build; the hand-over, inside ``gc_frozen``, is the route the solve takes: ``DirectNLP.of``
+    build; the hand-over, inside ``gc_frozen``, is the route the solve takes (``ocdsl.solve.ipopt.direct_nlp``): ``DirectNLP.of``
     (its first call in a process includes the SymPy compile), or ``PyomoNLP`` (NL writer +
     ASL) where it declines."""
     import gc
@@ -161,7 +161,7 @@ def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
     from ..transcribe.guess import make_guess
     from ..transcribe.mesh import Mesh
     from ..transcribe.direct_nlp import DirectNLP
-    from ..transcribe.pseudospectral import FAST, build, gc_frozen
+    from ..transcribe.pseudospectral import build, gc_frozen
 
     ipopt.check_available()
     from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
@@ -177,7 +177,7 @@ def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
         b.append(time.process_time() - c)
         c = time.process_time()
         with gc_frozen():
-            nlp, _ = DirectNLP.of(tr) if FAST["direct_nlp"] else (None, "")
+            nlp, _ = ipopt.direct_nlp(tr)
             if nlp is None:
                 nlp = PyomoNLP(tr.model)
         h.append(time.process_time() - c)

@@ -235,13 +235,7 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
         # gc_frozen: the hand-over's full collections do not walk the built model again
         # (reports/bench/levers.md section 11)
         with pseudospectral.gc_frozen():
-            direct, why = None, "no transcription given"
-            if transcription is not None and not pseudospectral.FAST["direct_nlp"]:
-                why = "direct evaluation turned off"
-            elif transcription is not None:
-                from ..transcribe.direct_nlp import DirectNLP
-
-                direct, why = DirectNLP.of(transcription)
+            direct, why = direct_nlp(transcription)
             if direct is not None:
                 msg, nlp_info = _solve_direct_nlp(direct, opts, verbose, callback, multipliers)
             elif multipliers is not None:
@@ -272,6 +266,34 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
 
 
+def direct_nlp(transcription):
+    """(the DirectNLP of ``transcription``, "") where the solve evaluates through NumPy, or
+    (None, why it takes the PyNumero route)."""
+    from ..transcribe import pseudospectral
+
+    if transcription is None:
+        return None, "no transcription given"
+    if not pseudospectral.FAST["direct_nlp"]:
+        return None, "direct evaluation turned off"
+    from ..transcribe.direct_nlp import DirectNLP
+
+    return DirectNLP.of(transcription)
+
+
+def _start_multipliers(multipliers: Multipliers, constraints, variables, lower, upper) -> dict:
+    """cyipopt's ``lagrange``, ``zl`` and ``zu`` from ``multipliers`` for these rows and
+    variables (bounds ``lower``/``upper``): missing entries 0, bound multipliers >= 0."""
+    import numpy as np
+
+    lam = np.array([float(multipliers.constraints.get(c, 0.0)) for c in constraints], float)
+    zl = np.array([max(0.0, float(multipliers.lower.get(v, 0.0))) for v in variables], float)
+    zu = np.array([max(0.0, float(multipliers.upper.get(v, 0.0))) for v in variables], float)
+    # no bound, no multiplier (Ipopt ignores them there; keep them clean anyway)
+    zl[~np.isfinite(lower) | (lower <= -1e19)] = 0.0
+    zu[~np.isfinite(upper) | (upper >= 1e19)] = 0.0
+    return {"lagrange": lam, "zl": zl, "zu": zu}
+
+
 def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
                       multipliers: Multipliers | None):
     """Ipopt on a ``DirectNLP`` (cyipopt.Problem), starting from the model's values and, when
@@ -279,21 +301,14 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     model as ``_solve_pynumero_with_multipliers`` does. Returns (Ipopt's status message, the
     NLP's sizes)."""
     import cyipopt
-    import numpy as np
     from pyomo.common.tee import capture_output
 
     nlp.intermediate = callback
     problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
     for k, v in opts.items():
         problem.add_option(k, v)
-    kwargs = {}
-    if multipliers is not None:
-        kwargs["lagrange"] = np.array([float(multipliers.constraints.get(c, 0.0)) for c in nlp.rows], float)
-        zl = np.array([max(0.0, float(multipliers.lower.get(v, 0.0))) for v in nlp.variables], float)
-        zu = np.array([max(0.0, float(multipliers.upper.get(v, 0.0))) for v in nlp.variables], float)
-        zl[nlp.xl <= -1e19] = 0.0
-        zu[nlp.xu >= 1e19] = 0.0
-        kwargs["zl"], kwargs["zu"] = zl, zu
+    kwargs = {} if multipliers is None else _start_multipliers(multipliers, nlp.rows, nlp.variables,
+                                                                 nlp.xl, nlp.xu)
     try:
         with capture_output(sys.stdout if verbose else None, capture_fd=True):
             x, info = problem.solve(nlp.x0, **kwargs)
@@ -310,7 +325,6 @@ def _solve_pynumero_with_multipliers(model, opts: dict[str, Any], verbose: bool,
     primals, duals and bound multipliers into the model), except that cyipopt's ``solve``
     gets ``lagrange``, ``zl`` and ``zu`` besides ``x0``. Returns (Ipopt's status message,
     the PyomoNLP). Models with grey-box blocks or scaling suffixes are not handled here."""
-    import numpy as np
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
     from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
@@ -321,16 +335,11 @@ def _solve_pynumero_with_multipliers(model, opts: dict[str, Any], verbose: bool,
         raise ValueError("warm start with multipliers does not handle scaling_factor suffixes")
     for k, v in opts.items():
         problem.add_option(k, v)
-    cons, vars_ = nlp.get_pyomo_constraints(), nlp.get_pyomo_variables()
-    lam = np.array([float(multipliers.constraints.get(c, 0.0)) for c in cons], float)
-    zl = np.array([max(0.0, float(multipliers.lower.get(v, 0.0))) for v in vars_], float)
-    zu = np.array([max(0.0, float(multipliers.upper.get(v, 0.0))) for v in vars_], float)
-    # no bound, no multiplier (Ipopt ignores them there; keep them clean anyway)
-    zl[~np.isfinite(problem.x_lb()) | (problem.x_lb() <= -1e19)] = 0.0
-    zu[~np.isfinite(problem.x_ub()) | (problem.x_ub() >= 1e19)] = 0.0
+    start = _start_multipliers(multipliers, nlp.get_pyomo_constraints(), nlp.get_pyomo_variables(),
+                               problem.x_lb(), problem.x_ub())
     try:
         with capture_output(sys.stdout if verbose else None, capture_fd=True):
-            x, info = problem.solve(problem.x_init(), lagrange=lam, zl=zl, zu=zu)
+            x, info = problem.solve(problem.x_init(), **start)
         nlp.set_primals(x)
         nlp.set_duals(info["mult_g"])
         nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))

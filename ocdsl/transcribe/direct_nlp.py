@@ -119,14 +119,18 @@ class _Scalars:
     integrals, which may only enter linearly (their coefficients are constants)."""
 
     n_out: int            # 1 + number of general boundary constraints
-    symbols: list         # ("y", y index) or ("I", (phase, integral)) of each argument
-    y_of: list            # index in y of each non-integral symbol
+    symbols: list         # ("y", y index) or ("I", (phase, integral)) of each argument, y first
     jac: list             # (output, symbol position, ) nonzero first derivatives in y symbols
     hess: list            # (output, a, b) b <= a, y symbols only
     integral_coef: list   # (output, phase index, integral index, constant coefficient)
     _values: Any
     _first: Any
     _second: Any
+
+    @property
+    def y_of(self) -> list:
+        """index in y of each non-integral symbol (the first arguments)"""
+        return [ref for kind, ref in self.symbols if kind == "y"]
 
     def evaluate(self, z, which):
         fn = {"values": self._values, "first": self._first, "second": self._second}[which]
@@ -290,8 +294,9 @@ class DirectNLP:
                 off_h += len(H.hess) * C
         # scalar level: objective (output 0) and boundary rows
         s = self.scalars
+        y_of = s.y_of
         for e, (out, a) in enumerate(s.jac):
-            ycol = s.y_of[a]
+            ycol = y_of[a]
             if out == 0:
                 grow_col.append(np.array([ycol])); grow_src.append(np.array([off_j + e])); grow_coef.append(np.ones(1))
             else:
@@ -304,7 +309,7 @@ class DirectNLP:
             vcoef.append(np.ones(1))
         off_v += s.n_out
         for e, (out, a, b) in enumerate(s.hess):
-            hr.append(np.array([s.y_of[a]])); hc.append(np.array([s.y_of[b]])); hsrc.append(np.array([off_h + e]))
+            hr.append(np.array([y_of[a]])); hc.append(np.array([y_of[b]])); hsrc.append(np.array([off_h + e]))
         off_h += len(s.hess)
 
         cat = lambda parts, dtype=float: (np.concatenate(parts).astype(dtype) if parts  # noqa: E731
@@ -586,7 +591,7 @@ def _compile(tr):
     jac, jexprs, hess, hexprs = _derivatives(exprs, ysyms)
     args = ysyms + isyms
     symbols = [("y", y) for y in y_of_sym] + [("I", integral_of[s]) for s in isyms]
-    scal = _Scalars(len(exprs), symbols, y_of_sym, jac, hess, icoef, _numpy_function(args, exprs),
+    scal = _Scalars(len(exprs), symbols, jac, hess, icoef, _numpy_function(args, exprs),
                     _numpy_function(args, jexprs), _numpy_function(args, hexprs))
     # every variable the model has must be an entry (unused ones too: PyNumero drops them,
     # Ipopt keeps them at their start)
