@@ -198,6 +198,13 @@ class DirectNLP:
         import pyomo.environ as pyo
 
         tr = tr.defining or tr
+        # checked before compiling: mesh refinement's regularisation, for one, adds a term to
+        # the built objective of every mesh
+        objs = list(tr.model.component_data_objects(pyo.Objective, active=True))
+        if len(objs) != 1 or objs[0] is not tr.model.objective:
+            return None, "the model's objective was replaced"
+        if tr.model.objective.expr is not tr.built_objective:
+            return None, "the objective was changed after the build"
         try:
             compiled = getattr(tr, "_direct_nlp", None)
             if compiled is None:
@@ -215,12 +222,6 @@ class DirectNLP:
             extra_rows = [_linear_row(c, compiled) for c in extra]
             if any(r is None for r in extra_rows):
                 return None, "a nonlinear constraint was added to the built model"
-            objs = list(tr.model.component_data_objects(pyo.Objective, active=True))
-            if len(objs) != 1 or objs[0] is not tr.model.objective:
-                return None, "the model's objective was replaced"
-            # mesh refinement's regularisation, for one, adds a term to the built objective
-            if tr.model.objective.expr is not tr.built_objective:
-                return None, "the objective was changed after the build"
             return cls(tr, compiled, extra_rows), ""
         except Unsupported as e:
             tr._direct_nlp = str(e)
@@ -360,7 +361,6 @@ class DirectNLP:
         self._cache_x = np.array(x, float)
         self.y[self.free] = x
         self._vals = self._firsts = None
-        self._seconds = None
 
     def _cols(self, ph):
         return [self.y[ph["W"][:, a]] for a in range(ph["W"].shape[1])] + [ph["S"]]
