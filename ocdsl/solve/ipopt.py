@@ -1,6 +1,10 @@
 """Ipopt through Pyomo's cyipopt interface: availability check, options, progress, status."""
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
+import functools
 import os
 import sys
 import time
@@ -33,6 +37,42 @@ STATUS_MAP = {
 # optimum is unchanged (tests/test_examples.py, test_costates.py, test_fast_paths.py).
 # User options still override it.
 DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mumps_permuting_scaling": 0}
+
+
+@contextlib.contextmanager
+def floating_point_environment_kept():
+    """Restore the floating-point environment (x87 control word, MXCSR) on exit.
+
+    The ASL sets the x87 unit to 53-bit precision whenever it reads an NL file (its
+    ``fpinit``), and leaves it so for the whole process. NumPy's LAPACK then rounds
+    differently: the same least-squares start of the seed 2 lander came out 3e-14 apart
+    before and after the first PyNumero solve in a process, and Ipopt went from there to a
+    different local optimum (t_f 1036.873 against 1037.454 s). With the environment
+    restored, a run does not depend on what ran before it in the process
+    (tests/test_fp_environment.py)."""
+    libm = _libm()
+    if libm is None:
+        yield
+        return
+    saved = ctypes.create_string_buffer(64)  # fenv_t is 32 bytes on x86-64 glibc
+    libm.fegetenv(saved)
+    try:
+        yield
+    finally:
+        libm.fesetenv(saved)
+
+
+@functools.cache
+def _libm():
+    # the interpreter's own symbols hold libm on Linux; find_library (a subprocess) otherwise
+    for name in (None, ctypes.util.find_library("m")):
+        try:
+            lib = ctypes.CDLL(name)
+        except (OSError, TypeError):
+            continue
+        if hasattr(lib, "fegetenv") and hasattr(lib, "fesetenv"):
+            return lib
+    return None
 
 
 class SolverUnavailable(RuntimeError):
@@ -239,10 +279,12 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
             if direct is not None:
                 msg, nlp_info = _solve_direct_nlp(direct, opts, verbose, callback, multipliers)
             elif multipliers is not None:
-                msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
+                with floating_point_environment_kept():
+                    msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
             else:
                 solver = pyo.SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
-                results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
+                with floating_point_environment_kept():
+                    results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
                 msg = results.solver.message
             if direct is None:
                 nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),

@@ -338,8 +338,11 @@ def solve_flat(nlp: FlatNLP, tee: bool = False, options: Mapping[str, Any] | Non
     opts.update(options or {})
     for k, v in opts.items():
         solver.config.options[k] = v
+    from ..solve.ipopt import floating_point_environment_kept
+
     t0 = time.perf_counter()
-    res = solver.solve(nlp.model, tee=tee, load_solutions=False)
+    with floating_point_environment_kept():
+        res = solver.solve(nlp.model, tee=tee, load_solutions=False)
     solve_s = time.perf_counter() - t0
     term = str(res.solver.termination_condition)
     # Pyomo maps Ipopt's Solved_To_Acceptable_Level to "feasible"
