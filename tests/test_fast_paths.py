@@ -151,3 +151,31 @@ def test_lagrange_cost_with_free_time_keeps_the_hessian_sparse(configs, tmp_path
         counts.append(res.nlp["hessian_nonzeros"])
     growth = sizes[1] / sizes[0]
     assert counts[1] < 1.2 * growth * counts[0], counts      # dense would be ~growth**2
+
+
+@pytest.mark.ipopt
+def test_console_entry_writes_the_whole_run_folder_and_keeps_exit_codes(configs, tmp_path):
+    """The console script skips CPython's final collection (ocdsl.cli.entry); the run folder
+    must still be complete and the exit codes unchanged."""
+    import csv
+    import json
+    import subprocess
+    import sys
+    import tomllib
+
+    scripts = tomllib.loads((configs.parent / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts["ocdsl"] == "ocdsl.cli:entry"
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", "-q", str(configs / "brachistochrone.yaml"),
+                           "--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads((out / "result.json").read_text())
+    assert result["status"] == "optimal"
+    with open(out / "trajectory.csv") as f:
+        rows = list(csv.reader(f))
+    assert len(rows) > 10 and all(len(r) == len(rows[0]) for r in rows)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text((configs / "brachistochrone.yaml").read_text().replace("dynamics:", "dynamics: [", 1))
+    proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(bad), "--out", str(tmp_path / "b")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
