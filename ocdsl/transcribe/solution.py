@@ -18,20 +18,39 @@ def control_on_state_nodes(pb: PhaseBlock, U: np.ndarray) -> np.ndarray:
 
     Where a state node is a collocation node the value is exact; elsewhere (segment starts
     for LGR, both ends for LG) it is the segment's interpolating polynomial extrapolated.
+    Segments of one degree share one interpolation matrix, taken at the scheme's own
+    reference points, so the work is one matrix product per degree.
     """
     lay = pb.layout
+    U = np.asarray(U, float)
     out = np.full((lay.n_state_nodes, U.shape[1]), np.nan)
-    for k in range(lay.mesh.segments):
-        sc = lay.mesh.scheme(k)
-        nodes = lay.support[k]
-        targets = list(nodes) + ([lay.end[k]] if lay.end[k] not in nodes else [])
-        a, b = lay.mesh.breakpoints[k], lay.mesh.breakpoints[k + 1]
-        tau = 2.0 * (lay.s_state[targets] - a) / (b - a) - 1.0
-        vals = lagrange_matrix(np.asarray(sc.colloc), tau) @ U[lay.colloc[k]] if len(sc.colloc) > 1 \
-            else np.repeat(U[lay.colloc[k]], len(targets), axis=0)
-        for row, n in enumerate(targets):
-            if k == 0 or n != nodes[0]:   # a shared start belongs to the previous segment's end
-                out[n] = vals[row]
+    segments_of: dict[int, list[int]] = {}
+    for k, degree in enumerate(lay.mesh.degrees):
+        segments_of.setdefault(degree, []).append(k)
+    for ks in segments_of.values():
+        sc = lay.mesh.scheme(ks[0])
+        colloc = np.asarray(sc.colloc, float)
+        if sc.end_from_support:
+            ref = np.asarray(sc.support, float)
+            targets = np.array([lay.support[k] for k in ks])
+        else:                          # LG: the end is a state node outside the support
+            ref = np.append(np.asarray(sc.support, float), 1.0)
+            targets = np.array([np.append(lay.support[k], lay.end[k]) for k in ks])
+        L = lagrange_matrix(colloc, ref) if len(colloc) > 1 else np.ones((len(ref), 1))
+        vals = np.einsum("tc,kcj->ktj", L, U[np.array([lay.colloc[k] for k in ks])])
+        keep = targets != targets[:, :1]   # a shared start belongs to the previous segment's end
+        keep[np.asarray(ks) == 0, 0] = True
+        out[targets[keep]] = vals[keep]
+    return out
+
+
+def _values(var, shape: tuple[int, int]) -> np.ndarray:
+    """An IndexedVar over range(n) x range(m) as an (n, m) array, in one pass."""
+    out = np.full(shape, np.nan)
+    values = var.extract_values()
+    if values:
+        index = np.array(list(values.keys()), dtype=int).reshape(-1, 2)
+        out[index[:, 0], index[:, 1]] = np.array([np.nan if v is None else v for v in values.values()], float)
     return out
 
 
@@ -40,8 +59,8 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
     for pb in tr.phases:
         ph, lay, b = pb.phase, pb.layout, pb.block
         nx, nu = len(ph.states), len(ph.controls)
-        X = np.array([[pyo.value(b.X[n, j]) for j in range(nx)] for n in range(lay.n_state_nodes)])
-        U = np.array([[pyo.value(b.U[i, j]) for j in range(nu)] for i in range(lay.n_colloc)]).reshape(lay.n_colloc, nu)
+        X = _values(b.X, (lay.n_state_nodes, nx))
+        U = _values(b.U, (lay.n_colloc, nu))
         t0, tf = phase_times(pb)
         time = t0 + (tf - t0) * lay.s_state
         Us = control_on_state_nodes(pb, U)

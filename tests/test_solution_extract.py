@@ -1,0 +1,49 @@
+"""Controls on the state nodes (transcribe/solution.py), checked against each segment's own
+interpolating polynomial, on meshes with mixed degrees and every scheme."""
+import numpy as np
+import pytest
+
+from ocdsl.api import compile_file
+from ocdsl.transcribe.guess import make_guess
+from ocdsl.transcribe.mesh import Mesh
+from ocdsl.transcribe.pseudospectral import build
+from ocdsl.transcribe.solution import control_on_state_nodes, extract
+
+
+@pytest.mark.parametrize("scheme", ["LG", "LGR", "LGL", "LGR-start"])
+def test_controls_on_state_nodes_are_each_segments_polynomial(configs, scheme):
+    file = compile_file(configs / "moon_landing.yaml")
+    ph = file.problem.phases[0]
+    degrees = (3, 5, 2, 4, 3) if scheme == "LGL" else (3, 5, 1, 4, 3)
+    mesh = Mesh(scheme, np.array([0.0, 0.1, 0.35, 0.5, 0.8, 1.0]), degrees)
+    tr = build(file.problem, {ph.name: mesh}, {ph.name: make_guess(file.problem, ph, None)})
+    pb = tr.phases[0]
+    lay = pb.layout
+    U = np.random.default_rng(1).normal(size=(lay.n_colloc, 2))
+    got = control_on_state_nodes(pb, U)
+    assert not np.isnan(got).any()
+    for k in range(mesh.segments):
+        a, b = mesh.breakpoints[k], mesh.breakpoints[k + 1]
+        s_c = lay.s_colloc[lay.colloc[k]]
+        nodes = list(lay.support[k]) + [lay.end[k]]
+        first = 0 if k == 0 else 1        # a shared start is the previous segment's end
+        for n in nodes[first:]:
+            for j in range(U.shape[1]):
+                poly = np.polynomial.Polynomial.fit(s_c, U[lay.colloc[k], j], len(s_c) - 1, domain=[a, b])
+                assert got[n, j] == pytest.approx(poly(lay.s_state[n]), abs=1e-9), (k, n, j)
+    # where a state node is a collocation node, the value is the control there exactly
+    for k in range(mesh.segments):
+        assert np.array_equal(got[lay.colloc_state[k][1:] if k else lay.colloc_state[k]],
+                              U[lay.colloc[k][1:] if k else lay.colloc[k]])
+
+
+def test_extract_reads_the_variables(configs):
+    file = compile_file(configs / "brachistochrone.yaml")
+    ph = file.problem.phases[0]
+    tr = build(file.problem, {ph.name: Mesh.uniform("LGR", 4, 3)}, {ph.name: make_guess(file.problem, ph, None)})
+    b = tr.phases[0].block
+    for n, j in b.X:
+        b.X[n, j].set_value(10 * n + j)
+    traj = extract(tr)[0]
+    for j, s in enumerate(ph.states):
+        assert traj.states[s.name].tolist() == [10.0 * n + j for n in range(len(traj.time))]
