@@ -564,7 +564,7 @@ def _radau_batch(fun, jac, ta, tb, y0, atol, rtol, max_step):
             lu_ok[k] = True
         # simplified Newton on the collocation system (SciPy's solve_collocation_system)
         Ir, Ic = inv_r[i], inv_c[i]
-        W = np.einsum("js,bsn->bjn", TI, Z0)
+        W = TI @ Z0                                   # (b, 3, n); matmul: 2x einsum here
         Z = Z0.copy()
         going = np.ones(len(i), bool)
         converged = np.zeros(len(i), bool)
@@ -592,7 +592,7 @@ def _radau_batch(fun, jac, ta, tb, y0, atol, rtol, max_step):
                 rate[g] = np.where(np.isnan(r), rate[g], r)
                 u = g[upd]
                 W[u] += dW[upd]
-                Z[u] = np.einsum("js,bsn->bjn", T, W[u])
+                Z[u] = T @ W[u]
                 conv = upd & ((dW_norm == 0) | (~np.isnan(r) & (r / (1 - r) * dW_norm < newton_tol)))
             converged[g[conv]] = True
             going[g[stop | conv]] = False
@@ -1131,30 +1131,26 @@ def _switch_resolution(num, t, X, U, bounds, segments, scale, tol: Tolerances):
     side = _side(U, bounds, tol.saturation)
     fu = np.abs(num.fu_nodes(t, X, U))                # (N, n, m)
     n = X.shape[1]
-    owner = segment_of_nodes(t, segments) if segments is not None else None
-    both = {}
-    todo = []                  # (k, dt, gain) of the intervals on which a control switches
-    for k in range(1, N):
-        if owner is None:
-            sw = (side[k - 1] * side[k] < 0)
-        else:
-            segs = (owner[k - 1], owner[k])
-            for g in segs:
-                if g not in both:
-                    sd = side[owner == g]
-                    both[g] = (sd > 0).any(axis=0) & (sd < 0).any(axis=0)
-            sw = both[segs[0]] | both[segs[1]]
-        sw = sw & (width > 0)
-        if sw.any():
-            switching[k] = True
-            todo.append((k, t[k] - t[k - 1], np.maximum(fu[k - 1], fu[k])[:, sw] @ width[sw]))
-    if not todo:
+    if segments is None:
+        sw = side[:-1] * side[1:] < 0                              # (N - 1, m): interval k-1 .. k
+    else:
+        owner = segment_of_nodes(t, segments)
+        upper = np.zeros((len(segments) - 1, side.shape[1]), bool)
+        lower = np.zeros_like(upper)
+        np.logical_or.at(upper, owner, side > 0)
+        np.logical_or.at(lower, owner, side < 0)
+        both = upper & lower                                       # a segment's control takes both bounds
+        sw = both[owner[:-1]] | both[owner[1:]]
+    sw &= width > 0
+    ks = np.flatnonzero(sw.any(axis=1)) + 1
+    if not len(ks):
         return res, switching
+    switching[ks] = True
+    dts = t[ks] - t[ks - 1]
+    gains = np.einsum("knm,km->kn", np.maximum(fu[ks - 1], fu[ks]), sw[ks - 1] * width)
     # a control difference du on [0, dt] moves the state by the solution of
     # d' = A d + B du: |d(dt)| <= phi1(|A| dt) dt |B| |du|, phi1(z) = (e^z - 1)/z,
     # so states driven only through others (a position by its velocity) count too
-    ks = np.array([k for k, _, _ in todo])
-    dts = np.array([dt for _, dt, _ in todo])
     if FAST["batched_expm"]:
         fx = num._nodes(num._fx, t, X, U, (n, n))
         A = np.maximum(np.abs(fx[ks - 1]), np.abs(fx[ks]))
@@ -1168,6 +1164,5 @@ def _switch_resolution(num, t, X, U, bounds, segments, scale, tol: Tolerances):
         phi1_dt = _expm_batch(aug)[:, :n, n:]
     else:
         phi1_dt = np.array([expm(m)[:n, n:] for m in aug])
-    for i, (k, _, gain) in enumerate(todo):
-        res[k] = (phi1_dt[i] @ gain) / scale
+    res[ks] = np.einsum("kij,kj->ki", phi1_dt, gains) / scale
     return res, switching
