@@ -306,8 +306,8 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
         # local optima of the seed-2 flat NLPs (e.g. 112.4 kg instead of 150.39 kg on the
         # 2 km strategy-3 row, depending on round-off); the file's options still win
         options = {**FLAT_SOLVER_DEFAULTS, **file.spec.solver.options}
-        info = ipopt.solve(nlp.model, options, verbose=verbose,
-                           progress=ipopt.Progress(progress))
+        info, records = _solve_starts(nlp, method, options, problem.objective.sense,
+                                      method.seed if seed is None else seed, verbose, progress)
     with timer.measure("post"):
         tau = np.linspace(0.0, 1.0, method.dense_points)
         phases, dense = [], {}
@@ -360,6 +360,43 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
         result.extra["flat_map"] = {ph.name: mp.flatmaps[ph.name].summary() for ph in problem.phases}
         result.extra["max_residual_dense"] = dense
         result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
+        result.extra["starts"] = records
         result.expect = check_expectations(file, values, objective)
     result.wall_time_s = timer.breakdown()
     return result
+
+
+def _solve_starts(nlp, method, options, sense: str, seed: int, verbose: bool, progress: bool):
+    """Solve from the built guess, then (``method.starts`` > 1) from copies of it whose free
+    scaled control points are moved by normal noise of standard deviation ``method.spread``
+    (start i draws from ``seed + i``) and clipped to their bounds; the model is left at the
+    best solution. The flat NLPs have several local optima close together (seed 2, strategy
+    1: final masses 149.851, 149.871 and 149.935 kg, each reached from nearby starts), so a
+    single start lands on one of them by the accidents of its path. Returns (the best
+    SolveInfo, one record per start)."""
+    import pyomo.environ as pyo
+
+    from ..run import _better, _start_record
+    from ..solve import ipopt
+
+    variables = [v for v in nlp.model.component_data_objects(pyo.Var) if not v.fixed]
+    guess = [v.value for v in variables]
+    control_points = {id(v) for ph in nlp.phases.values() for v in ph.block.z.values()}
+    best = best_values = None
+    records = []
+    for i in range(method.starts):
+        rng = np.random.default_rng(seed + i) if i else None
+        for v, x in zip(variables, guess):
+            if rng is not None and id(v) in control_points and x is not None:
+                x = x + method.spread * rng.normal()
+                x = max(x, v.lb) if v.lb is not None else x
+                x = min(x, v.ub) if v.ub is not None else x
+            v.set_value(x, skip_validation=True)
+        label = f"[{i + 1}/{method.starts}]" if method.starts > 1 else ""
+        info = ipopt.solve(nlp.model, options, verbose=verbose, progress=ipopt.Progress(progress, label))
+        records.append(_start_record(i, seed + i if i else None, info))
+        if _better(info, best, sense):
+            best, best_values = info, [v.value for v in variables]
+    for v, x in zip(variables, best_values):
+        v.set_value(x, skip_validation=True)
+    return best, records

@@ -10,6 +10,9 @@ Example (seed 2, the lunar lander)::
       control_points: 15            # per unknown function (10 pieces + degree)
       collocation_points: 15        # where the residual equations are enforced
       collocation: uniform          # or interior (ends excluded)
+      starts: 8                     # the guess, then 7 perturbed copies; best kept
+      seed: 0                       # start i perturbs with seed + i
+      spread: 0.02                  # std. dev. of the perturbation of the scaled control points
 
 Registered with :mod:`ocdsl.methods`; the runner lives in
 :mod:`ocdsl.transcribe.flat_bspline_problem` (imported only when a file is solved, so
@@ -38,6 +41,11 @@ class FlatBSplineMethod(BaseModel):
                           "omitted: searched automatically")
     dense_points: int = Field(201, ge=2, le=100000,
                               description="points per phase of the reconstructed trajectory")
+    starts: int = Field(1, ge=1, le=1000, description="solves from the guess and from perturbed copies of "
+                        "it; the best is kept")
+    seed: int = Field(0, description="seed of the perturbations (start i uses seed + i)")
+    spread: float = Field(0.02, gt=0, le=0.5, description="standard deviation of the perturbation of every "
+                          "scaled control point (each flat output is scaled to [0, 1] by its bounds)")
 
     @model_validator(mode="after")
     def _check(self):
