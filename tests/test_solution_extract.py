@@ -47,3 +47,23 @@ def test_extract_reads_the_variables(configs):
     traj = extract(tr)[0]
     for j, s in enumerate(ph.states):
         assert traj.states[s.name].tolist() == [10.0 * n + j for n in range(len(traj.time))]
+
+
+@pytest.mark.parametrize("scheme", ["LG", "LGR", "LGL"])
+def test_built_variables_start_at_the_guess(configs, scheme):
+    """The state and control variables are set from the guess arrays in index order."""
+    file = compile_file(configs / "moon_landing.yaml")
+    ph = file.problem.phases[0]
+    guess = make_guess(file.problem, ph, None, seed=3)     # random controls: every value differs
+    seen = {}
+    for name in ("states_at", "controls_at"):
+        def recording(s, _f=getattr(guess, name), _name=name):
+            seen[_name] = _f(s)
+            return seen[_name]
+        object.__setattr__(guess, name, recording)
+    tr = build(file.problem, {ph.name: Mesh.uniform(scheme, 6, 3)}, {ph.name: guess})
+    b, lay = tr.phases[0].block, tr.phases[0].layout
+    xg, ug = seen["states_at"], seen["controls_at"]
+    assert len(set(ug.ravel().tolist())) == ug.size > 1
+    assert all(b.X[n, j].value == xg[n, j] for n in range(lay.n_state_nodes) for j in range(len(ph.states)))
+    assert all(b.U[i, j].value == ug[i, j] for i in range(lay.n_colloc) for j in range(len(ph.controls)))
