@@ -114,7 +114,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
 
 
 def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     from .solve.costates import costates, path_multipliers
     from .transcribe.solution import extract

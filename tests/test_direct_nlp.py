@@ -37,11 +37,10 @@ def _compare_with_pynumero(tr, trials=2):
     from ocdsl.solve import ipopt
 
     ipopt.check_available()
-    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
 
     nlp, why = direct_nlp.DirectNLP.of(tr)
     assert nlp is not None, why
-    ref = PyomoNLP(tr.model)
+    ref = ipopt.pynumero_nlp(tr.model)
     col = {id(v): i for i, v in enumerate(nlp.variables)}
     row = {id(c): i for i, c in enumerate(nlp.rows)}
     vp = np.array([col[id(v)] for v in ref.get_pyomo_variables()])

@@ -179,3 +179,18 @@ def test_console_entry_writes_the_whole_run_folder_and_keeps_exit_codes(configs,
     proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(bad), "--out", str(tmp_path / "b")],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
+
+
+@pytest.mark.ipopt
+def test_direct_route_runs_without_pyomo_environ(configs):
+    """ocdsl imports pyomo.core only (levers.md section 20); pyomo.environ, whose plugins
+    the NL writer and SolverFactory need, is imported by the PyNumero route when it runs."""
+    import subprocess
+    import sys
+
+    code = (f"import sys, ocdsl; r = ocdsl.load({str(configs / 'moon_landing.yaml')!r}).solve(); "
+            "print(r.status, r.nlp['evaluation'].split()[0], 'pyomo.environ' in sys.modules); "
+            f"f = ocdsl.load({str(configs / 'seed2_strategy1.yaml')!r}); "
+            "r = f.solve(); print(r.status, r.nlp['evaluation'].split()[0], 'pyomo.environ' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split("\n")[:2] == ["optimal direct False", "optimal PyNumero True"], out

@@ -25,9 +25,9 @@ def _lander():
 
 
 def _read_by_asl(model):
-    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
+    from ocdsl.solve.ipopt import pynumero_nlp
 
-    PyomoNLP(model)
+    pynumero_nlp(model)
 
 
 @pytest.mark.skipif(not X87_EXTENDED, reason="no x87 extended precision on this platform")

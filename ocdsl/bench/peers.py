@@ -164,7 +164,6 @@ def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
     from ..transcribe.pseudospectral import build, gc_frozen
 
     ipopt.check_available()
-    from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
 
     file = compile_file(Path(problem_file))
     problem, method = file.problem, file.method
@@ -179,7 +178,7 @@ def _scale_child(problem_file: str, K: int, repeat: int) -> dict:
         with gc_frozen():
             nlp, _ = ipopt.direct_nlp(tr)
             if nlp is None:
-                nlp = PyomoNLP(tr.model)
+                nlp = ipopt.pynumero_nlp(tr.model)
         h.append(time.process_time() - c)
         n = int(nlp.n) if isinstance(nlp, DirectNLP) else int(nlp.n_primals())
         del nlp, tr

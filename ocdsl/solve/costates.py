@@ -124,7 +124,7 @@ def path_multipliers(tr: Transcription) -> list[dict[str, np.ndarray]]:
     The path rows are built node by node along the collocation nodes, constraint by
     constraint, so row ``cn * n_path + k`` is constraint k at collocation node cn.
     """
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     m = tr.model
     out = []

@@ -136,7 +136,7 @@ def _phase_functions(ph, free_syms):
 
 
 def _solution_arrays(pb):
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     lay, b, ph = pb.layout, pb.block, pb.phase
     nx, nu = len(ph.states), len(ph.controls)
@@ -1152,7 +1152,7 @@ def regularise(tr, regions: dict, weight: float):
     weight * int (du/ds)^2 ds over the detected chattering arcs -- to the objective (with the
     sign that penalises it). Returns the Pyomo expression of the added term, or None.
     The solved objective is reported without it (``solve_adaptive``)."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     if not weight or not any(regions.values()):
         return None
@@ -1204,7 +1204,7 @@ def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0) 
     falling only with the width of the two segments) never reached 1e-9. LGR and LGR-start
     collocate one control at such a breakpoint and converged there without it, so they are
     left as they were. Returns the number of constraints added."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     from ..transcribe.nodes import lagrange_matrix
 
@@ -1309,7 +1309,7 @@ def _say(progress: bool, text: str) -> None:
 
 def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
     """Solve with adaptive mesh refinement; returns a Result with the mesh history."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     from ..run import _result
     from ..transcribe.guess import make_guess

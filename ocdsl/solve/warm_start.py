@@ -38,7 +38,7 @@ _BOUND_SUFFIXES = ("ipopt_zL_out", "ipopt_zU_out")
 
 def prepare(model) -> None:
     """Give ``model`` the import suffixes the solver fills with the bound multipliers."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     for name in _BOUND_SUFFIXES:
         if model.component(name) is None:
@@ -142,7 +142,7 @@ def _z(suffix, var) -> float:
 
 def take(tr) -> Snapshot:
     """What ``apply`` needs from a solved transcription (see the module doc)."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     m = tr.model
     zl, zu = _suffix(m, "ipopt_zL_out"), _suffix(m, "ipopt_zU_out")
@@ -200,7 +200,7 @@ def take(tr) -> Snapshot:
 def apply(snap: Snapshot, tr, *, primal: bool = True) -> Multipliers:
     """Multipliers for ``tr`` (a new mesh) from ``snap``; with ``primal`` also set the free
     variables' values from the old polynomials (see the module doc)."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     m = tr.model
     out = Multipliers()

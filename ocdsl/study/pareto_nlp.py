@@ -182,7 +182,7 @@ def solve_durations(file, start: dict[str, float]):
     The states of the guess are the phases integrated with the start durations (a shooting
     guess), so that the NLP starts on the dynamics and only the durations are off.
     """
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     from ocdsl.transcribe.guess import make_guess
 
@@ -318,7 +318,7 @@ class EpsilonSolver:
     seeds: list[tuple[float, float, str, list[PhaseTrajectory]]] = field(default_factory=list)
 
     def __call__(self, eps: float, warm: Any = None) -> P.ParetoPoint | None:
-        import pyomo.environ as pyo
+        import pyomo.core as pyo
 
         from ocdsl.transcribe.guess import make_guess
         from ocdsl.transcribe.solution import extract

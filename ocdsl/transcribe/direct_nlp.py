@@ -142,7 +142,7 @@ class DirectNLP:
     constraints, jacobian, jacobianstructure, hessian, hessianstructure)."""
 
     def __init__(self, tr, compiled, extra_rows=()):
-        import pyomo.environ as pyo
+        import pyomo.core as pyo
         from pyomo.core.base.var import VarData
 
         self.tr = tr
@@ -195,7 +195,7 @@ class DirectNLP:
     @classmethod
     def of(cls, tr) -> tuple["DirectNLP | None", str]:
         """(the NLP, "") or (None, why this model takes the PyNumero route)."""
-        import pyomo.environ as pyo
+        import pyomo.core as pyo
 
         tr = tr.defining or tr
         # checked before compiling: mesh refinement's regularisation, for one, adds a term to
@@ -502,7 +502,7 @@ def _finite(values, what):
 
 def _compile(tr):
     """The structure and compiled functions of ``tr``; a string when it is not covered."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
     from pyomo.core.base.var import VarData
 
     problem, model = tr.problem, tr.model

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-import pyomo.environ as pyo
+import pyomo.core as pyo
 import sympy as sp
 
 from ocdsl.symbolic.flatness import FlatMap, derivative_symbol, flatten
@@ -333,7 +333,9 @@ def solve_flat(nlp: FlatNLP, tee: bool = False, options: Mapping[str, Any] | Non
     """Solve with Ipopt through Pyomo's ``cyipopt`` interface; sample the trajectories
     on ``n_dense`` points per phase and report the largest residual between
     collocation points too (``max_residual_dense``)."""
-    solver = pyo.SolverFactory("cyipopt")
+    from pyomo.environ import SolverFactory   # the solver plugins: only this route needs them
+
+    solver = SolverFactory("cyipopt")
     opts = {"tol": 1e-9, "max_iter": 3000, "print_level": 5 if tee else 0}
     opts.update(options or {})
     for k, v in opts.items():

@@ -139,7 +139,7 @@ class _Mapped:
     def build(self):
         """The Pyomo model: the flat back end's phases, then times, general boundary
         constraints, links, path constraints and the objective of the Problem."""
-        import pyomo.environ as pyo
+        import pyomo.core as pyo
 
         from .flat_bspline import build_flat_bspline
 
@@ -286,7 +286,7 @@ def build_from_problem(file):
 
 def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
     """``fn(file, timer, ...) -> Result`` of :func:`ocdsl.methods.register_runner`."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     from ..run import check_expectations
     from ..solve import ipopt
@@ -374,7 +374,7 @@ def _solve_starts(nlp, method, options, sense: str, seed: int, verbose: bool, pr
     1: final masses 149.851, 149.871 and 149.935 kg, each reached from nearby starts), so a
     single start lands on one of them by the accidents of its path. Returns (the best
     SolveInfo, one record per start)."""
-    import pyomo.environ as pyo
+    import pyomo.core as pyo
 
     from ..run import _better, _start_record
     from ..solve import ipopt

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Callable, Sequence
 
-import pyomo.environ as pyo
+import pyomo.core as pyo
 import sympy as sp
 
 

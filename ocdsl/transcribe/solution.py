@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
-import pyomo.environ as pyo
+import pyomo.core as pyo
 
 from ..result import PhaseTrajectory
 from .nodes import lagrange_matrix
