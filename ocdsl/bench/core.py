@@ -31,7 +31,7 @@ def measure_imports() -> dict[str, float]:
     """Seconds to import what a solve needs, in order (each after the previous)."""
     out = {}
     for label, stmt in [("ocdsl.api (sympy, pydantic)", "import ocdsl.api"),
-                        ("pyomo.environ", "import pyomo.environ"),
+                        ("pyomo.core", "import pyomo.core"),
                         ("cyipopt + PyNumero (check_available)",
                          "from ocdsl.solve import ipopt; ipopt.check_available()"),
                         ("transcription modules", "import ocdsl.transcribe.pseudospectral, ocdsl.solve.costates")]:
