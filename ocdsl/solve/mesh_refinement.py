@@ -136,14 +136,9 @@ def _phase_functions(ph, free_syms):
 
 
 def _solution_arrays(pb):
-    import pyomo.core as pyo
+    from ..transcribe.solution import node_values, phase_times
 
-    lay, b, ph = pb.layout, pb.block, pb.phase
-    nx, nu = len(ph.states), len(ph.controls)
-    X = np.array([[pyo.value(b.X[n, j]) for j in range(nx)] for n in range(lay.n_state_nodes)], float)
-    U = np.array([[pyo.value(b.U[i, j]) for j in range(nu)] for i in range(lay.n_colloc)],
-                 float).reshape(lay.n_colloc, nu)
-    return X, U, float(pyo.value(b.t0)), float(pyo.value(b.tf))
+    return (*node_values(pb), *phase_times(pb))
 
 
 def _seg_polys(lay, k, X, U):

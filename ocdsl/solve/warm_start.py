@@ -144,6 +144,8 @@ def take(tr) -> Snapshot:
     """What ``apply`` needs from a solved transcription (see the module doc)."""
     import pyomo.core as pyo
 
+    from ..transcribe.solution import node_values, phase_times
+
     m = tr.model
     zl, zu = _suffix(m, "ipopt_zL_out"), _suffix(m, "ipopt_zU_out")
     snap = Snapshot()
@@ -152,9 +154,8 @@ def take(tr) -> Snapshot:
         lay, ph, b = pb.layout, pb.phase, pb.block
         nx, nu, npath = len(ph.states), len(ph.controls), len(ph.path)
         N, C = lay.n_state_nodes, lay.n_colloc
-        X = np.array([[pyo.value(b.X[n, j]) for j in range(nx)] for n in range(N)], float).reshape(N, nx)
-        U = np.array([[pyo.value(b.U[i, j]) for j in range(nu)] for i in range(C)], float).reshape(C, nu)
-        t0, tf = float(pyo.value(b.t0)), float(pyo.value(b.tf))
+        X, U = node_values(pb)
+        t0, tf = phase_times(pb)
         scale = path_scale(pb, tf - t0)
         lam = colloc_costates(m, pb)
         lam_end = np.zeros((lay.mesh.segments, nx))

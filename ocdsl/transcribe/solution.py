@@ -54,13 +54,19 @@ def _values(var, shape: tuple[int, int]) -> np.ndarray:
     return out
 
 
+def node_values(pb: PhaseBlock) -> tuple[np.ndarray, np.ndarray]:
+    """The phase's variable values: states on the state nodes (n_state_nodes, nx), controls
+    on the collocation nodes (n_colloc, nu)."""
+    lay, ph = pb.layout, pb.phase
+    return (_values(pb.block.X, (lay.n_state_nodes, len(ph.states))),
+            _values(pb.block.U, (lay.n_colloc, len(ph.controls))))
+
+
 def extract(tr: Transcription) -> list[PhaseTrajectory]:
     out = []
     for pb in tr.phases:
-        ph, lay, b = pb.phase, pb.layout, pb.block
-        nx, nu = len(ph.states), len(ph.controls)
-        X = _values(b.X, (lay.n_state_nodes, nx))
-        U = _values(b.U, (lay.n_colloc, nu))
+        ph, lay = pb.phase, pb.layout
+        X, U = node_values(pb)
         t0, tf = phase_times(pb)
         time = t0 + (tf - t0) * lay.s_state
         Us = control_on_state_nodes(pb, U)
