@@ -273,20 +273,18 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     t = time.perf_counter()
     try:
         # gc_frozen: the hand-over's full collections do not walk the built model again
-        # (reports/bench/levers.md section 11)
-        with pseudospectral.gc_frozen():
+        # (reports/bench/levers.md section 11); the environment: the ASL's x87 precision
+        with pseudospectral.gc_frozen(), floating_point_environment_kept():
             direct, why = direct_nlp(transcription)
             if direct is not None:
                 msg, nlp_info = _solve_direct_nlp(direct, opts, verbose, callback, multipliers)
             elif multipliers is not None:
-                with floating_point_environment_kept():
-                    msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
+                msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
             else:
                 from pyomo.environ import SolverFactory   # the solver plugins: only this route needs them
 
                 solver = SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
-                with floating_point_environment_kept():
-                    results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
+                results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
                 msg = results.solver.message
             if direct is None:
                 nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
