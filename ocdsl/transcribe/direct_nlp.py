@@ -620,7 +620,7 @@ def _collocation_rows(pb, X, base):
     as ``pseudospectral._build_phase`` writes them, plus each collocation node's quadrature
     weight (for the integrals). Rows are numbered from ``base`` in the order of
     ``pb.defects`` then ``pb.ends``."""
-    from .nodes import lobatto_integration_matrix
+    from .nodes import lobatto_integration_matrix, scheme
 
     lay = pb.layout
     mesh = lay.mesh
@@ -635,7 +635,7 @@ def _collocation_rows(pb, X, base):
     rows = base + np.arange(len(keys))
     degrees = np.asarray(mesh.degrees)
     for d in np.unique(degrees):
-        sc = _scheme_of(mesh, d)
+        sc = scheme(mesh.scheme_name, int(d))
         segs = np.flatnonzero(degrees == d)
         pos = np.full(K, -1)
         pos[segs] = np.arange(len(segs))
@@ -678,10 +678,6 @@ def _collocation_rows(pb, X, base):
     return ((cat(lin, 0).astype(int), cat(lin, 1).astype(int), cat(lin, 2).astype(float)),
             (cat(terms, 0).astype(int), cat(terms, 1).astype(int), cat(terms, 2).astype(int),
              cat(terms, 3).astype(float)), weights)
-
-
-def _scheme_of(mesh, degree):
-    return next(mesh.scheme(k) for k in range(mesh.segments) if mesh.degrees[k] == degree)
 
 
 def _families(ph, wsyms, times):
