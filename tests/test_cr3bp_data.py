@@ -111,3 +111,60 @@ def test_polar_and_cartesian_dynamics_agree(cart):
         assert np.max(np.abs(back - yc[:6])) < 1e-9
         assert abs(yp[6] - yc[6]) < 1e-12
     assert sc.y[6, -1] == pytest.approx(1 - 2.4476474 / 28.751961, abs=1e-6)
+
+
+def test_reference_36_counts_revolutions_from_the_atan2_angle():
+    """Which revolution count the paper uses (digest section 7 item 12), from its reference
+    [36]: the paper's Table 5 gives [36]'s 10 N transfer N_rev = 5, the same as its own.
+    [36]'s published minimum-fuel initial costates (digest section 8 item 5; t_f = 1.1 x
+    1.8065 TU, bang-bang) propagated in the registered Cartesian model reach the halo point
+    after sweeping theta from -2 rad (atan2) to 10 pi: 5.32 revolutions. theta(tf) =
+    2 pi N_rev + theta_f with theta_f = 0 then gives N_rev = 5 only when theta is counted
+    from the atan2 value -2; from its [0, 2 pi) residue 4.28 the same transfer is N_rev = 6."""
+    import sympy as sp
+
+    model = build_model("cr3bp_cartesian", {"mass_flow": "norm"})   # no mass flow on coasts
+    f = model.rhs(model.default_parameters())
+    x = list(model.states)
+    r, v, m = x[0:3], x[3:6], x[6]
+    u = list(model.controls)
+    lam = sp.symbols("l0:7", real=True)
+    H = sum(l * fi for l, fi in zip(lam, f))
+    costate = [-sp.diff(H, s) for s in x]       # u enters as the given thrust vector
+    args = x + u + list(lam)
+    state_rhs = sp.lambdify(args, list(f), "numpy")
+    costate_rhs = sp.lambdify(args, costate, "numpy")
+    values = {str(k): float(val) for k, val in model.default_parameters().items()}
+    c = 3000 * 9.80665 * values["TU"] / (1000 * values["LU"])
+    lam0 = [15.616017, 32.875896, -0.094522, -0.101606, 0.044791, -0.000150, 0.133266]
+
+    def switching(t, s):                        # S = 1 - c |lambda_v| / m - lambda_m; thrust when S < 0
+        return 1 - c * np.linalg.norm(s[10:13]) / s[6] - s[13]
+
+    def rhs(t, s, throttle):
+        lv = s[10:13]
+        thrust = -throttle * lv / np.linalg.norm(lv)
+        a = list(s[:7]) + list(thrust) + list(s[7:])
+        return np.concatenate([state_rhs(*a), costate_rhs(*a)])
+
+    state = np.array(list(X_I) + [1.0] + lam0)
+    t, tf, arcs, thetas = 0.0, 1.1 * 1.8065, 0, []
+    throttle = 1.0 if switching(0.0, state) < 0 else 0.0
+    while t < tf:
+        event = lambda t, s, _: switching(t, s)                               # noqa: E731
+        event.terminal, event.direction = True, (1 if throttle else -1)
+        sol = solve_ivp(rhs, (t, tf), state, args=(throttle,), method="DOP853", rtol=1e-10,
+                        atol=1e-12, events=event, max_step=5e-3)
+        thetas.append(np.arctan2(sol.y[1], sol.y[0] + MU))
+        t, state, arcs = sol.t[-1], sol.y[:, -1], arcs + 1
+        throttle = 1.0 - throttle               # an arc ends at a switch (or at tf)
+    assert 10 <= arcs <= 16                     # a bang-bang transfer, thrusting mostly at perigee
+    miss_r = np.linalg.norm(state[0:3] - np.array(X_F[0:3]))
+    miss_v = np.linalg.norm(state[3:6] - np.array(X_F[3:6]))
+    assert miss_r < 0.015 and miss_v < 0.03     # six-digit costates: near the halo point
+    theta = unwrap_angle(np.concatenate(thetas))
+    assert theta[0] == pytest.approx(-2.0, abs=1e-9)
+    assert theta[-1] == pytest.approx(target_angle(0.0, 5), abs=0.05)          # 10 pi
+    assert revolutions(theta[-1], 0.0) == 5
+    assert revolutions(theta[-1] - theta[0] + initial_angle(theta[0], "0_2pi"), 0.0) == 6
+    assert (theta[-1] - theta[0]) / (2 * math.pi) == pytest.approx(5.32, abs=0.01)
