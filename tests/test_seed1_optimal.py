@@ -155,6 +155,19 @@ def test_revolutions_of_a_cartesian_trajectory():
         assert frames.revolutions(theta[-1]) == n_rev + 1
 
 
+
+@pytest.mark.parametrize("end_offset", [-4e-4, 0.0, 4e-4])
+@pytest.mark.parametrize("paper_offset", [-9e-4, 9e-4])
+def test_optimal_mode_counts_revolutions_against_the_paper_runs_target(end_offset, paper_offset):
+    """Both runs end within zeta of the target angle 2 pi N_rev (theta_f = 0): on either side
+    of it the optimal-mode end is counted in the paper run's class. The end angle's own
+    [0, 2 pi) residue miscounts an end just below the target (a terminal box allows it)."""
+    for n_rev in (5, 10, 25):
+        target = 2 * np.pi * n_rev
+        assert R._revolutions(target + end_offset, n_rev, target + paper_offset) == n_rev
+    assert frames.revolutions(2 * np.pi * 10 - 4e-4) == 9
+    assert R._revolutions(float("nan"), 10, 0.0) is None
+
 # ---------------------------------------------------------------------------------------
 # the full cases: paper mode first, then optimal mode from its best particle
 def _paper_then_optimal(n: int, tmp_path: Path) -> tuple[Result, Result]:

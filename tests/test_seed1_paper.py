@@ -309,14 +309,17 @@ def test_10N_printed_tf_is_not_the_minimum_under_the_atan2_count(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n, class_optimum", [(5, 3.07732), (2, 6.89558)])
+@pytest.mark.parametrize("n, class_optimum", [(5, 3.07341), (2, 6.88598)])
 def test_printed_tf_is_below_the_class_optimum_under_the_atan2_count(tmp_path, n, class_optimum):
     """Under the atan2 count the paper's 5 N and 2 N values (3.02396 TU with N_rev = 10,
     6.8730 TU with N_rev = 25) are below the minimum time of those revolution classes over
-    *all* thrust-direction histories: optimal mode from this session's paper-mode members
-    (3.19341, 7.30531) ends at 3.07732 (as in session 1 from another start) and 6.89558
-    (docs/seed1.md). With the 10 N test above: no reading makes every printed value
-    attainable and Table 5's N_rev comparison true at once."""
+    *all* thrust-direction histories with the paper's own terminal box (every polar terminal
+    error within zeta): optimal mode with that box, from this session's paper-mode members
+    (3.19341, 7.30531), ends at 3.07341 and 6.88598 (exact terminal state: 3.07732, as in
+    session 1 from another start, and 6.89558; docs/seed1.md). With the 10 N test above: no
+    reading makes every printed value attainable and Table 5's N_rev comparison true at once."""
+    import yaml
+
     from ocdsl.search import class_collocation as cc
     from ocdsl.search import refine_optimal as R
 
@@ -325,8 +328,14 @@ def test_printed_tf_is_below_the_class_optimum_under_the_atan2_count(tmp_path, n
     values = {("T" if k == "tf" else k): v for k, v in case["decision_vector"].items() if k != "N_rev"}
     member = cc.member_run(paper_file, values, tmp_path / "member")
     assert member.status == "feasible" and member.tf == pytest.approx(case["tf"], rel=1e-9)
-    res = R.refine(CONFIGS / f"seed1_{n}N_optimal.yaml", tmp_path / "member", tmp_path / "optimal")
+    doc = yaml.safe_load((CONFIGS / f"seed1_{n}N_optimal.yaml").read_text())
+    box, exact = cc.terminal_box(doc, cc.paper_tolerances(paper_file)[0], 1.0)
+    doc["problem"]["constraints"] = [c for c in doc["problem"]["constraints"] if c not in exact] + box
+    doc.pop("expect")
+    boxed = tmp_path / "optimal_box.yaml"
+    boxed.write_text(yaml.safe_dump(doc, sort_keys=False, width=100000))
+    res = R.refine(boxed, tmp_path / "member", tmp_path / "optimal")
     assert res.status in ("optimal", "acceptable") and res.extra["reintegration"]["passed"]
     assert res.extra["side_by_side"]["optimal"]["N_rev"] == PAPER[n][0]
     assert res.extra["tf_physical"] == pytest.approx(class_optimum, abs=5e-4)
-    assert res.extra["tf_physical"] > 1.003 * PAPER[n][1]
+    assert res.extra["tf_physical"] > 1.0015 * PAPER[n][1]

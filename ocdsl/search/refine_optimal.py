@@ -267,6 +267,19 @@ def unwrapped_angle(tr: PhaseTrajectory, num: "_Numeric", theta0: float | None =
     return theta
 
 
+def _revolutions(theta_f: float, paper_n_rev, paper_theta_f: float) -> int | None:
+    """N_rev of the optimal-mode end angle, against the paper run's target angle.
+
+    The paper run ends within zeta of 2 pi N_rev + theta_f, so theta_f is its end angle less
+    2 pi N_rev. Deriving theta_f from the end angle itself (its [0, 2 pi) residue) miscounts
+    by one when the end lies just below the target (theta_f = 0 with a terminal box)."""
+    if not math.isfinite(theta_f):
+        return None
+    if paper_n_rev is None:
+        return frames.revolutions(theta_f)
+    return frames.revolutions(theta_f, paper_theta_f - 2.0 * math.pi * float(paper_n_rev))
+
+
 def frames_LU() -> float:
     return 384405.0
 
@@ -336,10 +349,11 @@ def refine(config: str | Path, paper_dir: str | Path, out: str | Path | None = N
     result.extra["warm_start"] = {"paper_run": str(paper_dir), "folder": str(warm_dir), **warm.extra}
     tr = result.phase()
     t_arr = float(tr.states[CLOCK][-1])
-    theta0 = float(Result.read(paper_dir).phase().states["theta"][0])
-    theta_f = float(unwrapped_angle(tr, num, theta0)[-1])
+    paper_run = Result.read(paper_dir)
+    paper_theta = paper_run.phase().states["theta"]
+    theta_f = float(unwrapped_angle(tr, num, float(paper_theta[0]))[-1])
     optimal = {"tf": t_arr, "m_p": float(1.0 - tr.states["m"][-1]), "status": result.status,
-               "N_rev": frames.revolutions(theta_f) if math.isfinite(theta_f) else None,
+               "N_rev": _revolutions(theta_f, paper_run.extra.get("N_rev"), float(paper_theta[-1])),
                "wall_time_s": result.wall_time_s["total"],
                "position_error_LU": reint.get("position_error_LU"),
                "velocity_error_VU": reint.get("velocity_error_VU"),
