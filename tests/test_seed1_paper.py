@@ -82,6 +82,17 @@ def test_decision_vector_layout():
 
 PAPER = {10: (5, 1.8265), 5: (10, 3.024), 2: (25, 6.873)}
 
+ATAN2 = json.loads((Path(__file__).parent / "data" / "seed1_atan2_reading.json").read_text())["cases"]
+
+
+def _atan2_file(n: int, tmp_path: Path) -> Path:
+    """The paper-mode file of ``n`` N with theta counted from the atan2 value -2 rad."""
+    text = (CONFIGS / f"seed1_{n}N_paper.yaml").read_text()
+    assert "theta(t0) == 4.283185307179586" in text
+    path = tmp_path / f"seed1_{n}N_atan2.yaml"
+    path.write_text(text.replace("theta(t0) == 4.283185307179586", "theta(t0) == -2.0"))
+    return path
+
 
 # Measured on the 2-core machine (2026-11-23), configs as committed ([0, 2 pi) convention,
 # polish + continuation + SLSQP refinement):
@@ -273,17 +284,6 @@ def test_10N_local_minima_by_reading(tmp_path):
     assert len(minima) >= 2 and min(minima) < 1.8265 * 0.98, minima
 
 
-ATAN2 = json.loads((Path(__file__).parent / "data" / "seed1_atan2_reading.json").read_text())["cases"]
-
-
-def _atan2_file(n: int, tmp_path: Path) -> Path:
-    """The paper-mode file of ``n`` N with theta counted from the atan2 value -2 rad."""
-    text = (CONFIGS / f"seed1_{n}N_paper.yaml").read_text()
-    assert "theta(t0) == 4.283185307179586" in text
-    path = tmp_path / f"seed1_{n}N_atan2.yaml"
-    path.write_text(text.replace("theta(t0) == 4.283185307179586", "theta(t0) == -2.0"))
-    return path
-
 
 def test_10N_printed_tf_is_not_the_minimum_under_the_atan2_count(tmp_path):
     """Under the revolution count the paper's Table 5 implies for [36] (theta from -2 rad),
@@ -292,7 +292,8 @@ def test_10N_printed_tf_is_not_the_minimum_under_the_atan2_count(tmp_path):
     printed value is not the minimum of the paper's own problem (a run of the file with that
     count, session 8; docs/seed1.md)."""
     case = ATAN2["10N"]
-    pp = build(load(_atan2_file(10, tmp_path)).problem, load(_atan2_file(10, tmp_path)).method, {"N_rev"})
+    atan2 = load(_atan2_file(10, tmp_path))
+    pp = build(atan2.problem, atan2.method, {"N_rev"})
     assert pp.y0[1] == -2.0
     x = np.array([case["decision_vector"][n] for n in pp.names()])
     det = pp.details(x)
@@ -303,9 +304,8 @@ def test_10N_printed_tf_is_not_the_minimum_under_the_atan2_count(tmp_path):
     m_p = 1.0 - det["final"][6]
     assert abs(m_p - T_MAX[10] * det["tf"] / C) < 1e-6         # the issue's check (8-digit T_max, c)
     # the same control counted from the files' [0, 2 pi) angle is N_rev = 4, not the paper's class
-    files = build(load(CONFIGS / "seed1_10N_paper.yaml").problem, load(CONFIGS / "seed1_10N_paper.yaml").method,
-                  {"N_rev"})
-    assert files.details(x)["ratio"].max() > 1000
+    files = load(CONFIGS / "seed1_10N_paper.yaml")
+    assert build(files.problem, files.method, {"N_rev"}).details(x)["ratio"].max() > 1000
 
 
 @pytest.mark.slow
