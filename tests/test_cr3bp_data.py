@@ -126,7 +126,6 @@ def test_reference_36_counts_revolutions_from_the_atan2_angle():
     model = build_model("cr3bp_cartesian", {"mass_flow": "norm"})   # no mass flow on coasts
     f = model.rhs(model.default_parameters())
     x = list(model.states)
-    r, v, m = x[0:3], x[3:6], x[6]
     u = list(model.controls)
     lam = sp.symbols("l0:7", real=True)
     H = sum(l * fi for l, fi in zip(lam, f))
@@ -134,8 +133,7 @@ def test_reference_36_counts_revolutions_from_the_atan2_angle():
     args = x + u + list(lam)
     state_rhs = sp.lambdify(args, list(f), "numpy")
     costate_rhs = sp.lambdify(args, costate, "numpy")
-    values = {str(k): float(val) for k, val in model.default_parameters().items()}
-    c = 3000 * 9.80665 * values["TU"] / (1000 * values["LU"])
+    c = float(model.expand(model.symbol("c")).xreplace(model.default_parameters()))
     lam0 = [15.616017, 32.875896, -0.094522, -0.101606, 0.044791, -0.000150, 0.133266]
 
     def switching(t, s):                        # S = 1 - c |lambda_v| / m - lambda_m; thrust when S < 0
