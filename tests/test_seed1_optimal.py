@@ -155,7 +155,6 @@ def test_revolutions_of_a_cartesian_trajectory():
         assert frames.revolutions(theta[-1]) == n_rev + 1
 
 
-
 @pytest.mark.parametrize("end_offset", [-4e-4, 0.0, 4e-4])
 @pytest.mark.parametrize("paper_offset", [-9e-4, 9e-4])
 def test_optimal_mode_counts_revolutions_against_the_paper_runs_target(end_offset, paper_offset):
@@ -167,6 +166,7 @@ def test_optimal_mode_counts_revolutions_against_the_paper_runs_target(end_offse
         assert R._revolutions(target + end_offset, n_rev, target + paper_offset) == n_rev
     assert frames.revolutions(2 * np.pi * 10 - 4e-4) == 9
     assert R._revolutions(float("nan"), 10, 0.0) is None
+
 
 # ---------------------------------------------------------------------------------------
 # the full cases: paper mode first, then optimal mode from its best particle

@@ -194,6 +194,14 @@ def terminal_box(optimal_doc: dict, zeta: dict[str, float], ratio: float) -> tup
     return relations, replaced
 
 
+def with_terminal_box(constraints: list[str], optimal_doc: dict, zeta: dict[str, float],
+                      ratio: float) -> list[str]:
+    """``constraints`` with the optimal file's exact terminal state replaced by the paper's
+    terminal box (:func:`terminal_box`)."""
+    relations, replaced = terminal_box(optimal_doc, zeta, ratio)
+    return [c for c in constraints if c not in replaced] + relations
+
+
 def paper_tolerances(paper_loaded) -> tuple[dict[str, float], float]:
     """zeta of each polar terminal state and the refine stage's target ratio: read from the
     paper-mode problem's own terminal conditions, so they are the ones its fitness uses."""
@@ -219,8 +227,7 @@ def class_problem(optimal_doc: dict, orders: dict[str, int], values: dict[str, f
     boundary = [c for c in optimal_doc["problem"]["constraints"]
                 if not any(u in c for u in ("ux", "uy", "uz"))]
     if terminal is not None:
-        relations, replaced = terminal_box(optimal_doc, *terminal)
-        boundary = [c for c in boundary if c not in replaced] + relations
+        boundary = with_terminal_box(boundary, optimal_doc, *terminal)
     params: dict[str, Any] = {"T": {"value": float(values["T"]), "free": True, "bounds": [0.1, 100.0]}}
     for control, order in orders.items():
         for name in coefficient_names(control, order):

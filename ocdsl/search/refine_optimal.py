@@ -286,11 +286,10 @@ def frames_LU() -> float:
 
 # ---------------------------------------------------------------------------------------
 # the side-by-side table
-def paper_summary(paper_dir: str | Path, num: "_Numeric") -> dict[str, Any]:
-    """t_f, m_p, N_rev, terminal errors and wall time of a paper-mode run folder; the position
+def paper_summary(paper: Result, num: "_Numeric") -> dict[str, Any]:
+    """t_f, m_p, N_rev, terminal errors and wall time of a paper-mode run; the position
     and velocity errors are measured in the synodic frame against the optimal-mode file's
     target (the same halo point)."""
-    paper = Result.read(paper_dir)
     tr = paper.phase()
     fin = {n: float(tr.states[n][-1]) for n in POLAR}
     out = {"tf": float(paper.tf), "m_p": float(1.0 - fin["m"]), "status": paper.status,
@@ -358,7 +357,7 @@ def refine(config: str | Path, paper_dir: str | Path, out: str | Path | None = N
                "position_error_LU": reint.get("position_error_LU"),
                "velocity_error_VU": reint.get("velocity_error_VU"),
                "s_f": result.tf, "iterations": result.iterations}
-    paper = paper_summary(paper_dir, num)
+    paper = paper_summary(paper_run, num)
     result.extra["side_by_side"], result.tables["paper_vs_optimal"] = side_by_side(paper, optimal)
     result.extra["tf_physical"] = t_arr
     result.extra["m_p"] = optimal["m_p"]
