@@ -195,8 +195,10 @@ def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray
 
 
 def scipy_final_state(cm: CompiledModel, y0, T: float, p, layout: ControlLayout, coeffs,
-                      rtol: float = 1e-9, atol=1e-11):
-    """Reference: SciPy ``solve_ivp(DOP853)`` on the same compiled RHS and controls."""
+                      rtol: float = 1e-9, atol=1e-11, method: str = "DOP853"):
+    """Reference: SciPy ``solve_ivp`` (DOP853 unless ``method`` names another of its
+    integrators, e.g. RK45, the Dormand-Prince 5(4) pair of MATLAB's ode45) on the same
+    compiled RHS and controls."""
     from scipy.integrate import solve_ivp
 
     ck, cp, co = layout.arrays()
@@ -214,10 +216,10 @@ def scipy_final_state(cm: CompiledModel, y0, T: float, p, layout: ControlLayout,
     if cm.clock >= 0:
         ev = lambda s, y: y[cm.clock] - T  # noqa: E731
         ev.terminal = True
-        sol = solve_ivp(fun, (0.0, 1e3 * T + 1), np.asarray(y0, float), method="DOP853",
+        sol = solve_ivp(fun, (0.0, 1e3 * T + 1), np.asarray(y0, float), method=method,
                         rtol=rtol, atol=atol, events=ev)
         out[:] = sol.y_events[0][0] if len(sol.t_events[0]) else sol.y[:, -1]
     else:
-        sol = solve_ivp(fun, (0.0, T), np.asarray(y0, float), method="DOP853", rtol=rtol, atol=atol)
+        sol = solve_ivp(fun, (0.0, T), np.asarray(y0, float), method=method, rtol=rtol, atol=atol)
         out[:] = sol.y[:, -1]
     return out, sol
