@@ -87,13 +87,19 @@ ATAN2, ARCTAN = READINGS["atan2"], READINGS["arctan"]
 CLASS = json.loads((Path(__file__).parent / "data" / "seed1_class_solutions.json").read_text())["cases"]
 
 
+def _variant_file(n: int, old: str, new: str, path: Path) -> Path:
+    """The paper-mode file of ``n`` N with its text ``old`` (which must be there) replaced
+    by ``new``, written to ``path``."""
+    text = (CONFIGS / f"seed1_{n}N_paper.yaml").read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    return path
+
+
 def _reading_file(n: int, theta0: float, tmp_path: Path) -> Path:
     """The paper-mode file of ``n`` N with another initial angle (the files use 4.2832 rad)."""
-    text = (CONFIGS / f"seed1_{n}N_paper.yaml").read_text()
-    assert "theta(t0) == 4.283185307179586" in text
-    path = tmp_path / f"seed1_{n}N_theta0_{theta0:.4f}.yaml"
-    path.write_text(text.replace("theta(t0) == 4.283185307179586", f"theta(t0) == {theta0!r}"))
-    return path
+    return _variant_file(n, "theta(t0) == 4.283185307179586", f"theta(t0) == {theta0!r}",
+                         tmp_path / f"seed1_{n}N_theta0_{theta0:.4f}.yaml")
 
 
 def _atan2_file(n: int, tmp_path: Path) -> Path:
@@ -378,12 +384,8 @@ def test_default_tolerance_integration_cannot_resolve_the_terminal_box(tmp_path)
     so t_f values found with it need not survive accurate integration (docs/seed1.md)."""
     from ocdsl.simulate import scipy_final_state
 
-    text = (CONFIGS / "seed1_10N_paper.yaml").read_text()
-    old = "integrator: {rtol: 1.0e-8, atol: 1.0e-10, sundman_k: 1.5}"
-    assert old in text
-    path = tmp_path / "physical_time.yaml"
-    path.write_text(text.replace(old, "integrator: {rtol: 1.0e-8, atol: 1.0e-10}"))
-    lf = load(path)
+    lf = load(_variant_file(10, "integrator: {rtol: 1.0e-8, atol: 1.0e-10, sundman_k: 1.5}",
+                            "integrator: {rtol: 1.0e-8, atol: 1.0e-10}", tmp_path / "physical_time.yaml"))
     pp = build(lf.problem, lf.method, {"N_rev"})
     assert pp.model.states[-1].name != "time"          # no Sundman clock: eq. (28) in t
     member = CLASS["10N"]
@@ -406,13 +408,10 @@ def test_default_tolerance_integration_cannot_resolve_the_terminal_box(tmp_path)
 def _zeta_file(n: int, zeta: float, tmp_path: Path) -> Path:
     """The paper-mode file of ``n`` N with every terminal tolerance set to ``zeta`` (the
     files use 1e-3; the paper states none)."""
-    text = (CONFIGS / f"seed1_{n}N_paper.yaml").read_text()
-    old = "tolerances: {r: 1.0e-3, theta: 1.0e-3, z: 1.0e-3, rdot: 1.0e-3, thetadot: 1.0e-3, zdot: 1.0e-3}"
-    assert old in text
-    new = "tolerances: {" + ", ".join(f"{s}: {zeta!r}" for s in ("r", "theta", "z", "rdot", "thetadot", "zdot")) + "}"
-    path = tmp_path / f"seed1_{n}N_zeta_{zeta:g}.yaml"
-    path.write_text(text.replace(old, new))
-    return path
+    states = ("r", "theta", "z", "rdot", "thetadot", "zdot")
+    return _variant_file(n, "tolerances: {" + ", ".join(f"{s}: 1.0e-3" for s in states) + "}",
+                         "tolerances: {" + ", ".join(f"{s}: {zeta!r}" for s in states) + "}",
+                         tmp_path / f"seed1_{n}N_zeta_{zeta:g}.yaml")
 
 
 def _class_chain(tmp_path: Path, n: int, steps, segments: int) -> list:
