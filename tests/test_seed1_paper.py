@@ -87,6 +87,12 @@ ATAN2, ARCTAN = READINGS["atan2"], READINGS["arctan"]
 CLASS = json.loads((Path(__file__).parent / "data" / "seed1_class_solutions.json").read_text())["cases"]
 
 
+def _class_values(n: int) -> dict[str, float]:
+    """The stored class member of ``n`` N as class mode's values (T and coefficients)."""
+    member = CLASS[f"{n}N"]
+    return {"T": member["tf"], **member["coefficients"]}
+
+
 def _variant_file(n: int, old: str, new: str, path: Path) -> Path:
     """The paper-mode file of ``n`` N with its text ``old`` (which must be there) replaced
     by ``new``, written to ``path``."""
@@ -382,16 +388,15 @@ def test_default_tolerance_integration_cannot_resolve_the_terminal_box(tmp_path)
     thousands of zeta from the halo point, in physical time as eq. (28) is written: a fitness
     evaluated that way cannot tell members inside the terminal box from members far outside,
     so t_f values found with it need not survive accurate integration (docs/seed1.md)."""
+    from ocdsl.search.class_collocation import _decision_vector
     from ocdsl.simulate import scipy_final_state
 
     lf = load(_variant_file(10, "integrator: {rtol: 1.0e-8, atol: 1.0e-10, sundman_k: 1.5}",
                             "integrator: {rtol: 1.0e-8, atol: 1.0e-10}", tmp_path / "physical_time.yaml"))
-    pp = build(lf.problem, lf.method, {"N_rev"})
+    pp, x = _decision_vector(lf, _class_values(10))
     assert pp.model.states[-1].name != "time"          # no Sundman clock: eq. (28) in t
-    member = CLASS["10N"]
-    x = np.array([member["tf"] if n == "tf" else 5.0 if n == "N_rev" else member["coefficients"][n]
-                  for n in pp.names()])
     var, tf, CD = pp.decode(x)
+    assert var["N_rev"][0] == 5
     P = pp._P(var, 1)[0]
 
     def ratios(method, rtol, atol):
@@ -420,10 +425,8 @@ def _class_chain(tmp_path: Path, n: int, steps, segments: int) -> list:
     bound) pairs. Returns the Results."""
     from ocdsl.search import class_collocation as cc
 
-    member = CLASS[f"{n}N"]
     previous = tmp_path / "member"
-    start = cc.member_run(load(CONFIGS / f"seed1_{n}N_paper.yaml"),
-                          {"T": member["tf"], **member["coefficients"]}, previous)
+    start = cc.member_run(load(CONFIGS / f"seed1_{n}N_paper.yaml"), _class_values(n), previous)
     assert start.status == "feasible"
     results = []
     for zeta, bound in steps:
