@@ -18,4 +18,12 @@ def load(path, parameters=None):
     return _load(path, parameters)
 
 
-__all__ = ["load", "__version__"]
+def read(run_dir):
+    """The Result of a run folder (what ``ocdsl run`` or ``Result.write`` left), with the same
+    API as a fresh solve: ``res.sample(t)``, ``res.to_pandas()``, ``res.plot()``, ``res.summary()``."""
+    from .result import Result
+
+    return Result.read(run_dir)
+
+
+__all__ = ["load", "read", "__version__"]

@@ -100,6 +100,8 @@ def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool) -
 
 def _summary(result, out: Path) -> None:
     from rich.console import Console
+
+    from .result_views import expect_error_text
     from rich.table import Table
 
     con = Console()
@@ -128,7 +130,7 @@ def _summary(result, out: Path) -> None:
     for c in result.expect:
         mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
         con.print(f"  expect {c['name']}: {c['value']:.10g} vs {c['reference']:.10g} "
-                  f"(error {c['error']:.2e}) {mark}")
+                  f"({expect_error_text(c)}) {mark}")
     cert = result.certificate
     if cert and "passed" in cert:
         mark = "[green]pass[/green]" if cert["passed"] else "[yellow]not passed[/yellow]"

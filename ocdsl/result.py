@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from .result_views import ResultViews
+
 STATUSES = ("optimal", "acceptable", "infeasible", "max_iter", "error", "mesh_not_converged",
             "feasible", "stable", "unstable", "not_run")
 
@@ -47,8 +49,8 @@ class PhaseTrajectory:
         return cols
 
 
-@dataclass
-class Result:
+@dataclass(repr=False)
+class Result(ResultViews):
     """What a run produced. ``status`` is one of :data:`STATUSES`.
 
     ``wall_time_s`` has ``total`` and the stage breakdown (parse, symbolic, build, solve,

@@ -29,7 +29,7 @@ def _load(name):
 
 @pytest.fixture(scope="module")
 def plant():
-    from models.spacecraft_wheels import paper_sdc_matrix
+    from ocdsl.models.spacecraft_wheels import paper_sdc_matrix
 
     m = build_model("spacecraft_wheels", {})
     num = sdc.lambdify_sdc(sdc.given(m, paper_sdc_matrix(m), auxiliary=AUX))
@@ -197,7 +197,7 @@ def test_controller_spec_rejects_mistakes():
 
 
 def test_given_sdc_from_the_problem_file_is_the_papers(plant):
-    from models.spacecraft_wheels import paper_sdc_matrix
+    from ocdsl.models.spacecraft_wheels import paper_sdc_matrix
     from ocdsl.control.run import build_sdc
 
     m = build_model("spacecraft_wheels", {})

@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from conftest import CONFIGS
-from models.lunar_lander import TABLE2, TABLE3, constants, mass_flow
+from ocdsl.models.lunar_lander import TABLE2, TABLE3, constants, mass_flow
 from ocdsl.transcribe.flat_bspline_compare import compare
 
 C = constants("km")

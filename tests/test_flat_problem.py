@@ -10,7 +10,7 @@ import sympy as sp
 
 import ocdsl
 from conftest import CONFIGS, write
-from models.lunar_lander import TABLE2, constants, hohmann_entry, mass_flow
+from ocdsl.models.lunar_lander import TABLE2, constants, hohmann_entry, mass_flow
 from ocdsl.spec.errors import SpecError
 from ocdsl.symbolic.flatness import FlatnessError
 from ocdsl.symbolic.registry import build_model
@@ -88,7 +88,7 @@ def test_hohmann_burn_written_in_the_file(h_i):
 
 
 def test_table_studies_have_every_row():
-    from models.lunar_lander import TABLE3
+    from ocdsl.models.lunar_lander import TABLE3
     from ocdsl.study.spec import load_study
 
     s2 = load_study(S2)
@@ -239,7 +239,7 @@ def test_strategy2_15km_from_the_problem_file():
 @pytest.mark.ipopt
 def test_strategy3_2km_row_from_the_problem_file():
     """Table 3, 2 km row (the one printed row that can be right): two linked phases."""
-    from models.lunar_lander import TABLE3
+    from ocdsl.models.lunar_lander import TABLE3
 
     v12, tb, td, mf = TABLE3[2]
     res = ocdsl.load(S3).solve()

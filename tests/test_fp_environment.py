@@ -17,7 +17,7 @@ def _x87_extended_precision() -> bool:
 
 
 def _lander():
-    from models.lunar_lander import seed_problem
+    from ocdsl.models.lunar_lander import seed_problem
     from ocdsl.transcribe.flat_bspline import build_flat_bspline
 
     phases, links = seed_problem(100.0, None)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from models.lunar_lander import (TABLE2, TABLE3, constants, hohmann_entry, initial_conditions,
+from ocdsl.models.lunar_lander import (TABLE2, TABLE3, constants, hohmann_entry, initial_conditions,
                                  mass_flow, seed_problem)
 from ocdsl.symbolic.registry import build_model
 

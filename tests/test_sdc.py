@@ -46,7 +46,7 @@ def test_spacecraft_auto_sdc_exact_at_random_points(split):
 
 
 def test_paper_sdc_given_is_exact_and_differs_from_auto():
-    from models.spacecraft_wheels import paper_sdc_matrix
+    from ocdsl.models.spacecraft_wheels import paper_sdc_matrix
 
     m = build_model("spacecraft_wheels", {})
     paper = sdc.given(m, paper_sdc_matrix(m), auxiliary=AUX)

@@ -28,7 +28,7 @@ R = np.eye(3)
 
 
 def _setup():
-    from models.spacecraft_wheels import paper_sdc_matrix
+    from ocdsl.models.spacecraft_wheels import paper_sdc_matrix
     from ocdsl.symbolic import sdc
     from ocdsl.symbolic.registry import build_model
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ast
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -90,7 +91,10 @@ def _parse(text: str | int | float) -> ast.expr:
     try:
         return ast.parse(text.strip(), mode="eval").body
     except SyntaxError as e:
-        raise ExprError(f"syntax error ({e.msg})", text) from None
+        hint = ""
+        if re.search(r"(?<![<>=!])=(?!=)", text):
+            hint = "; an equality is written with ==, e.g. x(t0) == 1"
+        raise ExprError(f"syntax error ({e.msg}){hint}", text) from None
 
 
 class _Builder:

@@ -68,11 +68,12 @@ def _convert(node: yaml.Node, path: Path_, lines: dict, issues: list, name: str)
     lines[path] = node.start_mark.line + 1
     if isinstance(node, yaml.MappingNode):
         out: dict[Any, Any] = {}
+        merged: dict[Any, Any] = {}
         for key_node, value_node in node.value:
-            key = yaml.SafeLoader(" ").construct_object(key_node) if isinstance(key_node, yaml.ScalarNode) else None
             if key_node.tag == "tag:yaml.org,2002:merge":
-                issues.append(Issue(name, key_node.start_mark.line + 1, "YAML merge keys (<<) are not supported"))
+                _merge(value_node, issues, name, merged)
                 continue
+            key = yaml.SafeLoader(" ").construct_object(key_node) if isinstance(key_node, yaml.ScalarNode) else None
             if not isinstance(key, (str, int, float)) or isinstance(key, bool):
                 # YAML reads `on`, `yes`, `no` as booleans; a key must stay a name
                 key = key_node.value if isinstance(key_node, yaml.ScalarNode) else None
@@ -85,7 +86,28 @@ def _convert(node: yaml.Node, path: Path_, lines: dict, issues: list, name: str)
                 continue
             out[key] = _convert(value_node, path + (key,), lines, issues, name)
             lines[path + (key,)] = key_node.start_mark.line + 1  # errors point at the key's line
+        for key, (value, sub_lines) in merged.items():   # keys written in the mapping win over merged ones
+            if key not in out:
+                out[key] = value
+                lines.update({path + sub: line for sub, line in sub_lines.items()})
         return out
     if isinstance(node, yaml.SequenceNode):
         return [_convert(v, path + (i,), lines, issues, name) for i, v in enumerate(node.value)]
     return yaml.SafeLoader(" ").construct_object(node)
+
+
+def _merge(value_node: yaml.Node, issues: list, name: str, merged: dict) -> None:
+    """``<<: *anchor`` or ``<<: [*a, *b]``: the keys of the anchored mappings into ``merged``
+    (key -> (value, lines below it)); the first mapping named wins, as YAML specifies, and
+    error lines stay where the anchored text was written."""
+    sources = value_node.value if isinstance(value_node, yaml.SequenceNode) else [value_node]
+    for src in sources:
+        if not isinstance(src, yaml.MappingNode):
+            issues.append(Issue(name, src.start_mark.line + 1,
+                                "a merge key (<<) takes a mapping or a list of mappings, e.g. <<: *defaults"))
+            continue
+        sub_lines: dict = {}
+        data = _convert(src, (), sub_lines, issues, name)
+        for key, value in data.items():
+            if key not in merged:
+                merged[key] = (value, {sub: line for sub, line in sub_lines.items() if sub and sub[0] == key})

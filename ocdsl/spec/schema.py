@@ -208,6 +208,8 @@ class ProblemFile(Strict):
 
     name: str
     description: str = ""
+    definitions: Any = Field(None, description="a home for YAML anchors (`&name`) used below with `*name` "
+                             "or merged with `<<: *name`; ocdsl itself ignores this block")
     model: ModelSpec | None = None
     problem: ProblemSpec | None = None
     phases: dict[str, PhaseSpec] | None = None

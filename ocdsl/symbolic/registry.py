@@ -1,9 +1,19 @@
-"""Registry of SymPy models defined in the top-level ``models/`` package.
+"""Registry of SymPy models: the project's own (the repository's ``models/`` folder,
+installed as the package ``ocdsl.models``) and those of other packages, found through the
+entry-point group ``ocdsl.models``.
 
 A model module defines a builder and registers it::
 
     @register("double_integrator", description="...")
     def build(options) -> Model: ...
+
+Another package adds its models by naming its model modules in its own ``pyproject.toml``::
+
+    [project.entry-points."ocdsl.models"]
+    my_models = "my_package.models"
+
+Each entry point is imported when models are first looked up, and its ``@register`` calls
+register its models (docs/architecture.md).
 
 ``options`` is a dict of model options from the problem file (``model: {use: NAME,
 options: {...}}``); builders reject unknown options with a ValueError naming them.
@@ -13,6 +23,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from typing import Any, Callable
 
 from .model import Model
@@ -28,7 +39,9 @@ class RegisteredModel:
     options: dict[str, str]  # option name -> one-line description
 
 
+ENTRY_POINT_GROUP = "ocdsl.models"
 _REGISTRY: dict[str, RegisteredModel] = {}
+_BROKEN: dict[str, str] = {}       # entry point name -> why importing it failed
 _LOADED = False
 
 
@@ -48,11 +61,16 @@ def _load_all() -> None:
     global _LOADED
     if _LOADED:
         return
-    import models  # the project's model package
+    from .. import models  # the project's own models (the repository's models/ folder)
 
     for info in pkgutil.iter_modules(models.__path__):
         if not info.name.startswith("_"):
-            importlib.import_module(f"models.{info.name}")
+            importlib.import_module(f"{models.__name__}.{info.name}")
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            entry.load()
+        except Exception as e:  # a broken third-party package must not hide the others
+            _BROKEN[entry.name] = f"{entry.value}: {type(e).__name__}: {e}"
     _LOADED = True
 
 
@@ -66,7 +84,9 @@ def registered(name: str) -> RegisteredModel:
     if name not in _REGISTRY:
         from ..hints import did_you_mean
 
-        raise KeyError(f"unknown model {name!r}{did_you_mean(name, _REGISTRY)}; known: {', '.join(sorted(_REGISTRY))}")
+        broken = "".join(f"; entry point {k} failed to import ({v})" for k, v in sorted(_BROKEN.items()))
+        raise KeyError(f"unknown model {name!r}{did_you_mean(name, _REGISTRY)}; known: "
+                       f"{', '.join(sorted(_REGISTRY))}{broken}")
     return _REGISTRY[name]
 
 

@@ -47,7 +47,7 @@ def _main() -> None:  # pragma: no cover - prints the docs table
     import argparse
     import json
 
-    from models.lunar_lander import TABLE2, TABLE3
+    from ocdsl.models.lunar_lander import TABLE2, TABLE3
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--configs", default="configs")

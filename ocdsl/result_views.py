@@ -1,0 +1,176 @@
+"""The notebook face of a Result: a short repr, ``summary()``, ``sample(t)``, ``to_pandas()``
+and ``plot()``. Everything here reads only what the run folder holds, so a result read back
+with ``ocdsl.read(run_dir)`` answers exactly as the one the solve returned.
+
+>>> import ocdsl
+>>> res = ocdsl.load("configs/brachistochrone.yaml").solve()
+>>> res                                                   # doctest: +ELLIPSIS
+<Result 'Brachistochrone with named expressions': optimal, objective 1.80160..., 1 phase, 41 rows, expect 1/1 passed>
+>>> again = ocdsl.read(res.write(tmp / "run"))           # the run folder, read back
+>>> at = again.sample([0.0, again.tf])                   # states and controls at any times
+>>> [round(float(v), 6) for v in at["x"]]
+[0.0, 10.0]
+>>> df = again.to_pandas()
+>>> list(df.columns[:5]), df.attrs["units"]["v"]
+(['t', 'x', 'y', 'v', 'theta'], 'm/s')
+>>> fig = again.plot()                                    # a matplotlib Figure
+>>> len(fig.axes)
+6
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+
+class ResultViews:
+    """Mixed into :class:`ocdsl.result.Result`."""
+
+    # ---- text ------------------------------------------------------------------------
+    def __repr__(self) -> str:
+        parts = [self.status]
+        if self.objective is not None:
+            parts.append(f"objective {self.objective:.8g}")
+        if isinstance(self.tf, dict):
+            parts.append("tf " + ", ".join(f"{k} {v:.6g}" for k, v in self.tf.items()))
+        elif self.tf is not None:
+            parts.append(f"tf {self.tf:.8g}")
+        if self.phases:
+            rows = sum(len(p.time) for p in self.phases)
+            parts.append(f"{len(self.phases)} phase{'s' * (len(self.phases) > 1)}, {rows} rows")
+        if self.expect:
+            passed = sum(bool(c.get("passed")) for c in self.expect)
+            parts.append(f"expect {passed}/{len(self.expect)} passed")
+        verification = getattr(self, "verification", None)
+        if isinstance(verification, dict) and verification.get("status"):
+            parts.append(f"verification {verification['status']}")
+        return f"<Result {self.name!r}: {', '.join(parts)}>"
+
+    def summary(self) -> str:
+        """A few lines: status, objective, final times, NLP, time, each expect check.
+
+        >>> from ocdsl.result import Result
+        >>> print(Result("demo", "optimal", objective=2.0, tf=2.0, iterations=12,
+        ...              expect=[{"name": "tf", "value": 2.00001, "reference": 2.0, "rtol": 1e-4,
+        ...                       "atol": None, "error": 1e-5, "relative_error": 5e-6,
+        ...                       "passed": True}]).summary())
+        demo: optimal
+          objective    2
+          final time   2
+          iterations   12
+          expect tf: 2.00001 vs 2 (relative error 5.00e-06, rtol 1.0e-04) pass
+        """
+        lines = [f"{self.name}: {self.status}"]
+        verification = getattr(self, "verification", None)
+        if isinstance(verification, dict) and verification.get("status"):
+            lines[0] += f", verification {verification['status']}"
+            if verification.get("summary"):
+                lines.append(f"  {verification['summary']}")
+        if self.status not in ("optimal", "stable", "feasible") and self.message:
+            lines.append(f"  {self.message.splitlines()[0]}")
+        rows = []
+        if self.objective is not None:
+            rows.append(("objective", f"{self.objective:.10g}"))
+        if isinstance(self.tf, dict):
+            rows.append(("final times", ", ".join(f"{k} {v:.8g}" for k, v in self.tf.items())))
+        elif self.tf is not None:
+            rows.append(("final time", f"{self.tf:.10g}"))
+        if self.nlp:
+            rows.append(("NLP", f"{self.nlp.get('variables')} variables, {self.nlp.get('constraints')} constraints"))
+        if self.iterations is not None:
+            rows.append(("iterations", str(self.iterations)))
+        if self.wall_time_s.get("total") is not None:
+            rows.append(("wall time", f"{self.wall_time_s['total']:.3f} s"))
+        lines += [f"  {k:<12} {v}" for k, v in rows]
+        for c in self.expect:
+            lines.append(f"  expect {c['name']}: {c['value']:.10g} vs {c['reference']:.10g} "
+                         f"({expect_error_text(c)}) {'pass' if c.get('passed') else 'FAIL'}")
+        return "\n".join(lines)
+
+    # ---- values between the rows ---------------------------------------------------------
+    def sample(self, t, phase: str | None = None) -> dict[str, np.ndarray]:
+        """States and controls at the times ``t`` (a number or an array) of ``phase`` (default:
+        the first), by the run's documented control interpolation (ocdsl/sampling.py);
+        controls are clipped to their bounds.
+
+        >>> import numpy as np
+        >>> from ocdsl.result import Result, PhaseTrajectory
+        >>> ph = PhaseTrajectory("main", np.array([0.0, 1.0, 2.0]), states={"x": np.array([0.0, 1.0, 4.0])},
+        ...                      controls={"u": np.array([0.0, 2.0, 4.0])})
+        >>> Result("demo", "optimal", phases=[ph]).sample([0.5, 1.5])["u"]
+        array([1., 3.])
+        """
+        from .sampling import interpolation_of, sample_phase
+
+        traj = self.phase(phase)
+        info = (self.problem.get("phases") or {}).get(traj.name, {})
+        return sample_phase(traj, t, interpolation_of(traj, self.method), info.get("bounds"))
+
+    # ---- pandas and plots -------------------------------------------------------------
+    def to_pandas(self, phase: str | None = None):
+        """The trajectory as a pandas DataFrame (every column of the run folder's CSV); with
+        several phases and no ``phase`` named, all of them with a ``phase`` column.
+        ``df.attrs["units"]`` maps column -> unit where the problem declares one.
+        Needs pandas (``pip install 'ocdsl[notebook]'``)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("Result.to_pandas() needs pandas: pip install 'ocdsl[notebook]' "
+                              "(or pip install pandas)") from None
+        chosen = [self.phase(phase)] if phase is not None or len(self.phases) == 1 else self.phases
+        frames = []
+        for traj in chosen:
+            df = pd.DataFrame({k: np.asarray(v, float) for k, v in traj.columns().items()})
+            if len(chosen) > 1:
+                df.insert(0, "phase", traj.name)
+            frames.append(df)
+        df = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
+        units = self.problem.get("units") or {}
+        df.attrs["units"] = {c: units[c] for c in df.columns if c in units}
+        if "t" in df.columns and units.get("t"):
+            df.attrs["units"]["t"] = units["t"]
+        df.attrs["name"] = self.name
+        return df
+
+    def plot(self, phase: str | None = None, samples: int = 400):
+        """A matplotlib Figure: each state and control against time (every phase unless one is
+        named); rows as dots, the interpolated solution as lines. Returns the Figure."""
+        import matplotlib.pyplot as plt
+
+        chosen = [self.phase(phase)] if phase is not None else self.phases
+        names = list(dict.fromkeys(n for p in chosen for n in list(p.states) + list(p.controls)))
+        if not names:
+            raise ValueError("this result has no trajectory to plot")
+        cols = min(3, len(names))
+        rows = math.ceil(len(names) / cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.6 * rows), squeeze=False)
+        units = self.problem.get("units") or {}
+        for traj in chosen:
+            t0, tf = float(traj.time[0]), float(traj.time[-1])
+            dense = self.sample(np.linspace(t0, tf, samples), traj.name)
+            for i, name in enumerate(names):
+                if name not in dense:
+                    continue
+                ax = axes[i // cols][i % cols]
+                line, = ax.plot(dense["t"], dense[name], lw=1.2, label=traj.name if len(chosen) > 1 else None)
+                values = traj.states.get(name, traj.controls.get(name))
+                ax.plot(traj.time, values, ".", ms=3, color=line.get_color())
+                ax.set_title(f"{name} [{units[name]}]" if name in units else name, fontsize=9)
+                ax.set_xlabel("t")
+        for j in range(len(names), rows * cols):
+            axes[j // cols][j % cols].axis("off")
+        if len(chosen) > 1:
+            axes[0][0].legend(fontsize=7)
+        fig.suptitle(self.name, fontsize=10)
+        fig.tight_layout()
+        return fig
+
+
+def expect_error_text(check: dict[str, Any]) -> str:
+    """An expect check's error in its own terms: relative when it has an rtol, else absolute."""
+    if check.get("rtol") is not None and check.get("relative_error") is not None:
+        return f"relative error {check['relative_error']:.2e}, rtol {check['rtol']:.1e}"
+    limit = f", atol {check['atol']:.1e}" if check.get("atol") is not None else ""
+    return f"error {check['error']:.2e}{limit}"

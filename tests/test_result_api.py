@@ -1,0 +1,103 @@
+"""The notebook API: ocdsl.read, Result.sample / to_pandas / plot / summary / repr, and the
+docstring examples of ocdsl/result_views.py run as doctests."""
+import doctest
+import os
+
+import numpy as np
+import pytest
+
+import ocdsl
+from conftest import ROOT
+from ocdsl import result_views
+from ocdsl.result import PhaseTrajectory, Result
+
+
+def _two_segment_phase():
+    # two segments [0, 1], [1, 2]; rows at 0, 0.5, 1, 1.5, 2; control collocated except at t = 0
+    t = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    return PhaseTrajectory("main", t, states={"x": t**2},
+                           controls={"u": np.array([99.0, 1.0, 2.0, 5.0, 7.0])},
+                           extra={"collocated": np.array([0.0, 1.0, 1.0, 1.0, 1.0])})
+
+
+def test_sample_lagrange_segments_uses_collocated_rows_of_each_segment():
+    res = Result("demo", "optimal", phases=[_two_segment_phase()],
+                 method={"meshes": {"main": {"breakpoints": [0.0, 0.5, 1.0]}}})
+    out = res.sample([0.25, 0.75, 1.25, 1.75])
+    # segment 1: line through (0.5, 1), (1, 2); segment 2: parabola through (1, 2), (1.5, 5), (2, 7)
+    assert out["u"][:2] == pytest.approx([0.5, 1.5])
+    p = np.polyfit([1.0, 1.5, 2.0], [2.0, 5.0, 7.0], 2)
+    assert out["u"][2:] == pytest.approx(np.polyval(p, [1.25, 1.75]))
+    # the state is the polynomial through each segment's rows: x = t^2 exactly
+    assert out["x"] == pytest.approx(np.array([0.25, 0.75, 1.25, 1.75]) ** 2)
+
+
+def test_sample_clips_controls_to_their_bounds_and_follows_recorded_kind():
+    ph = _two_segment_phase()
+    ph.control_interpolation = {"kind": "previous"}
+    res = Result("demo", "optimal", phases=[ph],
+                 problem={"phases": {"main": {"bounds": {"u": [None, 6.0]}}}})
+    out = res.sample([0.6, 1.9, 2.0])
+    assert out["u"] == pytest.approx([1.0, 5.0, 6.0])   # hold, hold, clipped 7 -> 6
+
+
+def test_repr_is_short_and_summary_reports_relative_error():
+    res = Result("demo", "max_iter", message="Maximum iterations exceeded", objective=1.5,
+                 tables={"big": {"a": np.zeros(10000)}},
+                 expect=[{"name": "tf", "value": 1.1, "reference": 1.0, "rtol": 1e-3, "atol": None,
+                          "error": 0.1, "relative_error": 0.1, "passed": False}])
+    text = repr(res)
+    assert text.startswith("<Result 'demo': max_iter") and len(text) < 200
+    s = res.summary()
+    assert "relative error 1.00e-01" in s and "FAIL" in s and "Maximum iterations" in s
+
+
+def test_to_pandas_multi_phase_has_phase_column_and_units():
+    pytest.importorskip("pandas")
+    a = PhaseTrajectory("a", np.array([0.0, 1.0]), states={"x": np.array([0.0, 1.0])})
+    b = PhaseTrajectory("b", np.array([1.0, 2.0]), states={"x": np.array([1.0, 3.0])})
+    res = Result("demo", "optimal", phases=[a, b], problem={"units": {"x": "km"}})
+    df = res.to_pandas()
+    assert list(df["phase"]) == ["a", "a", "b", "b"] and df.attrs["units"] == {"x": "km"}
+    assert list(res.to_pandas("b")["x"]) == [1.0, 3.0]
+
+
+def test_to_pandas_without_pandas_says_how_to_install(monkeypatch):
+    import builtins
+
+    real = builtins.__import__
+
+    def no_pandas(name, *args, **kwargs):
+        if name == "pandas":
+            raise ImportError("no pandas")
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_pandas)
+    with pytest.raises(ImportError, match=r"ocdsl\[notebook\]"):
+        Result("demo", "optimal", phases=[_two_segment_phase()]).to_pandas()
+
+
+def test_plot_returns_a_figure_with_one_axis_per_variable():
+    fig = Result("demo", "optimal", phases=[_two_segment_phase()]).plot()
+    assert [ax.get_title() for ax in fig.axes] == ["x", "u"]
+
+
+def test_read_gives_back_the_written_result(tmp_path):
+    res = Result("demo", "optimal", objective=2.0, tf=2.0, phases=[_two_segment_phase()],
+                 problem={"phases": {"main": {"states": ["x"], "controls": ["u"]}}})
+    back = ocdsl.read(res.write(tmp_path / "run"))
+    assert repr(back) == repr(res)
+    assert back.sample(0.75)["u"] == pytest.approx(res.sample(0.75)["u"])
+
+
+@pytest.mark.ipopt
+def test_docstring_examples(tmp_path):
+    pytest.importorskip("pandas")
+    cwd = os.getcwd()
+    os.chdir(ROOT)
+    try:
+        failures, tried = doctest.testmod(result_views, extraglobs={"tmp": tmp_path},
+                                          optionflags=doctest.ELLIPSIS)
+    finally:
+        os.chdir(cwd)
+    assert tried >= 10 and failures == 0
