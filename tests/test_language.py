@@ -91,3 +91,90 @@ def test_the_project_models_load_as_ocdsl_models_not_a_top_level_package():
     registry.model_names()
     assert "ocdsl.models.classic" in sys.modules
     assert "models" not in sys.modules and "models.classic" not in sys.modules
+
+
+# ---- phases: one model, per-phase values, one-line continuity, vectors, E(tf) ---------------
+TWO_PHASE = (__import__("pathlib").Path(__file__).parent / "data" / "two_phase_language.yaml").read_text()
+
+
+def test_continuity_line_expands_to_time_and_every_shared_state(tmp_path):
+    f = load(write(tmp_path, TWO_PHASE))
+    texts = [c.text.split("   (")[0] for c in f.problem.boundary if "continuous" in c.text]
+    assert texts == ["accelerate.tf == brake.t0", "accelerate.x(tf) == brake.x(t0)",
+                     "accelerate.v(tf) == brake.v(t0)"]
+
+
+def test_continuity_of_chosen_states_and_vectors(tmp_path):
+    f = load(write(tmp_path, TWO_PHASE.replace("continuous(accelerate, brake)", "'continuous(accelerate, brake, [v])'")))
+    assert [c.text.split("   (")[0] for c in f.problem.boundary if "continuous" in c.text] == \
+        ["accelerate.tf == brake.t0", "accelerate.v(tf) == brake.v(t0)"]
+    f = load(write(tmp_path, TWO_PHASE.replace("continuous(accelerate, brake)", "'continuous(accelerate, brake, [s])'")))
+    assert sum("continuous" in c.text for c in f.problem.boundary) == 3
+
+
+@pytest.mark.parametrize("link,fragment", [
+    ("continuous(accelerate, brakes)", "unknown phase 'brakes'"),
+    ('"continuous(accelerate, brake, [w])"', "'w' is not a state of both"),
+    ("continuous(accelerate)", "at least two phases"),
+])
+def test_continuity_errors_name_the_line(tmp_path, link, fragment):
+    with pytest.raises(SpecError, match=fragment) as e:
+        load(write(tmp_path, TWO_PHASE.replace("continuous(accelerate, brake)", link)))
+    assert e.value.issues[0].line == 20
+
+
+def test_per_phase_parameter_values_and_their_errors(tmp_path):
+    text = TWO_PHASE.replace("  brake:\n    parameters: {a: 1.0}", "  brake:\n    parameters: {a: 2.0}")
+    f = load(write(tmp_path, text))
+    rhs = {ph.name: ph.rhs()[1] for ph in f.problem.phases}
+    assert str(rhs["accelerate"]) == "1.0*u" and str(rhs["brake"]) == "2.0*u"
+    assert f.parameters["brake.a"] == 2.0
+    f = load(write(tmp_path, text), parameters={"brake.a": 3.0})
+    assert str(f.problem.phases[1].rhs()[1]) == "3.0*u"
+    with pytest.raises(SpecError, match="did you mean 'a'"):
+        load(write(tmp_path, text.replace("{a: 2.0}", "{aa: 2.0}")))
+
+
+def test_top_level_constants_in_links_are_resolved_at_check_time(tmp_path):
+    f = load(write(tmp_path, TWO_PHASE))
+    gap = [c for c in f.problem.boundary if "gap" in c.text][0]
+    assert gap.lower == 0.01 and not {s.name for s in gap.expr.free_symbols} & {"gap"}
+
+
+def test_named_expression_at_a_boundary(tmp_path):
+    f = load(write(tmp_path, TWO_PHASE))
+    e = [c for c in f.problem.boundary if c.text == "E(tf) == 0"][0]
+    assert {s.name for s in e.expr.free_symbols} == {"brake.v(tf)", "brake.x(tf)"}
+    with pytest.raises(SpecError, match="uses the control u"):
+        load(write(tmp_path, TWO_PHASE.replace("E: v + a*x", "E: v + a*u")))
+
+
+@pytest.mark.parametrize("old,new,fragment", [
+    ("E: v + a*x", "E: v + a*s", "adds a vector and a number"),
+    ('"[v, a*u]"', '"[v, a*u, u]"', "has 2 components but its right-hand side has 3"),
+    ("x(tf) == 0, E(tf)", "norm(x) <= 1, E(tf)", "takes vectors"),
+    ("x(tf) == 0, E(tf)", "'s[2] == 0', E(tf)", "index 2 outside the 2 components"),
+    ("vectors: {s: [x, v]}", "vectors: {s: [x, w]}", "unknown: w"),
+])
+def test_vector_errors(tmp_path, old, new, fragment):
+    assert old in TWO_PHASE
+    with pytest.raises(SpecError, match=fragment):
+        load(write(tmp_path, TWO_PHASE.replace(old, new)))
+
+
+def test_vector_helpers_build_the_expected_scalars(tmp_path):
+    text = TWO_PHASE.replace("E: v + a*x", "E: 'dot(s, [1, 2]) + norm(s) + cross([x, v, 0], [1, 0, 0])[2]'")
+    e = load(write(tmp_path, text)).problem.phases[0].model.expressions
+    import sympy as sp
+
+    x, v = sp.symbols("x v", real=True)
+    assert sp.simplify(list(e.values())[0] - (x + 2 * v + sp.sqrt(x**2 + v**2) - v)) == 0
+
+
+@pytest.mark.ipopt
+def test_two_phase_file_with_the_new_constructs_solves(tmp_path):
+    import ocdsl
+
+    res = ocdsl.load(write(tmp_path, TWO_PHASE)).solve()
+    assert res.ok, (res.status, res.expect)
+    assert res.tf["brake"] == pytest.approx(2.0, rel=1e-8)

@@ -20,7 +20,7 @@ from ..symbolic.problem import (INF, BoundaryValue, Constraint, FreeParameter, O
                                 Problem)
 from ..symbolic.registry import build_model
 from .errors import ExprError, Issue, SpecError
-from .expr import RESERVED, Scope, parse_expression, parse_relation
+from .expr import RESERVED, Scope, is_vector, parse_continuity, parse_expression, parse_relation
 from .loader import Located, load_yaml
 from .schema import ModelSpec, ParameterSpec, ProblemFile, PseudospectralMethod, TimeSpec
 
@@ -185,18 +185,23 @@ class _Compiler:
         self.used_overrides: set[str] = set()
         self.constants_in_force: dict[str, float] = {}
         top_params = self.parameters(spec.parameters, ("parameters",))
+        # links, a multi-phase objective and expectations belong to no phase: the file's own
+        # constants are substituted in them (a phase's constants are substituted in its own)
+        self.top_constants = {s: v for s, v in top_params.items()
+                              if v is not None and s.name not in getattr(self, "symbolic", ())}
         base_model = self.model(spec.model, ("model",)) if spec.model else None
         phases: list[Phase] = []
         if spec.problem is not None:
             p = spec.problem
-            phases.append(self.phase("main", base_model, p.time, p.constraints, p.guess, ("problem",), top_params))
+            phases.append(self.phase("main", base_model, p.time, p.constraints, p.guess, ("problem",), top_params, {}))
         else:
             for name, ph in spec.phases.items():
                 if not NAME_RE.match(name) or name in RESERVED:
                     self.issue(("phases", name), f"'{name}' is not a valid phase name")
                     continue
                 mdl = self.model(ph.model, ("phases", name, "model")) if ph.model else base_model
-                phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params))
+                phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params,
+                                         ph.parameters))
         phases = [p for p in phases if p is not None]
         if self.issues:
             raise SpecError(self.issues)
@@ -205,7 +210,11 @@ class _Compiler:
             boundary += self.constraints(ph, phases, texts, phase_spec_loc)
         multi = len(phases) > 1
         for i, text in enumerate(spec.links):
-            boundary += self.relations(None, phases, text, ("links", i), link=True)
+            joined = self.guarded(("links", i), parse_continuity, text)
+            if joined is None:
+                boundary += self.relations(None, phases, text, ("links", i), link=True)
+            else:
+                boundary += self.continuity(phases, *joined, text, ("links", i))
         if spec.problem is not None:
             obj = self.guarded(("problem", "objective"), self.objective, spec.problem.objective, phases[0], phases)
         else:
@@ -216,10 +225,68 @@ class _Compiler:
                     part = self.guarded(("phases", ph.name, "objective"), self.expression, extra, ph, phases)
                     if part is not None:
                         obj.expr = obj.expr + (part if obj.sense == "minimize" else -part)
+        self.check_resolved(phases, boundary, obj)
         if self.issues:
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)
         return Problem(spec.name, phases, obj, boundary, self.free, self.boundary_values, desc)
+
+    def continuity(self, phases: list[Phase], names: list[str], states: list[str] | None, text: str,
+                   loc: tuple) -> list[Constraint]:
+        """``continuous(a, b, ..., [x, y])``: for each consecutive pair, a.tf == b.t0 and each
+        named state (vectors by component; default: every state both phases have) equal
+        across the junction, as if written one link each."""
+        by_name = {p.name: p for p in phases}
+        unknown = [n for n in names if n not in by_name]
+        if unknown:
+            self.issue(loc, f"unknown phase '{unknown[0]}'" + did_you_mean(unknown[0], by_name), text)
+            return []
+        out: list[Constraint] = []
+        for a, b in zip(names, names[1:]):
+            pa, pb = by_name[a], by_name[b]
+            shared = [s.name for s in pa.states if s.name in {x.name for x in pb.states}]
+            chosen = shared if states is None else []
+            for n in states or []:
+                vector = pa.model.vectors.get(n)
+                comps = [c.name for c in vector] if vector is not None else [n]
+                missing = [c for c in comps if c not in shared]
+                if missing:
+                    self.issue(loc, f"'{n}' is not a state of both '{a}' and '{b}'"
+                               + did_you_mean(n, shared + list(pa.model.vectors)), text)
+                    return []
+                chosen += comps
+            if pa.tf is not None and pb.t0 is not None:
+                if abs(pa.tf - pb.t0) > 1e-12 * max(1.0, abs(pa.tf)):
+                    self.issue(loc, f"'{a}' ends at tf = {pa.tf} but '{b}' starts at t0 = {pb.t0}", text)
+                    return []
+            else:
+                out += self.relations(None, phases, f"{a}.tf == {b}.t0", loc, link=True)
+            for x in chosen:
+                out += self.relations(None, phases, f"{a}.{x}(tf) == {b}.{x}(t0)", loc, link=True)
+        for c in out:
+            c.text = f"{c.text}   ({text})"
+        return out
+
+    def check_resolved(self, phases: list[Phase], boundary: list[Constraint], obj: Objective | None) -> None:
+        """Every symbol of a boundary constraint, link or the objective is one the
+        transcription has a variable for; anything else is an error at its line now (as
+        `ocdsl check` reports it), not at the build."""
+        known = set(self.boundary_values) | set(self.free)
+        for p in phases:
+            known |= {p.t0_symbol, p.tf_symbol} | set(p.integrals)
+        known |= {sym(n) for n in getattr(self, "symbolic", ())}
+        for c in boundary:
+            left = sorted(s.name for s in c.expr.free_symbols - known)
+            if left:
+                self.issues.append(Issue(str(self.path), c.line, f"{', '.join(left)} cannot be used here: "
+                                         "a boundary constraint or link uses boundary values, phase times, "
+                                         "integrals, free parameters and constants", c.text))
+        if obj is not None:
+            left = sorted(s.name for s in obj.expr.free_symbols - known - {sym("objective")})
+            if left:
+                loc = ("problem", "objective") if self.spec.problem is not None else ("objective",)
+                self.issue(loc, f"the objective uses {', '.join(left)}, which has no value here "
+                           "(boundary values, phase times, integrals, free parameters and constants only)")
 
     def _phase_constraint_texts(self):
         spec = self.spec
@@ -276,9 +343,11 @@ class _Compiler:
                 if params[s] is not None and s not in self.free:
                     self.constants_in_force.setdefault(s.name, params[s])
             units = {**model.units, **mspec.units}
+            names = {s.name: s for s in model.states + model.controls + tuple(model.parameters)}
+            vectors = {**model.vectors, **self.vector_groups(mspec.vectors, names, loc)}
             return Model(model.name, model.states, model.controls, model.dynamics, params,
                          model.expressions, units, model.description,
-                         tuple(mspec.positions) or model.positions)
+                         tuple(mspec.positions) or model.positions, vectors)
         return self.inline_model(mspec, loc)
 
     def inline_model(self, m: ModelSpec, loc: tuple) -> Model | None:
@@ -300,6 +369,7 @@ class _Compiler:
         params = self.parameters(m.parameters, loc + ("parameters",))
         for name in self.spec.parameters:
             names.setdefault(name, sym(name))
+        vectors = self.vector_groups(m.vectors, names, loc)
         expressions: dict[sp.Symbol, sp.Expr] = {}
         scope = Scope(names)
         for name, text in m.expressions.items():
@@ -307,42 +377,84 @@ class _Compiler:
                 self.issue(loc + ("expressions", name), f"'{name}' cannot name an expression (reserved, declared or not an identifier)")
                 ok = False
                 continue
-            e = self.guarded(loc + ("expressions", name), parse_expression, text, scope)
+            e = self.guarded(loc + ("expressions", name), parse_expression, text, scope, True)
             if e is None:
                 ok = False
+                continue
+            if is_vector(e):            # a vector expression is kept whole, its components inline
+                vectors[name] = names[name] = sp.ImmutableMatrix(e)
                 continue
             s = sym(name)
             expressions[s] = e
             names[name] = s      # later expressions and the dynamics may use it
         dynamics: dict[sp.Symbol, sp.Expr] = {}
+        covered: set[str] = set()
         for name, text in m.dynamics.items():
-            if name not in m.states:
-                self.issue(loc + ("dynamics", name), f"dynamics given for '{name}', which is not a state"
-                           + did_you_mean(name, m.states))
+            targets = self.dynamics_targets(name, m, vectors, loc)
+            if targets is None:
                 ok = False
                 continue
-            e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope)
+            covered.update(targets)
+            e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope, len(targets) > 1)
             if e is None:
                 ok = False
                 continue
-            dynamics[names[name]] = e
+            values = list(e) if is_vector(e) else [e]
+            if len(values) != len(targets):
+                self.issue(loc + ("dynamics", name), f"'{name}' has {len(targets)} components but its "
+                           f"right-hand side has {len(values)}")
+                ok = False
+                continue
+            for target, value in zip(targets, values):
+                if names[target] in dynamics:
+                    self.issue(loc + ("dynamics", name), f"dynamics of '{target}' given twice")
+                    ok = False
+                dynamics[names[target]] = value
         for i, s in enumerate(m.states):
-            if s not in m.dynamics:
+            if s not in covered:
                 self.issue(loc + ("states", i), f"state '{s}' has no dynamics (add `{s}: ...` under dynamics)")
                 ok = False
         if not ok:
             return None
         return Model(self.spec.name, tuple(names[s] for s in m.states), tuple(names[c] for c in m.controls),
-                     dynamics, params, expressions, dict(m.units), "", tuple(m.positions))
+                     dynamics, params, expressions, dict(m.units), "", tuple(m.positions), vectors)
+
+    def vector_groups(self, groups: dict[str, list[str]], names: dict, loc: tuple) -> dict[str, sp.ImmutableMatrix]:
+        """``vectors: {r: [x, y, z]}``: each a column of declared names, added to ``names``."""
+        out: dict[str, sp.ImmutableMatrix] = {}
+        for vname, comps in groups.items():
+            where = loc + ("vectors", vname)
+            if not NAME_RE.match(vname) or vname in names or vname in RESERVED:
+                self.issue(where, f"'{vname}' cannot name a vector (reserved, declared or not an identifier)")
+                continue
+            unknown = [c for c in comps if c not in names or c == "t"]
+            if unknown or len(comps) < 2:
+                self.issue(where, f"vector '{vname}' needs at least two declared states, controls or parameters"
+                           + (f"; unknown: {', '.join(map(str, unknown))}" + did_you_mean(str(unknown[0]), names)
+                              if unknown else ""))
+                continue
+            out[vname] = names[vname] = sp.ImmutableMatrix([names[c] for c in comps])
+        return out
+
+    def dynamics_targets(self, name: str, m: ModelSpec, vectors: dict, loc: tuple) -> list[str] | None:
+        """The states a line of dynamics gives: one state, or a vector of states."""
+        if name in m.states:
+            return [name]
+        if name in vectors and name in m.vectors and all(c in m.states for c in m.vectors[name]):
+            return list(m.vectors[name])
+        self.issue(loc + ("dynamics", name), f"dynamics given for '{name}', which is not a state "
+                   "(nor a vector of states)" + did_you_mean(name, list(m.states) + list(m.vectors)))
+        return None
 
     # -- phases ---------------------------------------------------------------------
-    def phase(self, name, model, time: TimeSpec, constraints, guess, loc, top_params) -> Phase | None:
+    def phase(self, name, model, time: TimeSpec, constraints, guess, loc, top_params, values) -> Phase | None:
         if model is None:
             return None
         multi = self.spec.phases is not None
         prefix = f"{name}." if multi else ""
         constants = {s: v for s, v in model.parameters.items() if v is not None and s not in self.free}
         constants.update({s: v for s, v in top_params.items() if v is not None})
+        constants.update(self.phase_values(name, model, top_params, values, loc))
         # ``symbolic``: constants left as symbols (not folded), for a model built once with
         # them as mutable Pyomo Params and re-solved at each study point (ocdsl/solve/reuse.py)
         for s in [s for s in constants if s.name in getattr(self, "symbolic", ())]:
@@ -369,12 +481,39 @@ class _Compiler:
                       "seed": guess.seed}
         return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
 
+    def phase_values(self, phase: str, model: Model, top_params, values: dict, loc) -> dict[sp.Symbol, float]:
+        """A phase's own values of constants of its model or of the file (``parameters:`` under
+        the phase); ``--param PHASE.NAME=VALUE`` overrides one."""
+        known = {s.name: s for s in model.parameters} | {s.name: s for s in top_params}
+        out = {}
+        for pname, value in values.items():
+            where = loc + ("parameters", pname)
+            s = known.get(pname)
+            if s is None:
+                self.issue(where, f"'{pname}' is not a parameter of phase '{phase}''s model nor of the file"
+                           + did_you_mean(pname, known))
+                continue
+            if s in self.free:
+                self.issue(where, f"'{pname}' is a free parameter: it takes one value for the whole problem")
+                continue
+            key = f"{phase}.{pname}"
+            if key in self.overrides:
+                value = float(self.overrides[key])
+                self.used_overrides.add(key)
+            if not math.isfinite(value):
+                self.issue(where, f"parameter '{pname}' is not a finite number")
+                continue
+            out[s] = float(value)
+            self.constants_in_force[key] = float(value)
+        return out
+
     def scope(self, ph: Phase | None, phases: list[Phase], link: bool = False) -> Scope:
         names: dict[str, sp.Basic] = {}
         if ph is not None:
             names["t"] = TIME
             for s in ph.states + ph.controls + tuple(ph.model.parameters) + tuple(ph.model.expressions):
                 names[s.name] = s
+            names.update(ph.model.vectors)
             names["t0"], names["tf"] = ph.t0_symbol, ph.tf_symbol
         for s in self.free:
             names[s.name] = s
@@ -389,13 +528,35 @@ class _Compiler:
                 target = phase_names[phase_name]["phase"]
             elif target is None:
                 raise ExprError(f"name the phase of {var}({which}), e.g. {phases[0].name}.{var}({which})")
-            if var not in {s.name for s in target.states}:
-                raise ExprError(f"'{var}' is not a state of phase '{target.name}'" +
-                                did_you_mean(var, [s.name for s in target.states]))
+            model = target.model
+            if var in {s.name for s in target.states}:
+                return state_at(target, var, which)
+            if var in model.vectors or var in {s.name for s in model.expressions}:
+                return expression_at(target, var, which)
+            raise ExprError(f"'{var}' is not a state (nor a named expression) of phase '{target.name}'" +
+                            did_you_mean(var, [s.name for s in target.states + tuple(model.expressions)]
+                                         + list(model.vectors)))
+
+        def state_at(target, var, which):
             label = f"{target.name}.{var}({which})" if self.spec.phases is not None else f"{var}({which})"
             s = sym(label)
             self.boundary_values[s] = BoundaryValue(target.name, target.model.symbol(var), which)
             return s
+
+        def expression_at(target, var, which):
+            """``E(tf)``: the named expression (or vector) of the states at that end."""
+            model = target.model
+            value = model.vectors[var] if var in model.vectors else model.symbol(var)
+            parts = [target.substitute(c) for c in (value if is_vector(value) else [value])]
+            used = set().union(*[p.free_symbols for p in parts])
+            controls = sorted(c.name for c in used & set(target.controls))
+            if controls:
+                raise ExprError(f"'{var}' uses the control{'s' * (len(controls) > 1)} {', '.join(controls)}, "
+                                f"which has no value at {which}: a boundary value uses states only")
+            subs = {s: state_at(target, s.name, which) for s in used & set(target.states)}
+            subs[TIME] = target.tf_symbol if which == "tf" else target.t0_symbol
+            parts = [p.xreplace(subs) for p in parts]
+            return sp.ImmutableMatrix(parts) if is_vector(value) else parts[0]
 
         def integral(integrand):
             target = ph
@@ -413,7 +574,10 @@ class _Compiler:
 
     def expression(self, text, ph, phases) -> sp.Expr:
         e = parse_expression(text, self.scope(ph, phases))
-        return ph.substitute(e) if ph is not None else e
+        return ph.substitute(e) if ph is not None else self.substitute_top(e)
+
+    def substitute_top(self, e: sp.Expr) -> sp.Expr:
+        return e.xreplace({k: sp.Float(v) for k, v in getattr(self, "top_constants", {}).items()})
 
     def objective(self, text: str, ph, phases) -> Objective:
         m = re.match(r"^\s*(minimize|maximize)\s+(.+)$", str(text), re.S)
@@ -439,7 +603,7 @@ class _Compiler:
         if rels is None:
             return []
         line = self.located.line(loc)
-        sub = ph.substitute if ph is not None else (lambda e: e)
+        sub = ph.substitute if ph is not None else self.substitute_top
         parts: dict[sp.Expr, list[float]] = {}
         for r in rels:
             lhs, rhs = sub(r.lhs), sub(r.rhs)

@@ -24,8 +24,10 @@ FUNCTIONS: dict[str, tuple[Callable, int]] = {
     "sinh": (sp.sinh, 1), "cosh": (sp.cosh, 1), "tanh": (sp.tanh, 1),
     "exp": (sp.exp, 1), "log": (sp.log, 1), "sqrt": (sp.sqrt, 1), "abs": (sp.Abs, 1),
 }
+# functions of vectors (declared vector groups, vector expressions or [a, b, c] literals)
+VECTOR_FUNCTIONS = {"norm": 1, "dot": 2, "cross": 2}
 CONSTANTS = {"pi": sp.pi, "inf": sp.oo}
-RESERVED = set(FUNCTIONS) | set(CONSTANTS) | {"integral", "t", "t0", "tf"}
+RESERVED = set(FUNCTIONS) | set(VECTOR_FUNCTIONS) | set(CONSTANTS) | {"integral", "t", "t0", "tf", "continuous"}
 MAX_EXPONENT = 64          # larger literal exponents are almost surely typos or attacks
 MAX_TEXT = 20_000
 
@@ -45,12 +47,21 @@ class Scope:
     phases: dict[str, dict[str, sp.Basic]] = field(default_factory=dict)  # for phase.x(tf), phase.tf
 
 
-def parse_expression(text: str | int | float, scope: Scope) -> sp.Expr:
-    """Parse one expression (no comparison)."""
+def parse_expression(text: str | int | float, scope: Scope, vector: bool = False) -> sp.Expr:
+    """Parse one expression (no comparison); with ``vector``, a vector (a column
+    ``sp.Matrix``) is a valid result too (named expressions, dynamics of a vector group)."""
     tree = _parse(text)
     if isinstance(tree, ast.Compare):
         raise ExprError("a relation is not allowed here, an expression is expected", str(text))
-    return _Builder(scope, str(text)).build(tree)
+    e = _Builder(scope, str(text)).build(tree)
+    if isinstance(e, sp.MatrixBase) and not vector:
+        raise ExprError(f"this is a vector of {len(e)} components where a number is expected "
+                        "(use norm(...), dot(...) or a component such as r[0])", str(text))
+    return e
+
+
+def is_vector(e) -> bool:
+    return isinstance(e, sp.MatrixBase)
 
 
 @dataclass(frozen=True)
@@ -70,13 +81,53 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
     ops = {ast.LtE: "<=", ast.GtE: ">=", ast.Eq: "=="}
     builder = _Builder(scope, str(text))
     terms = [builder.build(tree.left)] + [builder.build(c) for c in tree.comparators]
+    sizes = {len(t) for t in terms if is_vector(t)}
+    if len(sizes) > 1:
+        raise ExprError(f"vectors of different sizes {sorted(sizes)} in one relation", str(text))
     out = []
     for i, op in enumerate(tree.ops):
         if type(op) not in ops:
             raise ExprError("only <=, >= and == are allowed in relations (strict < and > have no "
                             "meaning for a continuous optimiser)", str(text))
-        out.append(Relation(terms[i], ops[type(op)], terms[i + 1]))
+        a, b = terms[i], terms[i + 1]
+        if is_vector(a) or is_vector(b):
+            # a vector relation holds component by component (a number applies to each)
+            n = len(a) if is_vector(a) else len(b)
+            for k in range(n):
+                out.append(Relation(a[k] if is_vector(a) else a, ops[type(op)], b[k] if is_vector(b) else b))
+        else:
+            out.append(Relation(a, ops[type(op)], b))
     return out
+
+
+def parse_continuity(text: str) -> tuple[list[str], list[str] | None] | None:
+    """``continuous(a, b, ...)`` or ``continuous(a, b, ..., [x, y])``: the phases (in order)
+    and the states named (None: every state the phases share); None when ``text`` is not
+    such a call."""
+    try:
+        tree = ast.parse(str(text).strip(), mode="eval").body
+    except SyntaxError:
+        return None
+    if not (isinstance(tree, ast.Call) and isinstance(tree.func, ast.Name) and tree.func.id == "continuous"):
+        return None
+    args, names = list(tree.args), None
+    if tree.keywords:
+        raise ExprError("continuous(...) takes phase names and optionally a list of states, "
+                        "e.g. continuous(stage1, stage2, [r, v])", str(text))
+    if args and isinstance(args[-1], ast.List):
+        names = []
+        for e in args.pop().elts:
+            if not isinstance(e, ast.Name):
+                raise ExprError(f"'{ast.unparse(e)}' in the list of continuous states is not a name", str(text))
+            names.append(e.id)
+    phases = []
+    for a in args:
+        if not isinstance(a, ast.Name):
+            raise ExprError(f"'{ast.unparse(a)}' is not a phase name", str(text))
+        phases.append(a.id)
+    if len(phases) < 2:
+        raise ExprError("continuous(...) joins at least two phases, e.g. continuous(stage1, stage2)", str(text))
+    return phases, names
 
 
 def _parse(text: str | int | float) -> ast.expr:
@@ -125,9 +176,27 @@ class _Builder:
             return self.scope.names[node.id]
         if node.id in CONSTANTS:
             return CONSTANTS[node.id]
-        if node.id in FUNCTIONS or node.id == "integral":
+        if node.id in FUNCTIONS or node.id in VECTOR_FUNCTIONS or node.id == "integral":
             raise self.fail(f"'{node.id}' is a function and needs arguments")
         raise self.fail(f"unknown name '{node.id}'{did_you_mean(node.id, self.scope.names)}")
+
+    def _List(self, node: ast.List) -> sp.Matrix:
+        items = [self.build(e) for e in node.elts]
+        if len(items) < 2 or any(is_vector(e) for e in items):
+            raise self.fail("a vector literal is a list of at least two numbers or scalar expressions, e.g. [0, 0, w]")
+        return sp.Matrix(items)
+
+    def _Subscript(self, node: ast.Subscript) -> sp.Expr:
+        v = self.build(node.value)
+        index = node.slice
+        if not is_vector(v):
+            raise self.fail(f"'{ast.unparse(node.value)}' is not a vector and cannot be indexed")
+        if not (isinstance(index, ast.Constant) and isinstance(index.value, int) and not isinstance(index.value, bool)):
+            raise self.fail(f"a component index is a whole number, e.g. {ast.unparse(node.value)}[0]")
+        if not -len(v) <= index.value < len(v):
+            raise self.fail(f"index {index.value} outside the {len(v)} components of '{ast.unparse(node.value)}' "
+                            "(components count from 0)")
+        return v[index.value]
 
     def _UnaryOp(self, node: ast.UnaryOp) -> sp.Expr:
         if isinstance(node.op, ast.USub):
@@ -139,6 +208,8 @@ class _Builder:
     def _BinOp(self, node: ast.BinOp) -> sp.Expr:
         a, b = self.build(node.left), self.build(node.right)
         op = type(node.op)
+        if is_vector(a) or is_vector(b):
+            return self._vector_op(op, a, b, node)
         if op is ast.Add:
             return a + b
         if op is ast.Sub:
@@ -155,6 +226,42 @@ class _Builder:
             return a ** b
         raise self.fail(f"operator in '{ast.unparse(node)}' is not allowed (use + - * / **)")
 
+    def _vector_op(self, op, a, b, node):
+        if op in (ast.Add, ast.Sub):
+            if not (is_vector(a) and is_vector(b)):
+                raise self.fail(f"'{ast.unparse(node)}' adds a vector and a number")
+            if a.shape != b.shape:
+                raise self.fail(f"'{ast.unparse(node)}' adds vectors of {len(a)} and {len(b)} components")
+            return a + b if op is ast.Add else a - b
+        if op is ast.Mult:
+            if is_vector(a) and is_vector(b):
+                raise self.fail(f"'{ast.unparse(node)}' multiplies two vectors: use dot(a, b) or cross(a, b)")
+            return a * b if is_vector(a) else b * a
+        if op is ast.Div and is_vector(a) and not is_vector(b):
+            if b == 0:
+                raise self.fail("division by zero")
+            return a / b
+        raise self.fail(f"'{ast.unparse(node)}' is not defined for vectors (vectors add, subtract, "
+                        "and are multiplied or divided by numbers)")
+
+    def _vector_call(self, name: str, node: ast.Call):
+        args = [self.build(a) for a in node.args]
+        if len(args) != VECTOR_FUNCTIONS[name]:
+            n = VECTOR_FUNCTIONS[name]
+            raise self.fail(f"{name} takes {n} argument{'s' * (n > 1)}, got {len(args)}")
+        if not all(is_vector(a) for a in args):
+            raise self.fail(f"{name}(...) takes vectors (declared under the model's vectors:, or [a, b, c])")
+        if name == "norm":
+            return sp.sqrt(sum(c**2 for c in args[0]))
+        a, b = args
+        if a.shape != b.shape:
+            raise self.fail(f"{name} of vectors of {len(a)} and {len(b)} components")
+        if name == "dot":
+            return sum(x * y for x, y in zip(a, b))
+        if len(a) != 3:
+            raise self.fail("cross takes vectors of 3 components")
+        return a.cross(b)
+
     def _Call(self, node: ast.Call) -> sp.Expr:
         if node.keywords:
             raise self.fail("keyword arguments are not allowed")
@@ -169,12 +276,20 @@ class _Builder:
                 raise self.fail("integral(...) is not allowed here")
             if len(node.args) != 1:
                 raise self.fail("integral takes one argument")
-            return self.scope.integral(self.build(node.args[0]))
+            integrand = self.build(node.args[0])
+            if is_vector(integrand):
+                raise self.fail("integral(...) takes a number, not a vector")
+            return self.scope.integral(integrand)
+        if name in VECTOR_FUNCTIONS:
+            return self._vector_call(name, node)
         if name in FUNCTIONS:
             f, arity = FUNCTIONS[name]
             if len(node.args) != arity:
                 raise self.fail(f"{name} takes {arity} argument{'s' * (arity > 1)}, got {len(node.args)}")
-            return f(*[self.build(a) for a in node.args])
+            args = [self.build(a) for a in node.args]
+            if any(is_vector(a) for a in args):
+                raise self.fail(f"{name} takes numbers, not vectors (use norm(...) or a component)")
+            return f(*args)
         if name in self.scope.names:
             return self._boundary(None, name, node)
         raise self.fail(f"unknown function '{name}'{did_you_mean(name, FUNCTIONS)}")

@@ -46,6 +46,9 @@ class ModelSpec(Strict):
     parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict)
     expressions: dict[str, Expr] = Field(default_factory=dict, description="named intermediate quantities")
     dynamics: dict[str, Expr] = Field(default_factory=dict, description="state: right-hand side")
+    vectors: dict[str, list[str]] = Field(default_factory=dict, description="named vectors of states, controls "
+                                          "or parameters, e.g. {r: [x, y, z]}: usable as r, norm(r), cross(r, v), "
+                                          "r(tf), and as one line of dynamics")
     units: dict[str, str] = Field(default_factory=dict)
     positions: list[str] = Field(default_factory=list, description="states forming a position vector")
 
@@ -81,6 +84,8 @@ class GuessSpec(Strict):
 
 class PhaseSpec(Strict):
     model: ModelSpec | None = Field(None, description="defaults to the file's top-level model")
+    parameters: dict[str, float] = Field(default_factory=dict, description="this phase's values of constants "
+                                         "of its model or of the file, e.g. {T: 4.5e6} (one model, several phases)")
     time: TimeSpec
     constraints: list[str] = Field(default_factory=list)
     guess: GuessSpec = Field(default_factory=GuessSpec)

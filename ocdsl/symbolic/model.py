@@ -42,6 +42,9 @@ class Model:
         them, :meth:`rhs` substitutes them.
     units : symbol name -> unit string (for reports); ``description`` one line.
     positions : names of states that form a position vector (for trajectory plots).
+    vectors : name -> column of symbols or expressions: declared vector groups (``r`` for
+        the states ``x, y, z``) and vector-valued named expressions, usable by name in
+        expressions (``norm(r)``, ``cross(r, v)``, ``r(tf)``).
     """
 
     name: str
@@ -53,6 +56,7 @@ class Model:
     units: Mapping[str, str] = field(default_factory=dict)
     description: str = ""
     positions: tuple[str, ...] = ()
+    vectors: Mapping[str, sp.ImmutableMatrix] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         missing = [s for s in self.states if s not in self.dynamics]
