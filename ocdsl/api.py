@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 
+from . import run_folder
 from .result import Result
 from .spec import compile as spec_compile
 from .spec.errors import SpecError
@@ -72,13 +73,18 @@ class Loaded:
 
     def solve(self, out: str | Path | None = None, *, parameters: dict[str, float] | None = None,
               seed: int | None = None, warm_start: str | Path | None = None, verbose: bool = False,
-              progress: bool = False, reuse: bool = False) -> Result:
+              progress: bool = False, reuse: bool = False, force: bool = False) -> Result:
         """Solve; ``parameters`` re-compiles with other constants without re-reading the file
         (what a study worker does for each of its points). The handle itself is not changed.
 
         ``reuse``: with ``parameters``, keep one Pyomo model per set of parameter names, with
         those constants as mutable Params, and re-solve it at each call whose problem has the
-        same structure (ocdsl/solve/reuse.py); else, and always as a fallback, build afresh."""
+        same structure (ocdsl/solve/reuse.py); else, and always as a fallback, build afresh.
+
+        ``out``: the run folder, refused before the solve if ocdsl may not write there
+        (ocdsl/run_folder.py); ``force`` replaces an ocdsl folder of another kind."""
+        if out is not None:
+            run_folder.check_destination(out, "run", force=force)
         timer, file = Timer(), self.file
         if parameters:
             with timer.measure("symbolic"):
@@ -97,7 +103,7 @@ class Loaded:
         if result is None:
             result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=progress)
         if out is not None:
-            write_run(result, out, self.path)
+            write_run(result, out, self.path, force=force)
         return result
 
 
@@ -116,23 +122,27 @@ def execute(file, timer: Timer, **kwargs) -> Result:
     return run_method(file, timer, **kwargs)
 
 
-def write_run(result: Result, out: str | Path, source: Path | None) -> Path:
+def write_run(result: Result, out: str | Path, source: Path | None, force: bool = False) -> Path:
     extra = {}
     if source is not None and source.exists():
         extra["problem.yaml"] = source.read_text()
-    return result.write(out, extra_files=extra)
+    return result.write(out, extra_files=extra, force=force)
 
 
 def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str, float] | None = None,
              seed: int | None = None, warm_start: str | Path | None = None, quiet: bool = True,
-             verbose: bool = False) -> Result:
+             verbose: bool = False, force: bool = False) -> Result:
     """Parse, build, solve and write the run folder. Never raises for a failed solve.
 
-    A bad problem file still raises :class:`SpecError` (nothing is written): it is the
-    caller's input that is wrong, not the run.
+    A bad problem file still raises :class:`SpecError`, and an ``out_dir`` ocdsl may not
+    write :class:`~ocdsl.run_folder.FolderError` (both before any work, nothing written):
+    it is the caller's input that is wrong, not the run. ``force`` replaces an ocdsl
+    folder of another kind (never files ocdsl did not write).
     """
     timer = Timer()
     file = compile_file(path, parameters, timer)
+    if out_dir is not None:
+        run_folder.check_destination(out_dir, "run", force=force)
     try:
         result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=not quiet)
     except SpecError:
@@ -144,5 +154,5 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
                         parameters=file.parameters,
                         problem=file.problem.description if file.problem else {})
     if out_dir is not None:
-        write_run(result, out_dir, Path(path))
+        write_run(result, out_dir, Path(path), force=force)
     return result

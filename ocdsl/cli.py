@@ -19,11 +19,13 @@ class _SpecFailure(click.ClickException):
 
 
 def _compile_or_exit(fn, *args, **kwargs):
+    """Bad input (the problem file, or an output folder ocdsl may not write): one error, exit 2."""
+    from .run_folder import FolderError
     from .spec.errors import SpecError
 
     try:
         return fn(*args, **kwargs)
-    except SpecError as e:
+    except (SpecError, FolderError) as e:
         raise _SpecFailure(str(e)) from None
 
 
@@ -55,15 +57,20 @@ def main() -> None:
 @click.option("--report", is_flag=True, help="also write report.html and report.pdf")
 @click.option("--verbose", "-v", is_flag=True, help="show Ipopt's own log")
 @click.option("--quiet", "-q", is_flag=True, help="no progress line and no summary")
-def run(file, out, params, seed, warm_start, report, verbose, quiet):
-    """Solve FILE and write a run folder (result.json, trajectory.csv, ...)."""
+@click.option("--force", is_flag=True, help="replace an earlier ocdsl folder of another kind at --out "
+              "(never files ocdsl did not write)")
+def run(file, out, params, seed, warm_start, report, verbose, quiet, force):
+    """Solve FILE and write a run folder (result.json, trajectory.csv, ...).
+
+    --out must be a new folder, an empty one or an earlier ocdsl run folder (it is
+    replaced in one step); any other folder is refused and left as it is."""
     from .api import run_file
 
     out = Path(out) if out else Path("runs") / Path(file).stem
     if _has_block(file, "pareto"):
-        sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet))
+        sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet, force))
     result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
-                              quiet=quiet, verbose=verbose)
+                              quiet=quiet, verbose=verbose, force=force)
     if report:
         _make_reports([out], None)
     if not quiet:
@@ -78,13 +85,13 @@ def _has_block(file: str, key: str) -> bool:
     return key in located.data
 
 
-def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool) -> int:
+def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool, force: bool) -> int:
     """A ``pareto:`` file is a study of its own: a table of every solution plus a run per point."""
     import json
 
     from .study.pareto_run import run_pareto
 
-    results, table = _compile_or_exit(run_pareto, file, out, parameters=params)
+    results, table = _compile_or_exit(run_pareto, file, out, parameters=params, force=force)
     if report:
         _make_reports([out], None)
     summary = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else {}
@@ -195,14 +202,16 @@ def schema():
 @click.option("--serial", is_flag=True, help="run points one after another in this process")
 @click.option("--scheduler", default=None, help="address of a Dask scheduler, tcp://HOST:PORT")
 @click.option("--resume", is_flag=True, help="skip finished points of an interrupted study")
+@click.option("--force", is_flag=True, help="replace an earlier ocdsl study or run folder at --out "
+              "(never files ocdsl did not write)")
 @click.option("--quiet", "-q", is_flag=True)
-def study(file, out, workers, serial, scheduler, resume, quiet):
+def study(file, out, workers, serial, scheduler, resume, force, quiet):
     """Run the study: block of FILE (sweep, starts, Monte Carlo) into folder OUT."""
     from .study.run import run_study
 
     try:
         res = _compile_or_exit(run_study, file, out, workers=workers, serial=serial, scheduler=scheduler,
-                               resume=resume, quiet=quiet)
+                               resume=resume, quiet=quiet, force=force)
     except (ValueError, ConnectionError, OSError) as e:
         raise _SpecFailure(str(e)) from None
     failed = getattr(res, "failed", 0)

@@ -6,8 +6,9 @@ goes into it: ``result.json`` (scalars and metadata), ``trajectory.csv`` (or
 ``trajectory_<phase>.csv`` when there are several phases) and optional extra tables
 ``tables/<name>.csv`` (closed-loop runs, swarm history, mesh history, ...).
 
-Writing is atomic: the folder is assembled beside its destination and renamed into
-place, so an interrupted run never leaves a folder that looks complete.
+Writing is atomic and never touches the user's files: the folder is assembled beside its
+destination and swapped into place in one rename (ocdsl/run_folder.py), so an interrupted
+run leaves the previous complete folder or the new complete one.
 """
 from __future__ import annotations
 
@@ -15,14 +16,13 @@ import csv
 import json
 import math
 import os
-import shutil
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from . import run_folder
 from .result_views import ResultViews
 
 STATUSES = ("optimal", "acceptable", "infeasible", "max_iter", "error", "mesh_not_converged",
@@ -111,25 +111,25 @@ class Result(ResultViews):
         data["tables"] = sorted(self.tables)
         return _jsonable(data)
 
-    def write(self, run_dir: str | os.PathLike, extra_files: dict[str, str] | None = None) -> Path:
-        """Write the run folder atomically; ``extra_files`` maps file name -> text."""
+    def write(self, run_dir: str | os.PathLike, extra_files: dict[str, str] | None = None, *,
+              force: bool = False, kind: str = "run") -> Path:
+        """Write the run folder in one step (ocdsl/run_folder.py: a folder ocdsl did not
+        write is refused, an earlier run folder replaced); ``extra_files`` maps file name -> text."""
         run_dir = Path(run_dir)
-        run_dir.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", dir=run_dir.parent))
-        try:
-            for p in self.phases:
-                _write_csv(tmp / _trajectory_file(p.name, len(self.phases)), p.columns())
-            for name, table in self.tables.items():
-                (tmp / "tables").mkdir(exist_ok=True)
-                _write_csv(tmp / "tables" / f"{name}.csv", table)
-            for fname, text in (extra_files or {}).items():
-                (tmp / fname).write_text(text)
-            (tmp / "result.json").write_text(json.dumps(self.to_json(), indent=2))
-            replace_dir(tmp, run_dir)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
+        with run_folder.assemble(run_dir, kind, force=force) as tmp:
+            self.write_contents(tmp, extra_files)
         return run_dir
+
+    def write_contents(self, folder: Path, extra_files: dict[str, str] | None = None) -> None:
+        """The run folder's files, into ``folder`` being assembled (see :meth:`write`)."""
+        for p in self.phases:
+            _write_csv(folder / _trajectory_file(p.name, len(self.phases)), p.columns())
+        for name, table in self.tables.items():
+            (folder / "tables").mkdir(exist_ok=True)
+            _write_csv(folder / "tables" / f"{name}.csv", table)
+        for fname, text in (extra_files or {}).items():
+            (folder / fname).write_text(text)
+        (folder / "result.json").write_text(json.dumps(self.to_json(), indent=2))
 
     @classmethod
     def read(cls, run_dir: str | os.PathLike) -> "Result":
@@ -164,17 +164,6 @@ def single_phase_result(name: str, status: str, phase: PhaseTrajectory, **fields
 
 def _trajectory_file(phase: str, n_phases: int) -> str:
     return "trajectory.csv" if n_phases == 1 else f"trajectory_{phase}.csv"
-
-
-def replace_dir(new: Path, dest: Path) -> None:
-    """Move the folder ``new`` to ``dest``, replacing an existing ``dest`` as one rename."""
-    if dest.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{dest.name}.old.", dir=dest.parent))
-        os.replace(dest, old / "x")
-        os.replace(new, dest)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(new, dest)
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:

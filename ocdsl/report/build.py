@@ -39,6 +39,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from ocdsl import run_folder
 from ocdsl.result import Result
 from ocdsl.report import derived as D
 from ocdsl.report import figures as F
@@ -441,14 +442,22 @@ def _render(doc: Doc, title: str, subtitle: str, meta: list[tuple[str, str]], go
 
 def _atomic_write(path: Path, data: bytes | str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    run_folder.atomic_write_text(path, data)
+
+
+def _output_folder(out_dir: Path, names: Sequence[str]) -> None:
+    """Reports go into an ocdsl folder (a run, a study) or a new one, never over files
+    ocdsl did not write (ocdsl/run_folder.py)."""
+    if out_dir.is_dir() and run_folder.read_marker(out_dir) is not None:
+        return
+    if (out_dir / "result.json").is_file():
+        return                  # a run folder of an ocdsl from before the marker: its reports are ocdsl's
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        run_folder.check_destination(out_dir, "comparison")
+    except run_folder.FolderError as e:
+        raise ReportError(str(e)) from None
+    out_dir.mkdir(parents=True, exist_ok=True)
+    run_folder.write_marker(out_dir, "comparison", names)
 
 
 def chromium_binary() -> str | None:
@@ -513,6 +522,8 @@ def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str
     if bad:
         raise ReportError(f"unknown report format(s) {bad}; choose from {list(FORMATS)}")
     written: dict[str, Path] = {}
+    _output_folder(out_dir, [f"{stem}.{f}" for f in formats])
+    run_folder.claim(out_dir, [f"{stem}.{f}" for f in formats])
     if "html" in formats:
         written["html"] = out_dir / f"{stem}.html"
         _atomic_write(written["html"], html)

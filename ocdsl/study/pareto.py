@@ -32,6 +32,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from ocdsl import run_folder
 from ocdsl.result import PhaseTrajectory, Result
 
 __all__ = ["ParetoPoint", "ParetoSet", "ParetoWarning", "nondominated", "deduplicate",
@@ -322,12 +323,14 @@ class ParetoSet:
 
     def write(self, study_dir: str | Path, name: str, method: dict[str, Any] | None = None,
               problem: dict[str, Any] | None = None, wall_time_s: float | None = None,
-              expect: dict[str, Any] | None = None) -> Path:
-        """Write ``study_dir`` (summary run folder + ``pareto.csv``) and ``study_dir/points/<label>``."""
+              expect: dict[str, Any] | None = None, force: bool = False) -> Path:
+        """Write ``study_dir`` (summary run folder + ``pareto.csv``) and ``study_dir/points/<label>``,
+        swapped into place as one folder (ocdsl/run_folder.py)."""
         study_dir = Path(study_dir)
-        self.summary(name, wall_time_s, expect).write(study_dir, extra_files={"pareto.csv": self.to_csv()})
-        for p, res in zip(self.points, self.results(name, method, problem)):
-            res.write(study_dir / "points" / (p.label or f"point{id(p)}"))
+        with run_folder.assemble(study_dir, "pareto", force=force) as tmp:
+            self.summary(name, wall_time_s, expect).write_contents(tmp, {"pareto.csv": self.to_csv()})
+            for p, res in zip(self.points, self.results(name, method, problem)):
+                res.write(tmp / "points" / (p.label or f"point{id(p)}"))
         return study_dir
 
 

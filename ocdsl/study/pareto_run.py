@@ -30,6 +30,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ocdsl import run_folder
 from ocdsl.result import PhaseTrajectory, Result
 from ocdsl.spec.pareto import ParetoSpec, ParetoSpecError, constant, load_pareto, parse_pareto
 from ocdsl.study import pareto as P
@@ -216,7 +217,7 @@ def _two_burn_from_doc(doc: dict[str, Any], spec: ParetoSpec, parameters: dict[s
 def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = None, *,
                parameters: dict[str, float] | None = None, map: Callable | None = None,
                solve_point: Callable | None = None, trajectory: bool = True,
-               return_set: bool = False) -> tuple[list[Result], dict[str, list[Any]]]:
+               return_set: bool = False, force: bool = False) -> tuple[list[Result], dict[str, list[Any]]]:
     """Run a problem file's ``pareto:`` block; return one Result per solution and the table.
 
     ``problem`` is a path or an already-loaded document; ``parameters`` override the
@@ -236,6 +237,8 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
     else:
         spec, doc = load_pareto(problem)
         file = str(problem)
+    if out is not None:      # refused before any work (a folder ocdsl did not write)
+        run_folder.check_destination(out, "pareto", force=force)
     parameters = dict(parameters or {})
     name = str(doc.get("name", "pareto study"))
     shutdown = lambda: None  # noqa: E731
@@ -301,7 +304,7 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
         r.wall_time_s = {"total": wall / max(len(results), 1)}
     if out is not None:
         expect = spec.expect or (doc.get("expect") if spec.solver == "closed_form" else None)
-        pset.write(out, name, method, problem_desc, wall_time_s=wall, expect=expect)
+        pset.write(out, name, method, problem_desc, wall_time_s=wall, expect=expect, force=force)
     table = pset.table()
     if return_set:
         return results, table, pset

@@ -44,13 +44,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from ocdsl.result import Result, replace_dir
+from ocdsl import run_folder
+from ocdsl.result import Result
 
 from .executor import Executor, WorkerLost, worker_cache, worker_info
 from .spec import Point, StudyError, load_study
 
 GOOD = ("optimal", "feasible", "stable")
 POINT_FILE = "point.json"
+STUDY_ENTRIES = ("plan.json", "study.csv", "study.json", "points")
 
 
 # --------------------------------------------------------------------------------------
@@ -185,28 +187,13 @@ def _solve_point(task: dict[str, Any]) -> dict[str, Any]:
 # study folder
 # --------------------------------------------------------------------------------------
 def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    run_folder.atomic_write_text(path, text)
 
 
 def _install_point(points_dir: Path, point: Point, files: dict[str, bytes], meta: dict) -> None:
-    tmp = Path(tempfile.mkdtemp(prefix=f".{point.id}.", dir=points_dir))
-    try:
+    with run_folder.assemble(points_dir / point.id, "run", force=True) as tmp:
         _write_files(tmp, files)
         (tmp / POINT_FILE).write_text(json.dumps(meta, indent=2))
-        replace_dir(tmp, points_dir / point.id)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
 
 
 def _summary(run_dir: Path) -> dict[str, Any]:
@@ -456,7 +443,7 @@ def _fmt(v: Any, digits: int = 6) -> str:
 def run_study(problem_path: str | os.PathLike, out_dir: str | os.PathLike, *,
               workers: int | None = None, serial: bool = False, scheduler: Any = None,
               resume: bool = False, quiet: bool = False,
-              point_fn: Callable | None = None) -> StudyResult:
+              point_fn: Callable | None = None, force: bool = False) -> StudyResult:
     """Run the study of ``problem_path`` (a problem file with a ``study:`` block, or a
     study file naming one with ``problem_file:``) into ``out_dir``.
 
@@ -464,7 +451,9 @@ def run_study(problem_path: str | os.PathLike, out_dir: str | os.PathLike, *,
       process; ``scheduler``: ``tcp://HOST:PORT`` of a Dask scheduler (or a
       ``distributed.Client``). Unreachable: :class:`StudyError` within a few seconds.
     - ``resume``: continue the study already in ``out_dir`` (finished points are kept,
-      the rest re-run). Without it an ``out_dir`` holding a study is an error.
+      the rest re-run). Without it an ``out_dir`` holding a study is an error, unless
+      ``force`` (replace it). A folder ocdsl did not write is always refused
+      (ocdsl/run_folder.py).
     - ``quiet``: no progress bar and no final table.
     - ``point_fn``: a picklable function with the signature of ``ocdsl.api.run_file``
       (``(path, out_dir, parameters=, seed=, warm_start=, quiet=)``, writes the run folder);
@@ -480,7 +469,7 @@ def run_study(problem_path: str | os.PathLike, out_dir: str | os.PathLike, *,
     try:
         if point_fn is None:
             _check_problem(loaded.problem_path)
-        res = run_points(loaded.problem_path, out_dir, loaded.points, resume=resume,
+        res = run_points(loaded.problem_path, out_dir, loaded.points, resume=resume, force=force,
                          quiet=quiet, point_fn=point_fn, executor=ex,
                          reuse_model=loaded.spec.reuse_model,
                          info={"name": loaded.spec.name or loaded.study_path.stem,
@@ -499,7 +488,7 @@ def run_points(problem_path: str | os.PathLike, out_dir: str | os.PathLike,
                serial: bool = False, scheduler: Any = None, resume: bool = False,
                quiet: bool = False, point_fn: Callable | None = None,
                executor: Executor | None = None, info: dict[str, Any] | None = None,
-               reuse_model: bool = True) -> StudyResult:
+               reuse_model: bool = True, force: bool = False) -> StudyResult:
     """The study engine for a given list of points (``Point`` or its JSON dict: ``id``,
     ``parameters``, ``seed``, ``parent``, ``tags``). Pareto scans call this with their own
     points; pass ``executor`` to reuse one across calls. ``reuse_model``: the default point
@@ -517,10 +506,7 @@ def run_points(problem_path: str | os.PathLike, out_dir: str | os.PathLike,
 
     # -- refuse before touching anything --------------------------------------------------
     plan_file = out_dir / "plan.json"
-    if plan_file.exists():
-        if not resume:
-            raise StudyError(f"{out_dir} already holds a study: pass --resume to continue "
-                             "it, or choose a new --out")
+    if plan_file.exists() and resume:
         try:
             old = json.loads(plan_file.read_text()).get("fingerprint")
         except ValueError:
@@ -528,8 +514,18 @@ def run_points(problem_path: str | os.PathLike, out_dir: str | os.PathLike,
         if old != fingerprint:
             raise StudyError(f"{out_dir} holds a different study (the study block or the "
                              "problem file changed since it was started); use a new --out")
-    elif out_dir.exists() and any(out_dir.iterdir()) and not resume:
-        raise StudyError(f"{out_dir} exists and is not empty; choose a new --out")
+    elif plan_file.exists() and not force:
+        raise StudyError(f"{out_dir} already holds a study: pass --resume to continue "
+                         "it, --force to replace it, or choose a new --out")
+    else:
+        try:
+            run_folder.check_destination(out_dir, "study", force=force)
+        except run_folder.FolderError as e:
+            raise StudyError(str(e)) from None
+        if force and out_dir.is_dir() and any(out_dir.iterdir()):
+            run_folder.move_aside(out_dir)
+        else:
+            run_folder.clean_leftovers(out_dir)
 
     own_executor = executor is None
     ex = executor or Executor(workers=workers, serial=serial, scheduler=scheduler)
@@ -561,9 +557,11 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
          info: dict[str, Any], t_start: float, reuse_model: bool = True) -> StudyResult:
     points_dir = out_dir / "points"
     points_dir.mkdir(parents=True, exist_ok=True)
-    for stale in points_dir.glob(".*"):  # half-written folders of a killed run
-        shutil.rmtree(stale, ignore_errors=True) if stale.is_dir() else stale.unlink()
-    for stale in out_dir.glob(".study.*"):
+    earlier = (run_folder.read_marker(out_dir) or {}).get("entries", [])
+    run_folder.write_marker(out_dir, "study", [*earlier, *STUDY_ENTRIES])
+    for stale in points_dir.glob(".*.ocdsl-*"):  # half-written folders of a killed run
+        run_folder.remove_tree(stale) if stale.is_dir() else stale.unlink()
+    for stale in out_dir.glob(".study.*.ocdsl-*"):
         stale.unlink(missing_ok=True)
     _atomic_write(out_dir / "plan.json", json.dumps(
         {"fingerprint": fingerprint, "problem_file": str(problem_path), "problem_sha256": sha,
@@ -627,7 +625,8 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
                     lost = isinstance(exc, WorkerLost)
                     res = _error_result(problem_path.stem, p, f"{type(exc).__name__}: {exc}",
                                         "" if lost else traceback.format_exc())
-                    tmp = Path(tempfile.mkdtemp(prefix=f".{pid}.err.", dir=points_dir))
+                    tmp = Path(tempfile.mkdtemp(prefix=run_folder.temp_prefix(pid) + "err-",
+                                                dir=points_dir))
                     try:
                         res.write(tmp / "run")
                         files = _read_files(tmp / "run")

@@ -1,0 +1,192 @@
+"""Output folders: ocdsl never removes what it did not write, and replaces its own folders
+in one step (ocdsl/run_folder.py)."""
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocdsl import run_folder
+from ocdsl.result import PhaseTrajectory, Result
+from ocdsl.run_folder import MARKER, FolderError
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBLEM = ROOT / "configs" / "double_integrator.yaml"
+
+
+def _result(tag: str) -> Result:
+    t = np.linspace(0.0, 1.0, 50)
+    ph = PhaseTrajectory("main", t, states={"x": t ** 2}, controls={"u": 2 + 0 * t})
+    return Result("t", "optimal", message=tag, phases=[ph], tables={"extra": {"a": t}},
+                  problem={"phases": {"main": {"states": ["x"], "controls": ["u"]}}})
+
+
+def _holds(folder: Path, tag: str) -> bool:
+    """``folder`` is the complete run folder written with message ``tag``."""
+    try:
+        marker = json.loads((folder / MARKER).read_text())
+        data = json.loads((folder / "result.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return (not marker["partial"] and data["message"] == tag
+            and all((folder / e).exists() for e in marker["entries"])
+            and len(Result.read(folder).phases[0].time) == 50)
+
+
+def _ocdsl(*args, cwd=None):
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    return subprocess.run([sys.executable, "-m", "ocdsl.cli", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_run_onto_a_users_folder_is_refused_and_nothing_touched(tmp_path):
+    user = tmp_path / "mine"
+    (user / "sub").mkdir(parents=True)
+    (user / "keep.txt").write_text("mine")
+    os.chmod(user, 0o750)
+    p = _ocdsl("run", PROBLEM, "--out", user, "-q")
+    assert p.returncode == 2
+    assert "keep.txt" in p.stderr and "not written by ocdsl" in p.stderr
+    assert "Traceback" not in p.stderr
+    assert sorted(os.listdir(user)) == ["keep.txt", "sub"]
+    assert (user / "keep.txt").read_text() == "mine"
+    assert stat.S_IMODE(user.stat().st_mode) == 0o750
+    with pytest.raises(FolderError):           # and the Python API refuses the same way
+        _result("x").write(user, force=True)
+    assert sorted(os.listdir(user)) == ["keep.txt", "sub"]
+
+
+@pytest.mark.parametrize("out", [".", "..", "/", "./", "../here"])
+def test_out_dot_dotdot_root_refused_cleanly(tmp_path, out):
+    here = tmp_path / "here"
+    here.mkdir()
+    (here / "keep.txt").write_text("mine")
+    p = _ocdsl("run", PROBLEM, "--out", out, "-q", cwd=here)
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr and p.stderr.startswith("Error: ")
+    assert sorted(os.listdir(here)) == ["keep.txt"]
+    assert sorted(os.listdir(tmp_path)) == ["here"]
+
+
+def test_rerun_replaces_the_earlier_run_and_keeps_foreign_files(tmp_path):
+    out = tmp_path / "run"
+    _result("one").write(out)
+    _result("two").write(out)
+    assert _holds(out, "two")
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(FolderError, match="notes.txt"):
+        _result("three").write(out, force=True)
+    assert (out / "notes.txt").read_text() == "mine" and _holds(out, "two")
+
+
+def test_another_kind_needs_force(tmp_path):
+    out = tmp_path / "s"
+    out.mkdir()
+    run_folder.write_marker(out, "study", ["plan.json"])
+    (out / "plan.json").write_text("{}")
+    with pytest.raises(FolderError, match="--force"):
+        _result("a").write(out)
+    _result("a").write(out, force=True)
+    assert _holds(out, "a") and not (out / "plan.json").exists()
+
+
+def test_nested_run_folders_are_ocdsl_s(tmp_path):
+    """A study's points carry their own markers; a foreign file inside one is still found."""
+    out = tmp_path / "s"
+    (out / "points").mkdir(parents=True)
+    run_folder.write_marker(out, "study", ["points", "plan.json"])
+    (out / "plan.json").write_text("{}")
+    _result("p").write(out / "points" / "p1")
+    run_folder.check_destination(out, "study")
+    (out / "points" / "p1" / "mine.txt").write_text("x")
+    with pytest.raises(FolderError, match="points/p1/mine.txt"):
+        run_folder.check_destination(out, "study", force=True)
+
+
+@pytest.mark.parametrize("mask,dmode,fmode", [(0o022, 0o755, 0o644), (0o077, 0o700, 0o600),
+                                               (0o002, 0o775, 0o664)])
+def test_modes_follow_the_umask(tmp_path, mask, dmode, fmode):
+    old = os.umask(mask)
+    try:
+        out = _result("m").write(tmp_path / "deep" / "run")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(out.stat().st_mode) == dmode
+    assert stat.S_IMODE((out / "tables").stat().st_mode) == dmode
+    for f in ("result.json", "trajectory.csv", MARKER, "tables/extra.csv"):
+        assert stat.S_IMODE((out / f).stat().st_mode) == fmode, f
+
+
+def _steps_of_a_write():
+    """Every file-system call a write makes; the kill test stops the writer at each one."""
+    return [(os, "replace"), (os, "rename"), (os, "rmdir"), (os, "unlink"), (os, "mkdir"),
+            (os, "chmod"), (os, "fchmod"), (run_folder, "_exchange"), (Path, "write_text"),
+            (Path, "mkdir"), (Path, "unlink")]
+
+
+def _write_killed_at(dest: Path, k: int) -> bool:
+    """In a child process, write ``new`` over ``dest``, SIGKILLed at the k-th step. True
+    if the kill happened (False: the write has fewer than k steps)."""
+    pid = os.fork()
+    if pid == 0:
+        try:
+            count = [0]
+
+            def hit():
+                count[0] += 1
+                if count[0] == k:
+                    os.kill(os.getpid(), signal.SIGKILL)
+
+            for owner, name in _steps_of_a_write():
+                real = getattr(owner, name)
+
+                def step(*a, _real=real, **kw):
+                    hit()
+                    out = _real(*a, **kw)
+                    hit()
+                    return out
+                setattr(owner, name, step)
+            _result("new").write(dest)
+        finally:
+            os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    return os.WIFSIGNALED(status)
+
+
+def test_a_kill_at_any_step_leaves_the_old_or_the_new_run(tmp_path):
+    killed_at = 0
+    for k in range(1, 200):
+        dest = tmp_path / f"t{k}" / "run"
+        _result("old").write(dest)
+        if not _write_killed_at(dest, k):
+            break
+        killed_at += 1
+        assert _holds(dest, "old") or _holds(dest, "new"), f"kill at step {k}: {os.listdir(dest.parent)}"
+        _result("again").write(dest)             # the next write cleans what the kill left
+        assert os.listdir(dest.parent) == ["run"], f"kill at step {k}"
+        assert _holds(dest, "again")
+    assert killed_at > 10       # the write really has steps to be killed at
+
+
+def test_study_and_report_outputs_refuse_a_users_folder(tmp_path):
+    from ocdsl.report.build import ReportError, make_comparison_report
+    from ocdsl.study.run import StudyError, run_points
+
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "keep.txt").write_text("mine")
+    with pytest.raises(StudyError, match="keep.txt"):
+        run_points(PROBLEM, user, [{"id": "p0", "parameters": {}}], serial=True, quiet=True)
+    run = _result("r").write(tmp_path / "run")
+    with pytest.raises(ReportError, match="keep.txt"):
+        make_comparison_report([run], user, formats=("html",))
+    assert os.listdir(user) == ["keep.txt"]
+    made = make_comparison_report([run], tmp_path / "cmp", formats=("html",))
+    assert made and run_folder.read_marker(tmp_path / "cmp")["kind"] == "comparison"
+    make_comparison_report([run], tmp_path / "cmp", formats=("html",))     # its own: rewritten
+    assert run_folder.foreign_entries(tmp_path / "cmp") == []
