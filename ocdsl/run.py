@@ -17,7 +17,7 @@ def execute(file: LoadedFile, timer, *, seed: int | None = None, warm_start: str
     method = file.method
     if isinstance(method, PseudospectralMethod):
         if method.mesh is not None:
-            from .solve.mesh_refinement import solve_adaptive
+            from .solve.mesh import solve_adaptive
 
             return solve_adaptive(file, timer, seed=seed, warm_start=warm_start, verbose=verbose,
                                   progress=progress)

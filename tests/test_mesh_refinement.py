@@ -1,4 +1,4 @@
-"""Adaptive mesh refinement (issue 12): ocdsl/solve/mesh_refinement.py on configs/mesh_*.yaml."""
+"""Adaptive mesh refinement (issue 12): ocdsl/solve/mesh/ on configs/mesh_*.yaml."""
 import numpy as np
 import pytest
 
@@ -183,17 +183,18 @@ def test_junction_locator_on_arc_mesh(configs):
     import pyomo.environ as pyo
 
     from ocdsl.solve import ipopt
-    from ocdsl.solve import mesh_refinement as mr
+    from ocdsl.solve.mesh.boundary import boundary_controls
+    from ocdsl.solve.mesh.locate import locate_junctions
     from ocdsl.transcribe.guess import make_guess
     from ocdsl.transcribe.mesh import Mesh
     from ocdsl.transcribe.pseudospectral import build
 
     f = compile_file(configs / "mesh_bryson_denham.yaml")
     ph = f.problem.phases[0]
-    (j, (order, i, ub)), = mr._boundary_controls(ph, []).items()
+    (j, (order, i, ub)), = boundary_controls(ph, []).items()
     assert (j, order, i) == (0, 2, 0) and float(ub(0.1, 0.0, 0.5)) == 0.0
     g = compile_file(configs / "mesh_goddard.yaml").problem.phases[0]
-    bc = mr._boundary_controls(g, [])
+    bc = boundary_controls(g, [])
     assert bc[1][0] == 1   # v <= v_max: first order, u_b = (D + m/r^2)/T_max
     r, v, m = 1.01, 0.1, 0.8
     D = 310 * v ** 2 * np.exp(-500 * (r - 1))
@@ -207,7 +208,7 @@ def test_junction_locator_on_arc_mesh(configs):
         tr = build(f.problem, meshes, {ph.name: make_guess(f.problem, ph, None)})
         info = ipopt.solve(tr.model, {"tol": 1e-10, "bound_relax_factor": 1e-11})
         assert info.status == "optimal"
-        b = mr.locate_junctions(tr.phases[0], {}, 1e-9, memory)
+        b = locate_junctions(tr.phases[0], {}, 1e-9, memory)
         assert len(b) == 2
         got.append((abs(b[0] - 1 / 3), abs(b[1] - 2 / 3)))
         assert pyo.value(tr.model.objective) <= 4.0 + 1e-9
@@ -235,7 +236,7 @@ def test_bryson_denham_every_scheme(configs, scheme):
 def test_refine_never_returns_the_same_mesh_silently():
     """The growth budget cuts an oversized split down instead of dropping it, and a mesh that
     cannot change while the tolerance is unmet raises MeshStalled."""
-    from ocdsl.solve import mesh_refinement as mr
+    from ocdsl.solve.mesh import estimate, refine as mr
     from ocdsl.spec.schema import MeshSpec
     from ocdsl.transcribe.mesh import Mesh
 
@@ -243,14 +244,14 @@ def test_refine_never_returns_the_same_mesh_silently():
     mesh = Mesh.uniform("LG", 2, 3)
     # Bryson-Denham, LG 2 x 3: x touches its bound at the middle Gauss point of each segment
     g = [0.0563508327, 0.25, 0.4436491673]
-    errors = [mr.SegmentError("main", k, 0.5 * k, 0.5 * k + 0.5, 3, 1.56e-3, 1.56e-3, 0.0, "x", True,
+    errors = [estimate.SegmentError("main", k, 0.5 * k, 0.5 * k + 0.5, 3, 1.56e-3, 1.56e-3, 0.0, "x", True,
                               [(0.5 * k + g[0], 0.5 * k + g[1]), (0.5 * k + g[1], 0.5 * k + g[2])])
               for k in range(2)]
     new = mr.refine(mesh, errors, spec, features=[])
     assert not mr.same_mesh(new, mesh)
     assert 2 < new.segments <= spec.growth * mesh.segments
     # below tolerance everywhere, but a located feature that no breakpoint can take
-    ok = [mr.SegmentError("main", k, 0.5 * k, 0.5 * k + 0.5, 3, 1e-10, 1e-10, 0.0, "x", False)
+    ok = [estimate.SegmentError("main", k, 0.5 * k, 0.5 * k + 0.5, 3, 1e-10, 1e-10, 0.0, "x", False)
           for k in range(2)]
     with pytest.raises(mr.MeshStalled, match="could not be put on breakpoints"):
         mr.refine(mesh, ok, spec, features=[1.5])
@@ -261,9 +262,9 @@ def test_refine_never_returns_the_same_mesh_silently():
 
 
 def test_same_mesh_stops_with_a_message(configs, monkeypatch):
-    from ocdsl.solve import mesh_refinement as mr
+    from ocdsl.solve.mesh import drive
 
-    monkeypatch.setattr(mr, "refine", lambda mesh, *a, **k: mesh)
+    monkeypatch.setattr(drive, "refine", lambda mesh, *a, **k: mesh)
     res = _solve(configs, "mesh_bryson_denham.yaml")
     assert res.status == "mesh_not_converged"
     assert len(res.extra["mesh_history"]) == 1

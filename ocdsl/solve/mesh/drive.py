@@ -1,0 +1,285 @@
+"""The mesh iteration loop: solve, estimate, locate, refine or coarsen, warm-start the next
+mesh; returns the Result with the mesh history."""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+
+from ...result import PhaseTrajectory, Result
+from .coarsen import coarsen, nlp_size
+from .estimate import estimate_errors
+from .junction import limit_junction_controls
+from .locate import locate_features, misplaced
+from .refine import MeshStalled, refine, same_mesh
+from .regularise import chattering_segments, merge_intervals, regularise
+from .segments import control_polys, seg_polys, solution_arrays
+
+GOOD = ("optimal", "acceptable")
+
+
+def _dense_trajectory(pb, samples: int = 4) -> PhaseTrajectory:
+    """States and controls sampled from each segment's polynomials (a warm start)."""
+    ph, lay = pb.phase, pb.layout
+    X, U, t0, tf = solution_arrays(pb)
+    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
+    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
+    xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
+    xhi = np.array([ph.bounds_of(s)[1] for s in ph.states])
+    ts, xs_all, us_all = [], [], []
+    for k in range(lay.mesh.segments):
+        a, b = lay.mesh.breakpoints[k], lay.mesh.breakpoints[k + 1]
+        xs, us = seg_polys(lay, k, X, U)
+        n = lay.mesh.degrees[k] + samples
+        # open interval inside the segment keeps np.interp's abscissae increasing
+        tau = np.linspace(-1, 1, n + 2)[1:-1] if k < lay.mesh.segments - 1 or True else None
+        if k == 0:
+            tau = np.concatenate([[-1.0], tau])
+        if k == lay.mesh.segments - 1:
+            tau = np.concatenate([tau, [1.0]])
+        s = a + (tau + 1.0) * (b - a) / 2.0
+        ts.append(t0 + (tf - t0) * s)
+        xs_all.append(np.clip(xs(tau), xlo, xhi))
+        us_all.append(np.clip(us(tau), ulo, uhi))
+    t = np.concatenate(ts)
+    Xd, Ud = np.vstack(xs_all), np.vstack(us_all)
+    return PhaseTrajectory(ph.name, t, {s.name: Xd[:, j] for j, s in enumerate(ph.states)},
+                           {c.name: Ud[:, j] for j, c in enumerate(ph.controls)})
+
+
+def initial_meshes(file) -> dict:
+    from ...transcribe.mesh import Mesh
+
+    method, spec = file.method, file.method.mesh
+    given = method.model_fields_set
+    segments = method.segments if "segments" in given else spec.segments
+    degree = method.degree if "degree" in given else spec.degree
+    if isinstance(degree, int):
+        degree = min(max(degree, spec.min_degree), spec.max_degree)
+    return {ph.name: Mesh.uniform(method.transcription, segments, degree) for ph in file.problem.phases}
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(text, file=sys.stderr, flush=True)
+
+
+def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
+    """Solve with adaptive mesh refinement; returns a Result with the mesh history."""
+    import pyomo.core as pyo
+
+    from ...run import _result
+    from ...transcribe.guess import make_guess
+    from ...transcribe.pseudospectral import build
+    from .. import ipopt
+    from .. import warm_start as ws
+
+    ipopt.check_available()
+    problem, spec = file.problem, file.method.mesh
+    meshes = initial_meshes(file)
+    previous: dict[str, PhaseTrajectory] = {}
+    snapshot = None      # the previous mesh's solution, multipliers included (warm_start.py)
+    if warm_start is not None:
+        previous = {p.name: p for p in Result.read(warm_start).phases}
+    options = dict(file.spec.solver.options)
+    # the NLP must be solved well below the mesh tolerance, or solver noise (Ipopt's
+    # relaxation of the bounds, its stopping tolerance) is what the estimate measures
+    options.setdefault("tol", min(1e-8, 1e-2 * spec.tolerance))
+    options.setdefault("bound_relax_factor", min(1e-8, 1e-3 * spec.tolerance))
+    history, tables = [], {k: [] for k in ("iteration", "phase", "segments", "min_degree", "max_degree", "nlp_variables",
+                                          "nlp_constraints", "ipopt_iterations", "objective",
+                                          "max_error", "max_error_segment", "max_error_t", "time_s")}
+    best = None          # (max_error, iteration, tr, info, meshes, errors)
+    status, message = None, ""
+    stalled = ""         # why the refinement stopped before max_iterations without converging
+    last = None
+    converged = []       # iterations within tolerance with every located switch on a breakpoint
+    coarsening = False   # the current mesh came from coarsening a converged one
+    junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
+    chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
+    reg_weight = spec.regularise
+    located: dict = {}   # per phase: the features located on the previous mesh (limit_junction_controls)
+    for it in range(1, spec.max_iterations + 1):
+        t_iter = time.perf_counter()
+        with timer.measure("build"):
+            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
+                       for ph in problem.phases}
+            tr = build(problem, meshes, guesses)
+            reg = regularise(tr, chatter, reg_weight) if spec.regularise else None
+            if spec.junction_control == "limit":
+                limit_junction_controls(tr, located, spec.corner_tolerance)
+            ws.prepare(tr.model)
+            mult = ws.apply(snapshot, tr) if snapshot is not None else None
+        with timer.measure("solve"):
+            bar = ipopt.Progress(progress, f"[mesh {it}]")
+            info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult,
+                               transcription=tr)
+        reg_value = None
+        if reg is not None and info.objective is not None:
+            # the objective of the problem itself: the regularisation term taken out
+            reg_value = float(pyo.value(reg))
+            info.objective += reg_value if tr.model.objective.sense == pyo.maximize else -reg_value
+        with timer.measure("mesh"):
+            params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
+            errors = {pb.phase.name: estimate_errors(pb, params, active_tol=max(1e-9, 0.1 * spec.tolerance),
+                                                     smooth_above=spec.tolerance if spec.smooth_control else None)
+                      if info.status in GOOD else []
+                      for pb in tr.phases}
+        allerr = [e for es in errors.values() for e in es]
+        worst = max(allerr, key=lambda e: e.error) if allerr else None
+        max_err = worst.error if worst else math.inf
+        elapsed = time.perf_counter() - t_iter
+        rec = {"iteration": it, "status": info.status, "objective": info.objective,
+               "ipopt_iterations": info.iterations, "nlp": dict(info.nlp), "time_s": round(elapsed, 4),
+               "warm_start": "multipliers" if mult is not None else ("primal" if it > 1 else "none"),
+               "max_error": max_err,
+               "where": ({"phase": worst.phase, "segment": worst.segment, "t": [worst.t_start, worst.t_end],
+                          "state": worst.state} if worst else None),
+               "meshes": {k: m.describe() for k, m in meshes.items()}}
+        if reg is not None:
+            rec["regularisation"] = {"weight": reg_weight, "value": reg_value,
+                                     "arcs": {k: [list(x) for x in v] for k, v in chatter.items()}}
+        if spec.regularise and info.status in GOOD:
+            for pb in tr.phases:
+                chatter[pb.phase.name] = merge_intervals(chatter.get(pb.phase.name, []), chattering_segments(pb))
+        history.append(rec)
+        for ph in problem.phases:
+            m = meshes[ph.name]
+            es = errors[ph.name]
+            w = max(es, key=lambda e: e.error) if es else None
+            tables["iteration"].append(it)
+            tables["phase"].append(problem.phases.index(ph))
+            tables["segments"].append(m.segments)
+            tables["min_degree"].append(min(m.degrees))
+            tables["max_degree"].append(max(m.degrees))
+            tables["nlp_variables"].append(info.nlp.get("variables", 0))
+            tables["nlp_constraints"].append(info.nlp.get("constraints", 0))
+            tables["ipopt_iterations"].append(info.iterations)
+            tables["objective"].append(info.objective if info.objective is not None else math.nan)
+            tables["max_error"].append(w.error if w else math.nan)
+            tables["max_error_segment"].append(w.segment if w else -1)
+            tables["max_error_t"].append(0.5 * (w.t_start + w.t_end) if w else math.nan)
+            tables["time_s"].append(round(elapsed, 4))
+        where = (f"{worst.phase}[{worst.segment}] t in [{worst.t_start:.6g}, {worst.t_end:.6g}] ({worst.state})"
+                 if worst else "-")
+        _say(progress, f"mesh {it:2d}: {sum(m.segments for m in meshes.values()):3d} segments, "
+                       f"{info.nlp.get('variables', 0):5d} variables, Ipopt {info.status} in {info.iterations:4d} it, "
+                       f"J = {info.objective if info.objective is not None else float('nan'):.10g}, "
+                       f"max error {max_err:.2e} at {where}, {elapsed:.2f} s")
+        last = (max_err, it, tr, info, dict(meshes), errors)
+        if info.status not in GOOD:
+            status = info.status
+            message = (f"mesh iteration {it}: Ipopt ended with '{info.status}' ({info.message}); "
+                       "mesh refinement stopped")
+            break
+        if best is None or max_err < best[0]:
+            best = last
+        with timer.measure("mesh"):
+            features = {}
+            for pb in tr.phases:
+                try:
+                    features[pb.phase.name] = locate_features(tr, pb, errors[pb.phase.name], params, spec,
+                                                              control_polys(pb),
+                                                              memory=junction_memory.setdefault(pb.phase.name, {}))
+                except Exception as exc:  # locating is an aid; the estimate still decides
+                    _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
+                    features[pb.phase.name] = []
+        off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
+        located = features
+        rec["features"] = features
+        rec["features_off_breakpoints"] = off
+        if max_err <= spec.tolerance and not any(off.values()):
+            converged.append(last)
+            rec["converged"] = True
+            smaller = None
+            if spec.coarsen and it < spec.max_iterations:
+                with timer.measure("mesh"):
+                    cand = {pb.phase.name: coarsen(pb, errors[pb.phase.name], spec, features[pb.phase.name])
+                            for pb in tr.phases}
+                size = lambda ms: sum(nlp_size(ms[pb.phase.name], len(pb.phase.states),  # noqa: E731
+                                                len(pb.phase.controls)) for pb in tr.phases)
+                if size(cand) < size(meshes):
+                    smaller = cand
+            if smaller is None:
+                break
+            coarsening = True
+            previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+            snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
+            meshes = smaller
+            continue
+        if coarsening:
+            # the coarsened mesh missed the tolerance: refine it like any other mesh (the
+            # smallest converged mesh so far is kept for the end)
+            rec["coarsening_rejected"] = True
+            coarsening = False
+        if it == spec.max_iterations:
+            break
+        previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+        snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
+        try:
+            new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec,
+                                                features=features[pb.phase.name]) for pb in tr.phases}
+        except MeshStalled as exc:
+            stalled = f"mesh iteration {it}: refinement stalled: {exc}"
+            rec["stalled"] = str(exc)
+            break
+        if all(same_mesh(new_meshes[k], meshes[k]) for k in meshes):
+            # refine() changes every phase that misses the tolerance; this is a last guard
+            stalled = (f"mesh iteration {it}: refinement returned the same mesh while the tolerance "
+                       f"{spec.tolerance:.1e} is unmet (largest error {max_err:.3e})")
+            rec["stalled"] = stalled
+            break
+        meshes = new_meshes
+    if status is None:
+        if converged:
+            chosen = min(converged, key=lambda c: (c[3].nlp.get("variables", 0), c[0]))
+            status = "optimal" if chosen[3].status == "optimal" else chosen[3].status
+            message = (f"mesh converged: iteration {chosen[1]} of {len(history)} is the smallest mesh within "
+                       f"tolerance {spec.tolerance:.1e} (largest estimated error {chosen[0]:.3e}, "
+                       f"{chosen[3].nlp.get('variables', 0)} NLP variables)")
+            rejected = [h["iteration"] for h in history if h.get("coarsening_rejected")]
+            if rejected:
+                message += f"; coarsened meshes that missed it: iteration(s) {rejected}"
+        else:
+            status = "mesh_not_converged"
+            chosen = best
+    else:
+        chosen = last
+    max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
+    if status == "mesh_not_converged":
+        above = [e for es in errors_c.values() for e in es if e.error > spec.tolerance]
+        worst = max(above, key=lambda e: e.error) if above else None
+        off_c = history[it_c - 1].get("features_off_breakpoints", {})
+        where = (f"in phase '{worst.phase}' segment {worst.segment} (t in [{worst.t_start:.6g}, "
+                 f"{worst.t_end:.6g}], state {worst.state}); {len(above)} segment(s) above tolerance"
+                 if worst else f"within tolerance but located switches/corners {off_c} are off the breakpoints")
+        message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
+                   f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
+                   f"largest estimated error {max_err:.3e} {where}. "
+                   + (f"Stopped early because {stalled}." if stalled else
+                      "Raise max_iterations or max_degree, or loosen the tolerance."))
+    with timer.measure("post"):
+        result = _result(file, tr_c, info_c, timer, meshes_c)
+    result.status = status
+    result.message = message
+    result.iterations = sum(h["ipopt_iterations"] for h in history)
+    err_tab = {k: [] for k in ("phase", "segment", "t_start", "t_end", "degree", "error",
+                               "discrepancy", "violation", "nonsmooth")}
+    names = [ph.name for ph in problem.phases]
+    for es in errors_c.values():
+        for e in es:
+            for key in err_tab:
+                v = getattr(e, key)
+                err_tab[key].append(names.index(v) if key == "phase" else float(v))
+    result.extra["mesh_history"] = history
+    result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
+                            "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),
+                            "max_error": max_err,
+                            "error_map": {ph: [[e.t_start, e.t_end, e.error] for e in es]
+                                          for ph, es in errors_c.items()}}
+    result.tables["mesh_history"] = {k: np.asarray(v) for k, v in tables.items()}
+    result.tables["mesh_error"] = {k: np.asarray(v) for k, v in err_tab.items()}
+    result.wall_time_s = timer.breakdown()
+    return result

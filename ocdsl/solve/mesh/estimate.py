@@ -1,0 +1,170 @@
+"""Per-segment error estimate of a solved phase (see the package docstring)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .segments import activity, phase_functions, seg_polys, solution_arrays, zigzag
+
+
+@dataclass
+class SegmentError:
+    phase: str
+    segment: int
+    t_start: float
+    t_end: float
+    degree: int
+    error: float                 # max(relative state discrepancy, relative violation)
+    discrepancy: float
+    violation: float
+    state: str                   # state with the largest discrepancy
+    nonsmooth: bool
+    switches: list[tuple[float, float]] = field(default_factory=list)   # brackets in s
+    smoothed: bool = False       # the error is the one with the smoothed control (see estimate_errors)
+
+
+def _smoothed_control(lay, k, U, ulo, uhi, t0, tf):
+    """t -> control: least-squares quadratic in time through the collocated controls of
+    segment k and its two neighbours (weighted by the quadrature weights), clipped to the
+    bounds."""
+    segs = range(max(0, k - 1), min(lay.mesh.segments, k + 2))
+    nodes = np.concatenate([lay.colloc[q] for q in segs])
+    # weighted by the quadrature weights: the dynamics feel the control through them
+    w = np.concatenate([np.asarray(lay.mesh.scheme(q).weights) * (lay.mesh.breakpoints[q + 1] - lay.mesh.breakpoints[q])
+                        for q in segs])
+    ts = t0 + (tf - t0) * lay.s_colloc[nodes]
+    deg = min(2, len(nodes) - 1)
+    mid, half = 0.5 * (ts.min() + ts.max()), 0.5 * (ts.max() - ts.min()) or 1.0
+    coef = [np.polyfit((ts - mid) / half, U[nodes, j], deg, w=np.sqrt(w)) for j in range(U.shape[1])]
+    return lambda t: np.clip([np.polyval(c, (t - mid) / half) for c in coef], ulo, uhi)
+
+
+def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points: int = 6,
+                    rtol: float = 1e-12, smooth_above: float | None = None) -> list[SegmentError]:
+    """Per-segment error of one solved phase (see the module docstring).
+
+    ``smooth_above``: where the error with the collocated control is above it, the dynamics
+    are integrated again with the smoothed control (``_smoothed_control``) and the smaller
+    of the two errors is kept (``SegmentError.smoothed``). Both controls are admissible, so
+    either way the collocated state is that close to a trajectory of the system; the
+    smoothing keeps node-to-node chattering of a weakly determined control (singular arcs)
+    from being taken for a state error and split forever."""
+    from scipy.integrate import solve_ivp
+
+    from ...transcribe.nodes import legendre_gauss_lobatto
+
+    ph, lay = pb.phase, pb.layout
+    free_syms = sorted(params, key=str)
+    pvals = [params[s] for s in free_syms]
+    f, g = phase_functions(ph, free_syms)
+    X, U, t0, tf = solution_arrays(pb)
+    nx, nu = X.shape[1], U.shape[1]
+    scale = 1.0 + np.max(np.abs(X), axis=0)
+    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
+    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
+    xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
+    xhi = np.array([ph.bounds_of(s)[1] for s in ph.states])
+    mesh = lay.mesh
+    out = []
+    for k in range(mesh.segments):
+        sc = mesh.scheme(k)
+        a, b = mesh.breakpoints[k], mesh.breakpoints[k + 1]
+        ta, tb = t0 + (tf - t0) * a, t0 + (tf - t0) * b
+        xs, us = seg_polys(lay, k, X, U)
+        h = tb - ta
+
+        def uclip(t):
+            tau = 2.0 * (t - ta) / h - 1.0 if h > 0 else 0.0
+            return np.clip(us(tau)[0], ulo, uhi)
+
+        def rhs(t, x):
+            return np.asarray(f(*x, *uclip(t), t, *pvals), float).reshape(-1)
+
+        tau_f = np.asarray(legendre_gauss_lobatto(sc.degree + extra_points)[0])
+        t_f = np.clip(ta + (tau_f + 1.0) * h / 2.0, min(ta, tb), max(ta, tb))
+        x_poly = xs(tau_f)
+        x_start = x_poly[0]
+        if h > 0:
+            sol = solve_ivp(rhs, (ta, tb), x_start, method="DOP853", t_eval=t_f, rtol=rtol,
+                            atol=rtol * scale)
+            x_int = sol.y.T if sol.success and sol.y.shape[1] == len(t_f) else np.full_like(x_poly, np.nan)
+        else:
+            x_int = x_poly
+        rel = np.abs(x_int - x_poly) / scale
+        disc = float(np.nanmax(rel)) if np.isfinite(rel).any() else math.inf
+        if not np.isfinite(rel).all():
+            disc = math.inf
+        smoothed = False
+        # only where every control is strictly inside its bounds at the segment's nodes and the
+        # neighbours' (a boundary arc), or zigzags from node to node (a singular arc's
+        # chattering): a single jump to or from a bound is a switch, not smoothed away
+        near = np.concatenate([lay.colloc[q] for q in range(max(0, k - 1), min(mesh.segments, k + 2))])
+        inside = all(not activity(U[near, j], ulo[j], uhi[j], 1e-6).any() or zigzag(U[near, j])
+                     for j in range(nu))
+        if smooth_above is not None and disc > smooth_above and h > 0 and nu and inside:
+            usm = _smoothed_control(lay, k, U, ulo, uhi, t0, tf)
+            sol2 = solve_ivp(lambda t, x: np.asarray(f(*x, *usm(t), t, *pvals), float).reshape(-1),
+                             (ta, tb), x_start, method="DOP853", t_eval=t_f, rtol=rtol, atol=rtol * scale)
+            if sol2.success and sol2.y.shape[1] == len(t_f):
+                rel2 = np.abs(sol2.y.T - x_poly) / scale
+                if np.isfinite(rel2).all() and float(np.max(rel2)) < disc:
+                    x_int, rel, disc, smoothed = sol2.y.T, rel2, float(np.max(rel2)), True
+        which = ph.states[int(np.nanargmax(np.nanmax(rel, axis=0)))].name if np.isfinite(rel).any() else ""
+        # violations of state bounds and path constraints by the integrated trajectory
+        viol = 0.0
+        with np.errstate(invalid="ignore"):
+            over = np.maximum(x_int - xhi, 0) / (1 + np.abs(np.where(np.isfinite(xhi), xhi, 0)))
+            under = np.maximum(xlo - x_int, 0) / (1 + np.abs(np.where(np.isfinite(xlo), xlo, 0)))
+        viol = max(viol, float(np.nanmax(over, initial=0)), float(np.nanmax(under, initial=0)))
+        u_f = np.clip(us(tau_f), ulo, uhi)
+        if g is not None:
+            for l, tl in enumerate(t_f):
+                gv = np.asarray(g(*x_int[l], *u_f[l], tl, *pvals), float).reshape(-1)
+                for c, v in zip(ph.path, gv):
+                    if math.isfinite(c.upper) and v > c.upper:
+                        viol = max(viol, (v - c.upper) / (1 + abs(c.upper)))
+                    if math.isfinite(c.lower) and v < c.lower:
+                        viol = max(viol, (c.lower - v) / (1 + abs(c.lower)))
+        # active-set changes between consecutive collocation points of the segment
+        # (for k > 0 the previous segment's last collocation point is included, so that a
+        # change between segments is seen by the segment that starts there)
+        sc_nodes = np.asarray(lay.colloc[k])
+        st_nodes = np.asarray(lay.colloc_state[k])
+        if k > 0:
+            sc_nodes = np.concatenate([[lay.colloc[k - 1][-1]], sc_nodes])
+            st_nodes = np.concatenate([[lay.colloc_state[k - 1][-1]], st_nodes])
+        s_nodes = lay.s_colloc[sc_nodes]
+        act = []
+        Uc = U[sc_nodes]
+        Xc = X[st_nodes]
+        for j in range(nu):
+            act.append(activity(Uc[:, j], ulo[j], uhi[j], active_tol))
+        for j in range(nx):
+            if math.isfinite(xlo[j]) or math.isfinite(xhi[j]):
+                act.append(activity(Xc[:, j], xlo[j], xhi[j], active_tol))
+        if g is not None:
+            tc = t0 + (tf - t0) * s_nodes
+            gv = np.array([np.asarray(g(*Xc[i], *Uc[i], tc[i], *pvals), float).reshape(-1)
+                           for i in range(len(tc))])
+            for q, c in enumerate(ph.path):
+                if not c.is_equality:
+                    act.append(activity(gv[:, q], c.lower, c.upper, active_tol))
+        # the start of the segment: the previous segment's last collocation point
+        prev_s = None
+        if k > 0:
+            prev_node = lay.colloc[k - 1][-1]
+            prev_s = lay.s_colloc[prev_node]
+        switches = []
+        for pattern_idx, pattern in enumerate(act):
+            for i in range(1, len(pattern)):
+                if pattern[i] != pattern[i - 1]:
+                    switches.append((float(s_nodes[i - 1]), float(s_nodes[i])))
+        if not switches and len(s_nodes) and prev_s is not None and act:
+            pass
+        switches = sorted(set(switches))
+        err = max(disc, viol)
+        out.append(SegmentError(ph.name, k, ta, tb, sc.degree, err, disc, viol, which,
+                                bool(switches), switches, smoothed))
+    return out

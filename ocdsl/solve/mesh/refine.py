@@ -1,0 +1,193 @@
+"""The next mesh of a phase from its error estimate and located features."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .estimate import SegmentError
+from .locate import corners_to_place, misplaced
+
+
+def _place(segs: list[list], f: float, snap: float, keep: list[float], tol: float) -> None:
+    """Put a breakpoint on f in the segment list [[a, b, N], ...] (in place).
+
+    A breakpoint within ``snap`` of the segment's width from f is moved onto f (no sliver
+    segment is left next to the feature) unless it is 0, 1 or holds another feature (within
+    ``tol`` of one in ``keep``); otherwise the segment is split at f.
+    """
+    k = next((q for q, (a, b, _) in enumerate(segs) if a <= f <= b), None)
+    if k is None:
+        return
+    a, b, N = segs[k]
+    if min(abs(f - a), abs(b - f)) <= tol:
+        return
+    held = lambda x: any(abs(x - g) <= tol for g in keep if g != f)  # noqa: E731
+    w = b - a
+    if f - a <= snap * w and k > 0 and not held(a):
+        segs[k - 1][1] = f
+        segs[k][0] = f
+        return
+    if b - f <= snap * w and k < len(segs) - 1 and not held(b):
+        segs[k][1] = f
+        segs[k + 1][0] = f
+        return
+    segs[k:k + 1] = [[a, f, N], [f, b, N]]
+
+
+def _arc_mesh_moves(mesh, errors, spec, features, todo) -> dict[int, float]:
+    """On an arc mesh (every interior breakpoint within corner_tolerance of a located feature,
+    as ``coarsen`` builds it): breakpoint index -> feature, for the breakpoints that are not
+    exactly on their feature and have a segment above tolerance next to them. ``refine`` moves
+    them onto the features and leaves those segments as they are: on such a stiff mesh the
+    error next to a junction is that of the junction's position (Bryson-Denham (3, 1, 3):
+    0.18 d for a junction off by d), which a higher degree would only paper over."""
+    bps = np.asarray(mesh.breakpoints)
+    inner = bps[1:-1]
+    feats = [f for f in features if f not in todo]
+    if not len(inner) or not feats or not all(min(abs(b - f) for f in feats) <= spec.corner_tolerance
+                                               for b in inner):
+        return {}
+    moves = {}
+    for f in feats:
+        q = 1 + int(np.argmin(np.abs(inner - f)))
+        if (abs(bps[q] - f) > 1e-14 and bps[q - 1] < f < bps[q + 1]
+                and max(errors[q - 1].error, errors[q].error) > spec.tolerance):
+            moves[q] = float(f)
+    return moves
+
+
+def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None) -> Any:
+    """The next mesh of one phase (see the module docstring).
+
+    ``features``: located switches and corners (normalised time); each one not already on a
+    breakpoint becomes one (moving a close breakpoint, or splitting), and the segment that
+    held it is otherwise left to the next iteration's estimate. ``controls`` (per segment,
+    s -> control polynomial) is used to locate corners when ``features`` is not given.
+    """
+    from ...transcribe.mesh import Mesh
+
+    tol, nmin, nmax = spec.tolerance, spec.min_degree, spec.max_degree
+    pieces = spec.bracket_pieces
+    if features is None:
+        features = corners_to_place(mesh, errors, spec, controls)
+    todo = misplaced(mesh, features, spec)
+    moves = _arc_mesh_moves(mesh, errors, spec, features, todo)
+    still = {k for q in moves for k in (q - 1, q)}
+    proposals: list[list[list]] = []
+    for e in errors:
+        k = e.segment
+        a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
+        N = mesh.degrees[k]
+        holds = [f for f in todo if a < f < b]
+        if not (e.error > tol) or holds or k in still:
+            proposals.append([[a, b, N]])
+            continue
+        if e.nonsmooth and not e.smoothed:
+            cuts = set()
+            for lo, hi in e.switches:
+                for q in range(pieces + 1):
+                    cuts.add(lo + (hi - lo) * q / pieces)
+            width = b - a
+            cuts = sorted(c for c in cuts if a + 1e-9 * width < c < b - 1e-9 * width)
+            merged = []
+            for c in cuts:   # drop slivers far below the bracket scale
+                if not merged or c - merged[-1] > 1e-6 * width:
+                    merged.append(c)
+            if merged:
+                edges = [a, *merged, b]
+                proposals.append([[x, y, nmin] for x, y in zip(edges, edges[1:])])
+                continue
+        # smooth (or a switch that cannot be bracketed more finely): p, then h
+        ratio = e.error / tol if math.isfinite(e.error) else 1e6
+        P = max(1, math.ceil(math.log(ratio) / math.log(max(N, 2))))
+        if N + P <= nmax:
+            proposals.append([[a, b, N + P]])
+        else:
+            B = max(math.ceil((N + P) / nmin), 2)
+            edges = [a + (b - a) * q / B for q in range(B + 1)]
+            proposals.append([[x, y, nmin] for x, y in zip(edges, edges[1:])])
+    # at most growth x the segments: the largest errors are split first; a split that does not
+    # fit the remaining budget is cut down to it (``_within_budget``), and a segment that gets
+    # no new segment at all waits. (It used to be left as it was even when it came first:
+    # Bryson-Denham with LG on 2 x 3 touches x <= l at two Gauss points of each segment, so
+    # each segment's brackets asked for 5 cuts against a budget of 4 and the 2 x 3 mesh was
+    # solved again until max_iterations.)
+    budget = max(1, int(spec.growth * mesh.segments) - mesh.segments)
+    for k in sorted(range(len(errors)), key=lambda q: -errors[q].error):
+        extra = len(proposals[k]) - 1
+        if extra <= 0:
+            continue
+        if extra > budget:
+            proposals[k] = _within_budget(proposals[k], budget, mesh.degrees[k])
+            extra = len(proposals[k]) - 1
+        budget -= extra
+    segs = [sg for prop in proposals for sg in prop]
+    for q, f in moves.items():   # the segments next to a moved breakpoint were kept: edges exact
+        b = float(mesh.breakpoints[q])
+        for sg in segs:
+            sg[0] = f if sg[0] == b else sg[0]
+            sg[1] = f if sg[1] == b else sg[1]
+    for f in todo:
+        _place(segs, f, spec.snap, features, spec.corner_tolerance)
+    segs = [sg for sg in segs if sg[1] > sg[0]]
+    bps = [0.0] + [sg[1] for sg in segs]
+    bps[-1] = 1.0
+    new = Mesh(mesh.scheme_name, np.array(bps), tuple(int(sg[2]) for sg in segs))
+    if same_mesh(new, mesh) and (todo or any(e.error > tol for e in errors)):
+        # never the same mesh again while the tolerance is unmet: the worst segment is
+        # refined regardless of the rules above, or the refinement stops (MeshStalled)
+        new = _forced_refinement(mesh, errors, spec, todo)
+    return new
+
+
+class MeshStalled(RuntimeError):
+    """``refine`` cannot produce a mesh different from the current one although the
+    tolerance is unmet; ``solve_adaptive`` ends with ``mesh_not_converged`` and this message."""
+
+
+def same_mesh(a, b) -> bool:
+    return (a.scheme_name == b.scheme_name and tuple(a.degrees) == tuple(b.degrees)
+            and np.array_equal(np.asarray(a.breakpoints), np.asarray(b.breakpoints)))
+
+
+def _within_budget(prop: list[list], budget: int, degree: int) -> list[list]:
+    """A segment's proposal [[a, b, N], ...] cut down to at most ``budget`` new segments:
+    ``budget`` of its interior edges, evenly spread over them (a bracketed switch keeps edges on
+    either side of it), each piece with the proposal's largest degree; with no budget left,
+    the segment unchanged (it waits for the next iteration)."""
+    a, b = prop[0][0], prop[-1][1]
+    if budget <= 0:
+        return [[a, b, degree]]
+    inner = [sg[1] for sg in prop[:-1]]
+    pick = sorted({inner[min(len(inner) - 1, round((q + 1) * (len(inner) + 1) / (budget + 1)) - 1)]
+                   for q in range(budget)})
+    N = max(sg[2] for sg in prop)
+    edges = [a, *pick, b]
+    return [[x, y, N] for x, y in zip(edges, edges[1:])]
+
+
+def _forced_refinement(mesh, errors, spec, todo):
+    """The mesh with its worst segment (largest error) refined: degree raised by one up to
+    max_degree, else bisected. Raises MeshStalled when neither is possible."""
+    from ...transcribe.mesh import Mesh
+
+    bps = np.asarray(mesh.breakpoints, float)
+    worst = max(errors, key=lambda e: e.error) if errors else None
+    if worst is None or not (worst.error > spec.tolerance):
+        raise MeshStalled(f"located switches/corners {todo} could not be put on breakpoints of mesh "
+                          f"{mesh.describe()}")
+    k = worst.segment
+    degrees = list(mesh.degrees)
+    if degrees[k] < spec.max_degree:
+        degrees[k] += 1
+        return Mesh(mesh.scheme_name, bps.copy(), tuple(degrees))
+    a, b = bps[k], bps[k + 1]
+    mid = 0.5 * (a + b)
+    if not (a < mid < b) or b - a < 1e-12:
+        raise MeshStalled(f"segment {k} (s in [{a:.6g}, {b:.6g}]) has error {worst.error:.3e} above "
+                          f"tolerance {spec.tolerance:.1e} at max_degree {spec.max_degree} and is too "
+                          "short to split")
+    degrees[k:k + 1] = [spec.min_degree, spec.min_degree]
+    return Mesh(mesh.scheme_name, np.concatenate([bps[:k + 1], [mid], bps[k + 1:]]), tuple(degrees))

@@ -1,0 +1,83 @@
+"""The solved phase seen segment by segment: its node values, the state and control
+polynomials of each segment, and where values sit at their bounds."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+
+
+def phase_functions(ph, free_syms):
+    args = list(ph.states) + list(ph.controls) + [sp.Symbol("t", real=True)] + list(free_syms)
+    from ...symbolic.model import TIME
+
+    args[len(ph.states) + len(ph.controls)] = TIME
+    f = sp.lambdify(args, list(ph.rhs()), "numpy")
+    g = sp.lambdify(args, [c.expr for c in ph.path], "numpy") if ph.path else None
+    return f, g
+
+
+def solution_arrays(pb):
+    from ...transcribe.solution import node_values, phase_times
+
+    return (*node_values(pb), *phase_times(pb))
+
+
+def seg_polys(lay, k, X, U):
+    """Callables tau -> state (m, nx) and tau -> control (m, nu) of segment k."""
+    from ...transcribe.nodes import lagrange_matrix
+
+    sc = lay.mesh.scheme(k)
+    Xs, Uc = X[lay.support[k]], U[lay.colloc[k]]
+
+    def xs(tau):
+        return lagrange_matrix(np.asarray(sc.support), np.atleast_1d(tau)) @ Xs
+
+    def us(tau):
+        tau = np.atleast_1d(tau)
+        if len(sc.colloc) == 1:
+            return np.repeat(Uc, len(tau), axis=0)
+        return lagrange_matrix(np.asarray(sc.colloc), tau) @ Uc
+
+    return xs, us
+
+
+def activity(values, lo, hi, tol):
+    """-1 at the lower bound, +1 at the upper bound, 0 inside (per value)."""
+    out = np.zeros(len(values), int)
+    if math.isfinite(lo):
+        out[values <= lo + tol * (1 + abs(lo))] = -1
+    if math.isfinite(hi):
+        out[values >= hi - tol * (1 + abs(hi))] = 1
+    return out
+
+
+def zigzag(u, step: float | None = None) -> bool:
+    """Node-to-node chattering: the significant steps of u (above ``step``, default 1e-6 of
+    1 + max |u|) alternate in sign at least twice."""
+    d = np.diff(np.asarray(u, float))
+    d = d[np.abs(d) > (1e-6 * (1.0 + np.max(np.abs(u))) if step is None else step)]
+    return int(np.sum(np.sign(d[1:]) != np.sign(d[:-1]))) >= 2
+
+
+def state_at(lay, X, U, s):
+    """State polynomial value at normalised time s (the segment holding s; the first or last
+    segment's polynomial extrapolated outside [0, 1])."""
+    bps = lay.mesh.breakpoints
+    k = int(np.clip(np.searchsorted(bps, s, side="right") - 1, 0, lay.mesh.segments - 1))
+    xs, _ = seg_polys(lay, k, X, U)
+    a, b = bps[k], bps[k + 1]
+    return xs(2.0 * (s - a) / (b - a) - 1.0)[0]
+
+
+def control_polys(pb):
+    """Per segment: s -> control polynomial of that segment (normalised time s)."""
+    lay = pb.layout
+    X, U, _, _ = solution_arrays(pb)
+    out = []
+    for k in range(lay.mesh.segments):
+        a, b = lay.mesh.breakpoints[k], lay.mesh.breakpoints[k + 1]
+        _, us = seg_polys(lay, k, X, U)
+        out.append(lambda s, us=us, a=a, b=b: us(2.0 * (np.asarray(s) - a) / (b - a) - 1.0))
+    return out
