@@ -100,6 +100,8 @@ class Loaded:
                 self._reuse = ModelReuse(self)
             result = self._reuse.solve(file, parameters, timer, seed=seed, warm_start=warm_start,
                                        verbose=verbose, progress=progress)
+            if result is not None:
+                verify(file, result, timer)
         if result is None:
             result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=progress)
         if out is not None:
@@ -112,14 +114,34 @@ def load(path: str | Path, parameters: dict[str, float] | None = None) -> Loaded
 
 
 def execute(file, timer: Timer, **kwargs) -> Result:
-    """Controller files go to the closed-loop back end; the rest to ``ocdsl.run.execute``."""
+    """Controller files go to the closed-loop back end; the rest to ``ocdsl.run.execute``,
+    whose result is then verified (:func:`verify`)."""
     if file.controller is not None:
         from .control.problem_file import run_controller_file
 
-        return run_controller_file(file, timer)
+        result = run_controller_file(file, timer)
+        result.verification = {"status": "not_applicable", "checks": [],
+                               "summary": "a closed-loop simulation: its trajectory is the integration itself"}
+        return result
     from .run import execute as run_method
 
-    return run_method(file, timer, **kwargs)
+    result = run_method(file, timer, **kwargs)
+    verify(file, result, timer)
+    return result
+
+
+def verify(file, result: Result, timer: Timer) -> None:
+    """The independent verification of every back end's trajectory (ocdsl/verify), unless
+    the back end already verified this result at the file's settings."""
+    from .verify import VerifySettings, attach_verification
+
+    settings = VerifySettings.of(file.spec.verify)
+    done = result.verification
+    if done and done.get("tolerance") == settings.tolerance and done.get("status") in ("verified", "failed"):
+        return
+    with timer.measure("verify"):
+        attach_verification(file.problem, result, settings)
+    result.wall_time_s = {**result.wall_time_s, **timer.breakdown()}
 
 
 def write_run(result: Result, out: str | Path, source: Path | None, force: bool = False) -> Path:

@@ -113,7 +113,14 @@ def _summary(result, out: Path) -> None:
 
     con = Console()
     ok = "green" if result.status == "optimal" else "red"
-    con.print(f"[bold]{result.name}[/bold]: [{ok}]{result.status}[/{ok}]")
+    v = result.verification or {}
+    vstatus = v.get("status", "not run")
+    vcolour = {"verified": "green", "not_applicable": "white"}.get(vstatus, "red")
+    warn = " (mode warn: does not fail the run)" if v.get("mode") == "warn" and vstatus != "verified" else ""
+    con.print(f"[bold]{result.name}[/bold]: solver [{ok}]{result.status}[/{ok}], "
+              f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}")
+    if vstatus not in ("verified", "not_applicable") and v.get("summary"):
+        con.print(f"  {v['summary']}", markup=False)
     if result.status not in ("optimal",) and result.message:
         con.print(f"  {result.message.splitlines()[0]}")
     t = Table(show_header=False, box=None, padding=(0, 2))
@@ -133,6 +140,9 @@ def _summary(result, out: Path) -> None:
         parts = ", ".join(f"{k} {v:.3f}" for k, v in w.items() if k != "total")
         t.add_row("wall time", f"{w.get('total', 0):.3f} s ({parts})")
     t.add_row("run folder", str(out))
+    if v.get("tolerance") is not None and vstatus in ("verified", "failed"):
+        t.add_row("verification", f"{len(v.get('checks', []))} checks against tolerance {v['tolerance']:g}"
+                  f" ({v.get('wall_time_s', 0):.3f} s)")
     con.print(t)
     for c in result.expect:
         mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
@@ -141,7 +151,19 @@ def _summary(result, out: Path) -> None:
     cert = result.certificate
     if cert and "passed" in cert:
         mark = "[green]pass[/green]" if cert["passed"] else "[yellow]not passed[/yellow]"
-        con.print(f"  optimality certificate: {mark}")
+        why = "" if cert["passed"] else f" ({_certificate_reason(cert)})"
+        con.print(f"  optimality certificate (necessary conditions): {mark}{why}")
+
+
+def _certificate_reason(cert: dict) -> str:
+    if cert.get("error"):
+        return cert["error"]
+    if cert.get("skipped"):
+        return cert["skipped"]
+    if "phases" in cert:
+        return "; ".join(f"{name}: {_certificate_reason(c)}" for name, c in cert["phases"].items()
+                         if not c.get("passed"))
+    return "failed: " + ", ".join(cert.get("failed", [])) if cert.get("failed") else "not passed"
 
 
 @main.command()

@@ -39,6 +39,9 @@ class PhaseTrajectory:
     controls: dict[str, np.ndarray] = field(default_factory=dict)
     costates: dict[str, np.ndarray] = field(default_factory=dict)
     extra: dict[str, np.ndarray] = field(default_factory=dict)  # hamiltonian, switching functions...
+    # how the controls between rows are meant (ocdsl/verify/interpolate.py): {"kind":
+    # "lagrange-segments", "breakpoints": [...]} | {"kind": "cubic" | "linear" | "previous"}
+    control_interpolation: dict[str, Any] = field(default_factory=lambda: {"kind": "linear"})
 
     def columns(self) -> dict[str, np.ndarray]:
         cols = {"t": np.asarray(self.time, float)}
@@ -74,6 +77,7 @@ class Result(ResultViews):
     phases: list[PhaseTrajectory] = field(default_factory=list)
     expect: list[dict[str, Any]] = field(default_factory=list)
     certificate: dict[str, Any] | None = None
+    verification: dict[str, Any] | None = None
     problem: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
     tables: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
@@ -81,9 +85,22 @@ class Result(ResultViews):
     # ---- Python API -------------------------------------------------------------
     @property
     def ok(self) -> bool:
-        """Solved and every expect check passed (the CLI's exit code 0)."""
+        """The CLI's exit code 0: the solver converged, every expect check passed, and the
+        independent verification passed (or does not apply to the back end, or the file
+        asked for ``verify: {mode: warn}``)."""
         good = self.status in ("optimal", "stable", "feasible")
-        return good and all(c.get("passed", False) for c in self.expect)
+        return good and all(c.get("passed", False) for c in self.expect) and self.verification_ok
+
+    @property
+    def verified(self) -> bool:
+        """The verification ran and passed (ocdsl/verify)."""
+        return (self.verification or {}).get("status") == "verified"
+
+    @property
+    def verification_ok(self) -> bool:
+        """What the verification lets through: verified, not applicable, or only a warning."""
+        v = self.verification or {}
+        return v.get("status") in ("verified", "not_applicable") or v.get("mode") == "warn"
 
     def phase(self, name: str | None = None) -> PhaseTrajectory:
         if name is None:
@@ -107,7 +124,8 @@ class Result(ResultViews):
         data.pop("phases")
         data.pop("tables")
         data["phases"] = [{"name": p.name, "file": _trajectory_file(p.name, len(self.phases)),
-                           "nodes": int(len(p.time))} for p in self.phases]
+                           "nodes": int(len(p.time)), "control_interpolation": p.control_interpolation}
+                          for p in self.phases]
         data["tables"] = sorted(self.tables)
         return _jsonable(data)
 
@@ -149,7 +167,7 @@ class Result(ResultViews):
                 states={k: cols.pop(k) for k in sn if k in cols},
                 controls={k: cols.pop(k) for k in cn if k in cols},
                 costates={k[len("lambda_"):]: cols.pop(k) for k in list(cols) if k.startswith("lambda_")},
-                extra=cols))
+                extra=cols, control_interpolation=meta.get("control_interpolation", {"kind": "linear"})))
         for name in table_names:
             res.tables[name] = read_csv(run_dir / "tables" / f"{name}.csv")
         return res

@@ -80,6 +80,7 @@ from scipy.integrate._ivp import radau as _rd
 from scipy.linalg import expm
 
 from ocdsl.symbolic.model import TIME, Model, sym
+from ocdsl.verify.interpolate import SegmentPolynomials as _ControlInterp, segment_of_nodes
 
 OBJECTIVE_KINDS = ("min_tf", "max_tf", "free_tf", "fixed_tf")
 EXPECTED_H = {"min_tf": -1.0, "max_tf": 1.0, "free_tf": 0.0, "fixed_tf": None}
@@ -373,87 +374,6 @@ def _switches(t, side_j, S_j):
                 break
         times.append(float(tz if tz is not None else 0.5 * (t[a] + t[b])))
     return times, seq
-
-
-def segment_of_nodes(t, segments) -> np.ndarray:
-    """The segment owning each node: ``segments[k] < t <= segments[k+1]`` (the first segment
-    also owns ``t == segments[0]``).
-
-    A node on an interior boundary is the **end** of the segment before it, never the start
-    of the one after it: that is where a collocated value sitting on a boundary comes from
-    (the flipped-LGR end node; for LGL the shared node, reported with the earlier segment's
-    control). Fitting the later segment's polynomial through it as well would mix the two
-    segments' controls, which for a bang-bang control switching on a boundary puts a
-    polynomial through both bounds (the double integrator's 2e-2 "re-integration error").
-    """
-    t = np.asarray(t, float)
-    seg = np.asarray(segments, float)
-    # a node computed as a + (tau + 1) (b - a) / 2 with tau = 1 may land an ulp past b
-    eps = 1e-9 * max(float(seg[-1] - seg[0]), 1e-300)
-    k = np.searchsorted(seg, t - eps, side="left") - 1
-    return np.clip(k, 0, len(seg) - 2)
-
-
-class _ControlInterp:
-    """Control as a function of time: piecewise linear through the nodes, or, with segment
-    boundaries, the Lagrange polynomial through each segment's nodes; clipped to bounds."""
-
-    def __init__(self, t, U, bounds, segments=None):
-        self.t, self.U = t, U
-        self.lo = np.array([b[0] for b in bounds])
-        self.hi = np.array([b[1] for b in bounds])
-        self.segments = None if segments is None else np.asarray(segments, float)
-        if self.segments is not None:
-            self.coef = []   # per segment: (centre, half-width, power-basis coefficients)
-            owner = segment_of_nodes(t, self.segments)
-            for k, (a, b) in enumerate(zip(self.segments[:-1], self.segments[1:])):
-                sel = np.flatnonzero(owner == k)
-                if len(sel) == 0:
-                    raise ValueError("certificate: a segment holds no node")
-                c, hw = 0.5 * (a + b), 0.5 * (b - a)
-                V = np.vander((t[sel] - c) / hw, len(sel))
-                self.coef.append((c, hw, np.linalg.solve(V, U[sel])))
-
-    def __call__(self, tt: float) -> np.ndarray:
-        """The control at one time (the reference path, kept for the comparison test)."""
-        if self.segments is None:
-            k = int(np.clip(np.searchsorted(self.t, tt) - 1, 0, len(self.t) - 2))
-            w = (tt - self.t[k]) / (self.t[k + 1] - self.t[k])
-            w = min(max(w, 0.0), 1.0)
-            u = (1 - w) * self.U[k] + w * self.U[k + 1]
-        else:
-            i = int(np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.coef) - 1))
-            c, hw, coef = self.coef[i]
-            z = (tt - c) / hw
-            u = coef[0].copy()
-            for row in coef[1:]:
-                u = u * z + row
-        return np.minimum(np.maximum(u, self.lo), self.hi)
-
-    def at(self, tt) -> np.ndarray:
-        """The control at the times ``tt`` (P,) -> (P, m), as ``__call__`` at each time
-        (the same segment choice and Horner evaluation, vectorised)."""
-        tt = np.asarray(tt, float)
-        if self.segments is None:
-            k = np.clip(np.searchsorted(self.t, tt) - 1, 0, len(self.t) - 2)
-            w = np.clip((tt - self.t[k]) / (self.t[k + 1] - self.t[k]), 0.0, 1.0)[:, None]
-            u = (1 - w) * self.U[k] + w * self.U[k + 1]
-        else:
-            if not hasattr(self, "_stack"):   # coefficients padded to one degree (leading 0)
-                D = max(len(cf) for _, _, cf in self.coef)
-                stack = np.zeros((len(self.coef), D, self.U.shape[1]))
-                for i, (_, _, cf) in enumerate(self.coef):
-                    stack[i, D - len(cf):] = cf
-                self._stack = stack
-                self._c = np.array([c for c, _, _ in self.coef])
-                self._hw = np.array([hw for _, hw, _ in self.coef])
-            i = np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.coef) - 1)
-            z = ((tt - self._c[i]) / self._hw[i])[:, None]
-            cf = self._stack[i]                                   # (P, D, m)
-            u = cf[:, 0].copy()
-            for r in range(1, cf.shape[1]):
-                u = u * z + cf[:, r]
-        return np.minimum(np.maximum(u, self.lo), self.hi)
 
 
 def _integrate(num: _Numeric, uf: _ControlInterp, ta: float, tb: float, xa, scale, tol: Tolerances,

@@ -203,6 +203,15 @@ class ExpectItem(Strict):
     compare: Literal["equal", "at_most", "at_least"] = "equal"
 
 
+class VerifySpec(Strict):
+    """Independent verification of the returned trajectory (ocdsl/verify, docs/verification.md)."""
+
+    tolerance: float = Field(1e-5, gt=0, lt=1, description="largest relative error of the "
+                             "re-integration, the constraints met by it and the recomputed objective")
+    mode: Literal["enforce", "warn"] = Field("enforce", description="`warn`: a failed verification "
+                                             "is reported but does not fail the run")
+
+
 class ReportSpec(Strict):
     formats: list[Literal["html", "pdf"]] = Field(default_factory=lambda: ["html", "pdf"])
     enabled: bool = False
@@ -225,6 +234,7 @@ class ProblemFile(Strict):
     solver: SolverSpec = Field(default_factory=SolverSpec)
     report: ReportSpec = Field(default_factory=ReportSpec)
     expect: dict[str, ExpectItem] = Field(default_factory=dict)
+    verify: VerifySpec = Field(default_factory=VerifySpec)
     study: dict[str, Any] | None = None
     controller: Any = None
     pareto: dict[str, Any] | None = None

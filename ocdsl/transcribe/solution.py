@@ -77,5 +77,7 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
             ph.name, time,
             states={s.name: X[:, j] for j, s in enumerate(ph.states)},
             controls={c.name: Us[:, j] for j, c in enumerate(ph.controls)},
-            extra={"collocated": collocated}))
+            extra={"collocated": collocated},
+            control_interpolation={"kind": "lagrange-segments",
+                                   "breakpoints": (t0 + (tf - t0) * lay.mesh.breakpoints).tolist()}))
     return out

@@ -1,0 +1,317 @@
+"""Independent verification of a returned trajectory, for every back end.
+
+:func:`verify_result` takes the compiled :class:`~ocdsl.symbolic.problem.Problem` and a
+:class:`~ocdsl.result.Result`, i.e. only what the run folder holds: the rows of each phase,
+the controls with the interpolation the run folder documents
+(:mod:`ocdsl.verify.interpolate`), the final times and the parameters. It never looks at
+the NLP. It checks, per phase and then over the problem:
+
+* the dynamics, re-integrated with a tight integrator (:mod:`ocdsl.verify.integrate`)
+  from the initial state (``dynamics from x(t0)``) and piece by piece from the solution's
+  own states (``dynamics per piece``), error per state relative to its range, at every row;
+* every box bound and path constraint on a dense grid between the rows, with the
+  re-integrated states and the interpolated controls; the exported controls against their
+  bounds;
+* every boundary condition, link and integral constraint evaluated with the re-integrated
+  states and integrals (integrals are integrated with the dynamics, not read off a
+  quadrature), and the objective recomputed from the re-integrated trajectory.
+
+Every value is relative and held to ``tolerance`` (the file's ``verify: {tolerance}``,
+default 1e-5). A problem with declared terminal tolerances (parametric ``tolerances:``)
+is held to those on the constraints they name. The verification never raises: an
+internal failure is reported as ``status: "error"``, which is not a pass.
+"""
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .checks import (evaluate, relative_violation, row, sensitivity_scale, state_scale,
+                     worst)
+from .functions import PhaseFunctions
+from .integrate import IntegrationFailure, reintegrate
+from .interpolate import bounds_of, breakpoints, control_interpolant, control_rows
+
+__all__ = ["VerifySettings", "verify_result", "attach_verification", "STATUSES", "CONVERGED"]
+
+STATUSES = ("verified", "failed", "error", "skipped", "not_applicable")
+CONVERGED = ("optimal", "acceptable", "feasible")   # results with a trajectory worth verifying
+
+
+@dataclass(frozen=True)
+class VerifySettings:
+    tolerance: float = 1e-5
+    mode: str = "enforce"          # or "warn": reported, does not fail the run
+    rtol: float = 1e-10            # the integrator's (well below tolerance)
+    per_interval: int = 3          # dense points between consecutive rows
+
+    @classmethod
+    def of(cls, spec) -> "VerifySettings":
+        """From a file's ``verify:`` block (``ocdsl.spec.schema.VerifySpec``) or None."""
+        if spec is None:
+            return cls()
+        return cls(tolerance=float(spec.tolerance), mode=str(spec.mode),
+                   rtol=min(1e-10, float(spec.tolerance) * 1e-5))
+
+
+def attach_verification(problem, result, settings: VerifySettings | None = None) -> None:
+    """Verify ``result`` and keep the verdict in ``result.verification`` and the
+    re-integrated trajectories in ``result.tables["reintegration_<phase>"]``."""
+    tables: dict[str, dict[str, np.ndarray]] = {}
+    result.verification = verify_result(problem, result, settings, tables=tables)
+    result.tables.update(tables)
+
+
+def verify_result(problem, result, settings: VerifySettings | None = None,
+                  tables: dict | None = None) -> dict[str, Any]:
+    """The verdict as a JSON-able dict (see the module doc); never raises."""
+    settings = settings or VerifySettings()
+    head = {"mode": settings.mode, "tolerance": settings.tolerance, "integrator_rtol": settings.rtol}
+    if problem is None or not result.phases:
+        return {**head, "status": "skipped", "checks": [], "summary": "no trajectory to verify"}
+    if result.status not in CONVERGED:
+        return {**head, "status": "skipped", "checks": [],
+                "summary": f"the solver ended '{result.status}': nothing to verify"}
+    start = time.perf_counter()
+    try:
+        checks, notes = _verify(problem, result, settings, tables if tables is not None else {})
+    except IntegrationFailure as e:
+        return {**head, "status": "error", "checks": [], "wall_time_s": time.perf_counter() - start,
+                "summary": f"could not verify: {e}"}
+    except Exception as e:  # noqa: BLE001 - a verdict, never a lost run
+        return {**head, "status": "error", "checks": [], "wall_time_s": time.perf_counter() - start,
+                "summary": f"could not verify (internal error {type(e).__name__}: {e})",
+                "traceback": traceback.format_exc(limit=8)}
+    failed = [c for c in checks if not c["passed"]]
+    status = "failed" if failed else "verified"
+    out = {**head, "status": status, "checks": checks, "notes": notes,
+           "wall_time_s": round(time.perf_counter() - start, 6)}
+    out["summary"] = _summary(failed, settings) if failed else \
+        f"verified: {len(checks)} checks within {settings.tolerance:g}"
+    return out
+
+
+# -------------------------------------------------------------------------------------
+HINTS = {
+    "dynamics per piece": "the trajectory does not satisfy the dynamics between its rows: refine "
+                          "the mesh (more segments or degree, or `mesh:`)",
+    "dynamics from x(t0)": "the control, flown from the initial state, does not reproduce the "
+                           "trajectory: refine the mesh, or the problem is too sensitive to fly open loop",
+    "state bounds": "a state leaves its bounds between the rows: refine the mesh",
+    "path constraints": "a path constraint is violated between the rows: refine the mesh",
+    "control bounds": "an exported control exceeds its bounds",
+    "boundary conditions": "a boundary condition or link is not met by the re-integrated "
+                           "trajectory: refine the mesh",
+    "integral constraints": "an integral of the trajectory differs from the transcription's "
+                            "quadrature of it: the solution exploits the quadrature (typical of LGR/LGL "
+                            "with a non-smooth integrand); use LG, write the integral as a state, or refine",
+    "objective": "the objective recomputed from the re-integrated trajectory differs from the "
+                 "solver's: refine the mesh",
+}
+
+
+def _summary(failed: list[dict], settings: VerifySettings) -> str:
+    c = failed[0]
+    where = f" ({c['where']})" if c.get("where") else ""
+    phase = f" in phase {c['phase']}" if c.get("phase") and c["phase"] != "main" else ""
+    more = f"; {len(failed) - 1} more failed" if len(failed) > 1 else ""
+    return (f"not verified: {c['name']}{phase} {c['value']:.3g} > {c['limit']:.3g}{where}{more}. "
+            f"{HINTS.get(c['name'], '')}")
+
+
+def _numbers(values: dict) -> dict[str, float]:
+    out = {}
+    for k, v in values.items():
+        try:
+            out[k] = float(v)
+        except (TypeError, ValueError):
+            continue
+    return out
+
+
+@dataclass
+class _PhaseRun:
+    t: np.ndarray
+    X: np.ndarray
+    scale_x: np.ndarray
+    scale_q: np.ndarray
+    glob_end: np.ndarray
+    local_end: np.ndarray
+    uf: Any
+
+
+def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[list[dict], list[str]]:
+    tol = settings.tolerance
+    params = _numbers(result.parameters)
+    checks: list[dict] = []
+    notes: list[str] = []
+    runs: dict[str, _PhaseRun] = {}
+    for ph in problem.phases:
+        traj = result.phase(ph.name) if len(result.phases) > 1 or ph.name == result.phases[0].name \
+            else result.phases[0]
+        runs[ph.name] = _verify_phase(ph, traj, params, settings, checks, tables)
+    _boundary_checks(problem, result, runs, params, tol, checks)
+    return checks, notes
+
+
+def _verify_phase(ph, traj, params, settings, checks, tables) -> _PhaseRun:
+    tol = settings.tolerance
+    names_x = [s.name for s in ph.states]
+    names_u = [c.name for c in ph.controls]
+    t_all = np.asarray(traj.time, float)
+    X_all = np.column_stack([np.asarray(traj.states[n], float) for n in names_x]) if names_x \
+        else np.zeros((len(t_all), 0))
+    keep = np.isfinite(t_all) & np.isfinite(X_all).all(axis=1)
+    t, X = t_all[keep], X_all[keep]
+    if len(t) < 2 or np.any(np.diff(t) <= 0):
+        raise ValueError(f"phase {ph.name!r}: the rows' times must increase strictly (at least two rows)")
+    ubounds = bounds_of(ph, names_u, "controls")
+    uf = control_interpolant(traj, names_u, ubounds)
+    funcs = PhaseFunctions(ph, params, ph.integrals)
+    breaks = breakpoints(traj)
+    breaks = np.unique(np.clip(np.concatenate([[t[0], t[-1]], breaks]), t[0], t[-1]))
+    scale_x = state_scale(X)
+    nq = len(funcs.integral_symbols)
+    if nq:
+        Q = np.abs(funcs.q(t, X, uf.at(t)))
+        scale_q = np.maximum(np.trapezoid(Q, t, axis=0), 1e-12)
+    else:
+        scale_q = np.zeros(0)
+    scale = np.concatenate([scale_x, scale_q])
+    glob, local = reintegrate(funcs, uf, t, X, breaks, settings.rtol, scale, settings.per_interval)
+    at_rows = np.searchsorted(glob.t, t)
+    pname = ph.name
+    if funcs.n:
+        eg = np.abs(glob.Y[at_rows, :funcs.n] - X) / scale_x
+        el = np.abs(local.Y[at_rows, :funcs.n] - X) / scale_x
+        v, where = worst(el, names_x, t)
+        checks.append(row("dynamics per piece", pname, v, tol, where,
+                          f"{len(breaks) - 1} pieces, {', '.join(sorted(local.methods))}"))
+        v, where = worst(eg, names_x, t)
+        checks.append(row("dynamics from x(t0)", pname, v, tol, where,
+                          f"{', '.join(sorted(glob.methods))}, {glob.steps} steps"))
+        table = {"t": glob.t}
+        for j, n in enumerate(names_x):
+            table[n] = glob.Y[:, j]
+            table[f"err_{n}"] = np.interp(glob.t, t, eg[:, j])
+        tables[f"reintegration_{pname}"] = table
+    # bounds and path constraints on the dense grid, with the piece-by-piece states
+    grid, Yl = local.t, local.Y
+    Ug = uf.at(grid)
+    sbounds = bounds_of(ph, names_x, "states")
+    if any(math.isfinite(b) for lo_hi in sbounds for b in lo_hi):
+        err = np.column_stack([relative_violation(Yl[:, j], lo, hi, scale_x[j])
+                               for j, (lo, hi) in enumerate(sbounds)])
+        v, where = worst(err, names_x, grid)
+        checks.append(row("state bounds", pname, v, tol, where, f"{len(grid)} points"))
+    if names_u and any(math.isfinite(b) for lo_hi in ubounds for b in lo_hi):
+        tr, Ur = control_rows(traj, names_u)
+        scale_u = np.array([hi - lo if math.isfinite(hi - lo) and hi > lo else
+                            max(float(np.ptp(Ur[:, j])) if len(Ur) else 0.0, 1e-12)
+                            for j, (lo, hi) in enumerate(ubounds)])
+        err = np.column_stack([relative_violation(Ur[:, j], lo, hi, scale_u[j])
+                               for j, (lo, hi) in enumerate(ubounds)])
+        v, where = worst(err, names_u, tr)
+        checks.append(row("control bounds", pname, v, tol, where, f"{len(tr)} exported rows"))
+    if funcs.g is not None:
+        G = funcs.g(grid, Yl[:, :funcs.n], Ug)
+        gscale = _path_scales(funcs, t, X, uf.at(t), scale_x, ubounds, G)
+        err = np.column_stack([relative_violation(G[:, k], c.lower, c.upper, gscale[k])
+                               for k, c in enumerate(funcs.path)])
+        v, where = worst(err, [c.text or str(c.expr) for c in funcs.path], grid)
+        checks.append(row("path constraints", pname, v, tol, where, f"{len(grid)} points"))
+    return _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf)
+
+
+def _path_scales(funcs, t, X, U, scale_x, ubounds, G) -> np.ndarray:
+    """Per path constraint: the larger of its range on the grid and its first-order size
+    ``sum_j |dg/dz_j| scale_j`` over the states and controls (finite differences at the rows)."""
+    g0 = funcs.g(t, X, U)
+    sens = np.zeros(g0.shape)
+    for j in range(X.shape[1]):
+        h = 1e-6 * scale_x[j]
+        Xp = X.copy()
+        Xp[:, j] += h
+        sens += np.abs(funcs.g(t, Xp, U) - g0) / h * scale_x[j]
+    for j, (lo, hi) in enumerate(ubounds):
+        su = hi - lo if math.isfinite(hi - lo) and hi > lo else max(float(np.ptp(U[:, j])), 1e-6)
+        h = 1e-6 * su
+        Up = U.copy()
+        Up[:, j] += h
+        sens += np.abs(funcs.g(t, X, Up) - g0) / h * su
+    return np.maximum.reduce([np.nanmax(sens, axis=0), np.ptp(G, axis=0), np.full(G.shape[1], 1e-12)])
+
+
+def _points(problem, result, runs, params, which: str):
+    """Symbol -> value of every boundary quantity, with the re-integrated ends (``which`` =
+    "global" or "local"), the phases' times, the integrals, free parameters and constants."""
+    point: dict[sp.Symbol, float] = {sp.Symbol(k, real=True): v for k, v in params.items()}
+    scales: dict[sp.Symbol, float] = {}
+    for ph in problem.phases:
+        run = runs[ph.name]
+        end = run.glob_end if which == "global" else run.local_end
+        n = len(ph.states)
+        point[ph.t0_symbol], point[ph.tf_symbol] = float(run.t[0]), float(run.t[-1])
+        duration = max(float(run.t[-1] - run.t[0]), 1e-12)
+        scales[ph.t0_symbol] = scales[ph.tf_symbol] = duration
+        for k, s in enumerate(ph.integrals):
+            point[s], scales[s] = float(end[n + k]), float(run.scale_q[k])
+    for s, bv in problem.boundary_values.items():
+        run = runs[bv.phase]
+        ph = problem.phase(bv.phase)
+        states = [x for x in ph.states]
+        if bv.var in states:
+            j = states.index(bv.var)
+            end = run.glob_end if which == "global" else run.local_end
+            point[s] = float(run.X[0, j] if bv.which == "t0" else end[j])
+            scales[s] = float(run.scale_x[j])
+        else:       # a control at a boundary: the interpolated control there
+            j = list(ph.controls).index(bv.var)
+            tt = run.t[0] if bv.which == "t0" else run.t[-1]
+            point[s] = float(run.uf.at(np.array([tt]))[0, j])
+            scales[s] = max(abs(point[s]), 1e-6)
+    for s in problem.free_parameters:
+        if s.name in params:
+            point[s] = params[s.name]
+            scales[s] = max(abs(params[s.name]), 1e-6)
+    return point, scales
+
+
+def _boundary_checks(problem, result, runs, params, tol, checks) -> None:
+    declared = _numbers(result.extra.get("terminal_tolerances", {}) or {})
+    integral_symbols = set(problem.integrals)
+    for which, label in (("global", "from x(t0)"), ("local", "per piece")):
+        point, scales = _points(problem, result, runs, params, which)
+        groups: dict[str, list] = {"boundary conditions": [], "integral constraints": []}
+        for c in problem.boundary:
+            v = evaluate(c.expr, point)
+            sc = sensitivity_scale(c.expr, point, scales)
+            viol = float(relative_violation(np.array([v]), c.lower, c.upper, 1.0)[0])
+            text = c.text or str(c.expr)
+            kind = "integral constraints" if c.expr.free_symbols & integral_symbols else "boundary conditions"
+            if text in declared:
+                groups[kind].append((viol / declared[text], f"{text} (declared tolerance {declared[text]:g})",
+                                     1.0))
+            else:
+                groups[kind].append((viol / sc, text, tol))
+        for kind, items in groups.items():
+            if not items:
+                continue
+            ratio = [v / lim for v, _, lim in items]
+            k = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, np.inf)))
+            value, where, limit = items[k]
+            checks.append(row(f"{kind}", None, value, limit, where, f"{len(items)} conditions, {label}",
+                              trajectory=which))
+        obj = problem.objective
+        if result.objective is not None and math.isfinite(float(result.objective)):
+            J = evaluate(obj.expr, point)
+            sc = max(sensitivity_scale(obj.expr, point, scales), 1e-12)
+            checks.append(row("objective", None, abs(J - float(result.objective)) / sc, tol,
+                              f"recomputed {J:.10g}, solver {float(result.objective):.10g}", label,
+                              trajectory=which))

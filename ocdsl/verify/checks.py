@@ -1,0 +1,73 @@
+"""The verification's checks of one solution, each a row ``{name, phase, value, limit,
+passed, where, detail}``; ``value`` is always relative (see :func:`state_scale` and
+:func:`sensitivity_scale`) and ``limit`` the tolerance it is held to."""
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import numpy as np
+import sympy as sp
+
+
+def state_scale(X: np.ndarray) -> np.ndarray:
+    """Per column: its range over the rows, at least 1e-3 of its largest magnitude (a nearly
+    constant quantity is measured against its size) and 1e-12."""
+    if X.size == 0:
+        return np.ones(X.shape[1])
+    rng = np.nanmax(X, axis=0) - np.nanmin(X, axis=0)
+    size = np.nanmax(np.abs(X), axis=0)
+    return np.maximum.reduce([rng, 1e-3 * size, np.full(X.shape[1], 1e-12)])
+
+
+def row(name: str, phase: str | None, value: float, limit: float, where: str = "", detail: str = "",
+        **more: Any) -> dict[str, Any]:
+    value = float(value)
+    passed = bool(math.isfinite(value) and value <= limit)
+    out = {"name": name, "phase": phase, "value": value, "limit": float(limit), "passed": passed,
+           "where": where, "detail": detail}
+    out.update(more)
+    return out
+
+
+def relative_violation(values: np.ndarray, lo: float, hi: float, scale: np.ndarray | float) -> np.ndarray:
+    """How far ``values`` lie outside [lo, hi], divided by ``scale``."""
+    v = np.asarray(values, float)
+    over = np.maximum(np.maximum(lo - v, v - hi), 0.0)
+    over = np.where(np.isfinite(v), over, np.inf)
+    return over / scale
+
+
+def sensitivity_scale(expr: sp.Expr, point: Mapping[sp.Symbol, float],
+                      scales: Mapping[sp.Symbol, float]) -> float:
+    """``sum_s |d expr/d s| scale_s`` at ``point``: how much ``expr`` moves when each quantity
+    it depends on moves by its own scale (a boundary condition ``x(tf) == 0`` is measured
+    against x's range, ``integral(L) == c`` against the integral's size)."""
+    total = 0.0
+    subs = {k: sp.Float(v) for k, v in point.items()}
+    for s in expr.free_symbols:
+        if s not in scales:
+            continue
+        try:
+            d = abs(float(sp.diff(expr, s).xreplace(subs)))
+        except (TypeError, ValueError):
+            d = math.inf
+        total += (d if math.isfinite(d) else 0.0) * scales[s]
+    return total if total > 0 else 1e-12
+
+
+def evaluate(expr: sp.Expr, point: Mapping[sp.Symbol, float]) -> float:
+    try:
+        v = complex(expr.xreplace({k: sp.Float(v) for k, v in point.items()}).evalf())
+    except (TypeError, ValueError):
+        return math.nan
+    return v.real if abs(v.imag) <= 1e-12 * max(1.0, abs(v.real)) else math.nan
+
+
+def worst(err: np.ndarray, names: list[str], t: np.ndarray) -> tuple[float, str]:
+    """Largest entry of ``err`` (P, k) and where: ``name at t = ...``."""
+    if err.size == 0:
+        return 0.0, ""
+    e = np.where(np.isfinite(err), err, np.inf)
+    i, j = np.unravel_index(int(np.argmax(e)), e.shape)
+    return float(e[i, j]), f"{names[j]} at t = {t[i]:.6g}"

@@ -1,0 +1,93 @@
+"""A phase's functions as NumPy callables, vectorised over points: the dynamics ``f``, its
+state Jacobian, the integrands of the phase's integrals and its path constraints, with the
+constants and the free parameters' solved values substituted."""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+import sympy as sp
+
+from ..symbolic.model import TIME
+from ..symbolic.problem import Phase
+
+
+class UnresolvedSymbols(ValueError):
+    """An expression still holds symbols that neither the phase nor the result gives a value."""
+
+
+def _lambdify(args, exprs: list[sp.Expr]):
+    fn = sp.lambdify(args, exprs, "numpy", cse=True)
+
+    def evaluate(t, X, U) -> np.ndarray:
+        """(P,), (P, n), (P, m) -> (P, len(exprs))"""
+        P = len(t)
+        out = fn(t, *X.T, *U.T)
+        arr = np.empty((P, len(exprs)))
+        for i, entry in enumerate(out):
+            arr[:, i] = np.broadcast_to(np.asarray(entry, float), (P,))
+        return arr
+
+    return evaluate
+
+
+class PhaseFunctions:
+    """``f``, ``df/dx``, integrands and path constraints of one phase at fixed parameters.
+
+    ``values`` maps parameter names (constants given at run time, free parameters' solved
+    values) to numbers; the phase's own constants are substituted first."""
+
+    def __init__(self, phase: Phase, values: Mapping[str, float], integrals: Mapping[sp.Symbol, sp.Expr]):
+        self.phase = phase
+        self.states, self.controls = list(phase.states), list(phase.controls)
+        self.n, self.m = len(self.states), len(self.controls)
+        subs = {k: sp.Float(v) for k, v in phase.constants.items()}
+        by_name = {str(k): k for k in phase.model.parameters}
+        for name, v in values.items():
+            key = by_name.get(name, sp.Symbol(name, real=True))
+            subs.setdefault(key, sp.Float(float(v)))
+        self._subs = subs
+        f = [e.xreplace(subs) for e in phase.rhs()]
+        self.integral_symbols = list(integrals)
+        q = [phase.substitute(e).xreplace(subs) for e in integrals.values()]
+        self.path = list(phase.path)
+        g = [phase.substitute(c.expr).xreplace(subs) for c in self.path]
+        allowed = set(self.states) | set(self.controls) | {TIME}
+        left = set().union(*(e.free_symbols for e in f + q + g)) - allowed if (f or q or g) else set()
+        if left:
+            raise UnresolvedSymbols(f"phase {phase.name!r}: no value for {sorted(s.name for s in left)}")
+        args = [TIME, *self.states, *self.controls]
+        self.f = _lambdify(args, f)
+        self.q = _lambdify(args, q) if q else None
+        self.g = _lambdify(args, g) if g else None
+        self.time_dependent = any(TIME in e.free_symbols for e in f + q)
+        # one point at a time (what an adaptive integrator asks for): plain floats through
+        # ``math``, ~50x cheaper per call than the array path at one point
+        self._point = sp.lambdify(args, f + q, "math", cse=True)
+
+    def augmented_point(self, t: float, y, u) -> np.ndarray:
+        """Right-hand side of ``[x; integrals]`` at one point (NaN where undefined)."""
+        try:
+            return np.array(self._point(t, *y[:self.n], *u), float)
+        except (ValueError, OverflowError, ZeroDivisionError):
+            return np.full(len(y), np.nan)
+
+    def fx(self, t, X, U, scale) -> np.ndarray:
+        """df/dx at the points (P, n, n), by forward differences of step 1e-7 x scale (for
+        the stiffness estimate only: cheaper than a symbolic Jacobian of a large model)."""
+        f0 = self.f(t, X, U)
+        J = np.empty((len(t), self.n, self.n))
+        for j in range(self.n):
+            h = 1e-7 * scale[j]
+            Xp = X.copy()
+            Xp[:, j] += h
+            J[:, :, j] = (self.f(t, Xp, U) - f0) / h
+        return J
+
+    def augmented(self, t, Y, U) -> np.ndarray:
+        """Right-hand side of ``[x; integrals]`` (P, n + n_q)."""
+        X = Y[:, :self.n]
+        parts = [self.f(t, X, U)]
+        if self.q is not None:
+            parts.append(self.q(t, X, U))
+        return np.concatenate(parts, axis=1)

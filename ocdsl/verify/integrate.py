@@ -1,0 +1,125 @@
+"""Re-integration of a phase's dynamics and integrals with the documented controls.
+
+Two passes over the phase's control pieces (between the interpolation's breakpoints, where
+the control is smooth, so the integrator never steps over a kink):
+
+* ``global``: once from the solution's initial state to the end (does the trajectory fly
+  from where it starts);
+* ``local``: each piece from the solution's own state at the piece's start (is each piece
+  consistent with the dynamics; an unstable system amplifies even a round-off difference
+  over the whole phase, a piece at a time it cannot hide behind that).
+
+The integrals of the phase (cost, constraints, links) are integrated as extra states, so
+they are the integrals of the trajectory, not the transcription's quadrature of them.
+
+The integrator is SciPy's DOP853 (explicit, 8th order) at ``rtol`` with ``atol = rtol x``
+each quantity's scale; a stiff piece (|eigenvalue of df/dx| x piece length above
+:data:`STIFF`) or a failed DOP853 run takes Radau IIA instead.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+STIFF = 200.0          # |lambda| * piece length above which a piece is integrated by Radau
+
+
+class IntegrationFailure(RuntimeError):
+    """Neither integrator got through a piece."""
+
+
+@dataclass
+class Pass:
+    """States and integrals of one pass at the dense grid ``t`` (and which piece each is in)."""
+
+    t: np.ndarray
+    Y: np.ndarray              # (P, n + n_q): states, then the integrals from the phase start
+    methods: set = field(default_factory=set)
+    steps: int = 0
+
+
+def dense_grid(rows: np.ndarray, breaks: np.ndarray, per_interval: int) -> np.ndarray:
+    """Rows, breakpoints and ``per_interval`` evenly spaced points inside every interval
+    between consecutive ones."""
+    base = np.unique(np.concatenate([rows, breaks]))
+    if per_interval <= 0 or len(base) < 2:
+        return base
+    frac = np.arange(1, per_interval + 1) / (per_interval + 1)
+    inner = (base[:-1, None] + np.diff(base)[:, None] * frac[None, :]).ravel()
+    return np.unique(np.concatenate([base, inner]))
+
+
+def _stiff(funcs, uf, t, X, scale) -> float:
+    """Largest |eigenvalue| of df/dx over the rows (0 without states)."""
+    if funcs.n == 0 or len(t) == 0:
+        return 0.0
+    J = funcs.fx(t, X, uf.at(t), scale)
+    if not np.all(np.isfinite(J)):
+        return np.inf
+    return float(np.max(np.abs(np.linalg.eigvals(J))))
+
+
+def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
+    u_of = uf.piece(0.5 * (a + b))
+
+    def fun(tt, y):
+        return funcs.augmented_point(tt, y, u_of(tt))
+
+    sol = solve_ivp(fun, (a, b), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol)
+    ok = sol.success and sol.y.shape[1] == len(t_eval) and np.all(np.isfinite(sol.y))
+    return sol, ok
+
+
+def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:
+    """Integrate piece by piece over ``breaks``; ``starts(k, y_end_previous)`` gives the start
+    of piece ``k`` (the previous piece's end for the global pass). Returns the pass at
+    ``grid`` (which contains every breakpoint)."""
+    Y = np.full((len(grid), funcs.n + len(funcs.integral_symbols)), np.nan)
+    out = Pass(grid, Y)
+    atol = rtol * scale
+    y_prev = None
+    for k, (a, b) in enumerate(zip(breaks[:-1], breaks[1:])):
+        sel = np.flatnonzero((grid >= a) & (grid <= b))
+        y0 = starts(k, y_prev)
+        first = "Radau" if rho * (b - a) > STIFF else "DOP853"
+        for method in dict.fromkeys((first, "Radau", "LSODA")):
+            sol, ok = _piece(funcs, uf, a, b, y0, grid[sel], rtol, atol, method)
+            if ok:
+                break
+        else:
+            raise IntegrationFailure(f"the integrators stop at t = {sol.t[-1]:.6g} in [{a:.6g}, {b:.6g}]: "
+                                     f"{sol.message}")
+        out.methods.add(method)
+        out.steps += len(sol.t) if sol.t is not None else 0
+        Y[sel] = sol.y.T
+        y_prev = sol.y[:, -1]
+    return out
+
+
+def reintegrate(funcs, uf, t_rows, X_rows, breaks, rtol, scale, per_interval: int = 3):
+    """The global and the local pass (:class:`Pass` each) over the dense grid. ``X_rows`` are
+    the solution's states at ``t_rows``; a piece whose start is no row starts, in the local
+    pass, from the local pass's own end of the piece before."""
+    grid = dense_grid(t_rows, breaks, per_interval)
+    rho = _stiff(funcs, uf, t_rows, X_rows, scale)
+    nq = len(funcs.integral_symbols)
+    row_at = {float(t): i for i, t in enumerate(t_rows)}
+
+    def from_x0(k, y_prev):
+        return np.concatenate([X_rows[0], np.zeros(nq)]) if k == 0 else y_prev
+
+    glob = integrate_pass(funcs, uf, grid, breaks, from_x0, rtol, scale, rho)
+    if len(breaks) <= 2:
+        return glob, glob
+
+    def from_rows(k, y_prev):
+        i = row_at.get(float(breaks[k]))
+        if k == 0:
+            return np.concatenate([X_rows[0], np.zeros(nq)])
+        q_prev = y_prev[funcs.n:]
+        return np.concatenate([X_rows[i], q_prev]) if i is not None else y_prev
+
+    local = integrate_pass(funcs, uf, grid, breaks, from_rows, rtol, scale, rho)
+    return glob, local

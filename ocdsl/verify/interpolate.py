@@ -1,0 +1,218 @@
+"""Controls between a trajectory's rows, as the run folder documents them.
+
+A :class:`~ocdsl.result.PhaseTrajectory` carries ``control_interpolation``:
+
+* ``{"kind": "lagrange-segments", "breakpoints": [t_0, ..., t_K]}``: inside each segment
+  the Lagrange polynomial through that segment's collocated rows (pseudospectral
+  collocation: the NLP's own control representation);
+* ``{"kind": "cubic"}``: a not-a-knot cubic spline through the rows (dense exports of
+  smooth controls: flat B-splines, series);
+* ``{"kind": "linear"}``, ``{"kind": "previous"}`` (zero-order hold).
+
+Every interpolated control is clipped to its box bounds: between rows the control takes
+the bound-respecting value, never an overshoot that the solution did not have.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+KINDS = ("lagrange-segments", "cubic", "linear", "previous")
+
+
+def segment_of_nodes(t, segments) -> np.ndarray:
+    """The segment owning each node: ``segments[k] < t <= segments[k+1]`` (the first segment
+    also owns ``t == segments[0]``).
+
+    A node on an interior boundary is the **end** of the segment before it, never the start
+    of the one after it: that is where a collocated value sitting on a boundary comes from
+    (the flipped-LGR end node; for LGL the shared node, reported with the earlier segment's
+    control). Fitting the later segment's polynomial through it as well would mix the two
+    segments' controls, which for a bang-bang control switching on a boundary puts a
+    polynomial through both bounds (the double integrator's 2e-2 "re-integration error").
+    """
+    t = np.asarray(t, float)
+    seg = np.asarray(segments, float)
+    # a node computed as a + (tau + 1) (b - a) / 2 with tau = 1 may land an ulp past b
+    eps = 1e-9 * max(float(seg[-1] - seg[0]), 1e-300)
+    k = np.searchsorted(seg, t - eps, side="left") - 1
+    return np.clip(k, 0, len(seg) - 2)
+
+
+class SegmentPolynomials:
+    """Control as a function of time: piecewise linear through the nodes, or, with segment
+    boundaries, the Lagrange polynomial through each segment's nodes; clipped to bounds."""
+
+    def __init__(self, t, U, bounds, segments=None):
+        self.t, self.U = t, U
+        self.lo = np.array([b[0] for b in bounds])
+        self.hi = np.array([b[1] for b in bounds])
+        self.segments = None if segments is None else np.asarray(segments, float)
+        if self.segments is not None:
+            self.coef = []   # per segment: (centre, half-width, power-basis coefficients)
+            owner = segment_of_nodes(t, self.segments)
+            for k, (a, b) in enumerate(zip(self.segments[:-1], self.segments[1:])):
+                sel = np.flatnonzero(owner == k)
+                if len(sel) == 0:
+                    raise ValueError("control interpolation: a segment holds no collocated row")
+                c, hw = 0.5 * (a + b), 0.5 * (b - a)
+                V = np.vander((t[sel] - c) / hw, len(sel))
+                self.coef.append((c, hw, np.linalg.solve(V, U[sel])))
+
+    def piece(self, tt: float):
+        """The control on the piece holding ``tt``, as a function of one time returning a
+        list (plain floats: what an integrator calls thousands of times)."""
+        if self.segments is None:
+            return lambda s: self(s).tolist()
+        i = int(np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.coef) - 1))
+        c, hw, coef = self.coef[i]
+        rows = coef.T.tolist()                       # per control: power-basis coefficients
+        bounds = list(zip(self.lo.tolist(), self.hi.tolist()))
+
+        def control(s: float) -> list[float]:
+            z = (s - c) / hw
+            out = []
+            for cf, (lo, hi) in zip(rows, bounds):
+                u = 0.0
+                for a in cf:
+                    u = u * z + a
+                out.append(min(max(u, lo), hi))
+            return out
+
+        return control
+
+    def __call__(self, tt: float) -> np.ndarray:
+        """The control at one time (the reference path, kept for the comparison test)."""
+        if self.segments is None:
+            k = int(np.clip(np.searchsorted(self.t, tt) - 1, 0, len(self.t) - 2))
+            w = (tt - self.t[k]) / (self.t[k + 1] - self.t[k])
+            w = min(max(w, 0.0), 1.0)
+            u = (1 - w) * self.U[k] + w * self.U[k + 1]
+        else:
+            i = int(np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.coef) - 1))
+            c, hw, coef = self.coef[i]
+            z = (tt - c) / hw
+            u = coef[0].copy()
+            for row in coef[1:]:
+                u = u * z + row
+        return np.minimum(np.maximum(u, self.lo), self.hi)
+
+    def at(self, tt) -> np.ndarray:
+        """The control at the times ``tt`` (P,) -> (P, m), as ``__call__`` at each time
+        (the same segment choice and Horner evaluation, vectorised)."""
+        tt = np.asarray(tt, float)
+        if self.segments is None:
+            k = np.clip(np.searchsorted(self.t, tt) - 1, 0, len(self.t) - 2)
+            w = np.clip((tt - self.t[k]) / (self.t[k + 1] - self.t[k]), 0.0, 1.0)[:, None]
+            u = (1 - w) * self.U[k] + w * self.U[k + 1]
+        else:
+            if not hasattr(self, "_stack"):   # coefficients padded to one degree (leading 0)
+                D = max(len(cf) for _, _, cf in self.coef)
+                stack = np.zeros((len(self.coef), D, self.U.shape[1]))
+                for i, (_, _, cf) in enumerate(self.coef):
+                    stack[i, D - len(cf):] = cf
+                self._stack = stack
+                self._c = np.array([c for c, _, _ in self.coef])
+                self._hw = np.array([hw for _, hw, _ in self.coef])
+            i = np.clip(np.searchsorted(self.segments, tt, side="right") - 1, 0, len(self.coef) - 1)
+            z = ((tt - self._c[i]) / self._hw[i])[:, None]
+            cf = self._stack[i]                                   # (P, D, m)
+            u = cf[:, 0].copy()
+            for r in range(1, cf.shape[1]):
+                u = u * z + cf[:, r]
+        return np.minimum(np.maximum(u, self.lo), self.hi)
+
+
+
+
+class _Tabulated:
+    """Cubic, linear or zero-order-hold controls through the rows, clipped to bounds."""
+
+    def __init__(self, t, U, bounds, kind: str):
+        self.t, self.U, self.kind = t, U, kind
+        self.lo = np.array([b[0] for b in bounds])
+        self.hi = np.array([b[1] for b in bounds])
+        self._spline = None
+        if kind == "cubic" and len(t) >= 4:
+            from scipy.interpolate import CubicSpline
+
+            self._spline = CubicSpline(t, U, axis=0)
+
+    def at(self, tt) -> np.ndarray:
+        tt = np.asarray(tt, float)
+        if self.U.shape[1] == 0:
+            return np.zeros((len(tt), 0))
+        if self._spline is not None:
+            u = self._spline(np.clip(tt, self.t[0], self.t[-1]))
+        elif self.kind == "previous":
+            k = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, len(self.t) - 1)
+            u = self.U[k]
+        else:
+            u = np.column_stack([np.interp(tt, self.t, self.U[:, j]) for j in range(self.U.shape[1])])
+        return np.minimum(np.maximum(u, self.lo), self.hi)
+
+    def __call__(self, tt: float) -> np.ndarray:
+        return self.at(np.array([tt]))[0]
+
+    def piece(self, tt: float):
+        """The control as a function of one time (any piece: these interpolants are
+        evaluated the same way everywhere)."""
+        return lambda s: self(s).tolist()
+
+
+def control_rows(traj, control_names) -> tuple[np.ndarray, np.ndarray]:
+    """Times and control values (N, m) of the rows that hold solution values: collocated
+    rows (``extra["collocated"]``) with every control finite."""
+    t = np.asarray(traj.time, float)
+    U = np.column_stack([np.asarray(traj.controls[c], float) for c in control_names]) \
+        if control_names else np.zeros((len(t), 0))
+    keep = np.isfinite(t) & np.isfinite(U).all(axis=1)
+    col = traj.extra.get("collocated")
+    if col is not None:
+        keep &= np.asarray(col, float) > 0
+    return t[keep], U[keep]
+
+
+def control_interpolant(traj, control_names, bounds):
+    """The control of ``traj`` as a function of time, ``.at(times) -> (P, m)``, by the
+    trajectory's declared ``control_interpolation``; ``bounds`` a (lo, hi) per control."""
+    spec = traj.control_interpolation or {"kind": "linear"}
+    kind = spec.get("kind", "linear")
+    if kind not in KINDS:
+        raise ValueError(f"unknown control interpolation {kind!r}; known: {', '.join(KINDS)}")
+    t, U = control_rows(traj, control_names)
+    if not control_names:
+        return _Tabulated(np.asarray(traj.time, float), np.zeros((len(traj.time), 0)), [], "linear")
+    if len(t) == 0:
+        raise ValueError("no row holds a value of every control")
+    if len(t) == 1:   # one collocated value (a one-node phase): a constant control
+        t, U = np.array([t[0], t[0] + 1.0]), np.vstack([U, U])
+    if kind == "lagrange-segments":
+        return SegmentPolynomials(t, U, bounds, spec["breakpoints"])
+    return _Tabulated(t, U, bounds, kind)
+
+
+def breakpoints(traj) -> np.ndarray:
+    """Where the interpolated control may be non-smooth: the segment boundaries of
+    ``lagrange-segments``, every row for ``linear``/``previous``, the ends for ``cubic``."""
+    t = np.asarray(traj.time, float)
+    t = t[np.isfinite(t)]
+    spec = traj.control_interpolation or {"kind": "linear"}
+    kind = spec.get("kind", "linear")
+    if kind == "lagrange-segments":
+        return np.asarray(spec["breakpoints"], float)
+    if kind == "cubic":
+        return np.array([t[0], t[-1]])
+    return np.unique(t)
+
+
+def bounds_of(phase, names, which: str) -> list[tuple[float, float]]:
+    """(lo, hi) of each named state or control of ``phase`` (infinite where unbounded)."""
+    table = phase.control_bounds if which == "controls" else phase.state_bounds
+    by_name = {s.name: b for s, b in table.items()}
+    out = []
+    for n in names:
+        lo, hi = by_name.get(n, (-math.inf, math.inf))
+        out.append((float(lo), float(hi)))
+    return out
