@@ -7,8 +7,7 @@ import sympy as sp
 from scipy.optimize import brentq
 
 from ocdsl.result import PhaseTrajectory
-from ocdsl.solve.certificate import (Tolerances, certificate, hamiltonian_arrays,
-                                     segment_of_nodes, symbolic_conditions)
+from ocdsl.solve.certificate import Tolerances, certificate, hamiltonian_arrays, symbolic_conditions
 from ocdsl.symbolic.model import TIME, Model, sym, syms
 
 
@@ -53,7 +52,7 @@ def test_symbolic_hamiltonian():
 
 def test_min_time_double_integrator_passes(di_nodes):
     t, edges = di_nodes
-    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf", segments=edges)
+    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf")
     json.dumps(cert)
     assert cert["passed"], cert["failed"]
     h = cert["hamiltonian"]
@@ -64,18 +63,7 @@ def test_min_time_double_integrator_passes(di_nodes):
     assert bb["bang_bang"] and bb["fraction_at_bound"] == 1.0
     assert bb["switch_count"] == 1 and bb["sequence"] == ["+", "-"]
     assert bb["switch_times"][0] == pytest.approx(1.0, abs=1e-12)
-    re = cert["reintegration"]
-    assert re["method"] == "Radau"
-    assert re["local_max_error"] < 1e-7 and re["global_max_error"] < 1e-7
     assert cert["stationarity"]["interior_nodes"] == 0
-
-
-def test_linear_control_interpolation_still_small(di_nodes):
-    t, _ = di_nodes
-    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf")
-    assert cert["reintegration"]["interpolation"] == "linear"
-    assert 0 < cert["reintegration"]["local_max_error"] < 1e-3
-    assert cert["passed"]
 
 
 def radau_end_nodes(t0, tf, segments, degree):
@@ -88,67 +76,17 @@ def radau_end_nodes(t0, tf, segments, degree):
 
 
 def test_segment_of_nodes_boundary_node_ends_its_segment():
+    from ocdsl.verify.interpolate import segment_of_nodes
+
     edges = np.array([0.0, 1.0, 2.0])
     assert segment_of_nodes([0.0, 0.5, 1.0, 1.2, 2.0], edges).tolist() == [0, 0, 0, 1, 1]
     # a boundary node an ulp off its boundary (floating-point node placement) still ends it
     assert segment_of_nodes([1.0 + 2e-16, 1.0 - 2e-16, 1.0 + 1e-6], edges).tolist() == [0, 0, 1]
 
 
-@pytest.mark.parametrize("degree", [2, 5])
-def test_switch_on_a_boundary_with_end_collocated_nodes(degree):
-    """LGR nodes put a node on every interior boundary: the one at t = 1 (u = +1) ends the
-    first half and must not enter the polynomial of the segment after it (u = -1). With
-    the control owned per segment the re-integration is exact (piecewise-constant u)."""
-    t, edges = radau_end_nodes(0, 2, 10, degree)
-    on = np.isclose(t, 1.0)
-    assert on.sum() == 1                        # the switch sits on a node and a boundary
-    traj = di_solution(t)
-    traj.controls["u"][on] = 1.0                # that node ends the first half: u = +1 there
-    cert = certificate(DI, {}, traj, DI_BOUNDS, 0, "min_tf", segments=edges)
-    assert cert["passed"], cert["failed"]
-    assert cert["reintegration"]["local_max_error"] < 1e-7
-    assert cert["reintegration"]["global_max_error"] < 1e-7
-    # the mixed-up polynomial would have given about 1e-2 (the bug): make sure it is the
-    # segment ownership that fixed it, not a different interpolation
-    assert cert["reintegration"]["interpolation"] == "segment polynomial"
-
-
-def test_switch_inside_a_segment_is_judged_by_the_switch_resolution():
-    """7 x 3 LG on [0, 2]: the switch at t = 1 is inside segment 3, where the nodes carry
-    +1, -1, -1 and no interpolation knows the switch time. The exact states still miss
-    the re-integrated ones there by far more than 1e-2; smooth arcs stay exact."""
-    t, edges = lg_nodes(0, 2, 7, 3)
-    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf", segments=edges)
-    re = cert["reintegration"]
-    assert re["smooth_local_max_error"] < 1e-9
-    assert re["local_max_error"] > 0.1 > Tolerances().reintegration
-    # intervals of segments 2 (its last node to segment 3's first) through 4's first node
-    assert re["switch_intervals"] == 4
-    assert re["switch_local_max_error"] == re["local_max_error"]
-    assert 0 < re["switch_max_excess"] <= re["max_excess"] <= 1
-    assert cert["passed"], cert["failed"]
-    # the error is O(h), as the resolution: a 3x finer mesh gives about a third
-    t3, edges3 = lg_nodes(0, 2, 21, 3)
-    fine = certificate(DI, {}, di_solution(t3), DI_BOUNDS, 0, "min_tf", segments=edges3)["reintegration"]
-    assert fine["local_max_error"] < 0.5 * re["local_max_error"]
-
-
-@pytest.mark.parametrize("state,delta", [("v", 0.3), ("x", 0.03)])
-def test_wrong_state_in_a_switching_interval_still_fails(state, delta):
-    """The switch allowance is the state change a switch can make, not a blanket pass:
-    x is not driven by u directly (its allowance is second order in dt)."""
-    t, edges = lg_nodes(0, 2, 7, 3)
-    traj = di_solution(t)
-    k = int(np.flatnonzero(np.isclose(t, 1.0))[0])    # the middle node of the switch segment
-    traj.states[state][k] += delta
-    cert = certificate(DI, {}, traj, DI_BOUNDS, 0, "min_tf", segments=edges)
-    assert "reintegration" in cert["failed"]        # (H = lx v + lv u also sees a wrong v)
-    assert not cert["reintegration"]["passed"] and cert["reintegration"]["max_excess"] > 1
-
-
 def test_sign_flipped_costates_fail(di_nodes):
     t, edges = di_nodes
-    cert = certificate(DI, {}, di_solution(t, lam_scale=-1), DI_BOUNDS, 0, "min_tf", segments=edges)
+    cert = certificate(DI, {}, di_solution(t, lam_scale=-1), DI_BOUNDS, 0, "min_tf")
     assert not cert["passed"]
     assert cert["hamiltonian"]["mean"] == pytest.approx(1.0)
     assert cert["switching"]["agreement"] == 0.0
@@ -157,7 +95,7 @@ def test_sign_flipped_costates_fail(di_nodes):
 
 def test_shifted_switching_function_fails(di_nodes):
     t, edges = di_nodes
-    cert = certificate(DI, {}, di_solution(t, lam_shift=0.3), DI_BOUNDS, 0, "min_tf", segments=edges)
+    cert = certificate(DI, {}, di_solution(t, lam_shift=0.3), DI_BOUNDS, 0, "min_tf")
     assert "hamiltonian" in cert["failed"] and "switching" in cert["failed"]
     assert cert["hamiltonian"]["max_deviation"] == pytest.approx(0.3, abs=1e-9)
     # nodes in (1, 1.3) are at -1 with lv < 0: disagree, unless lv is within the
@@ -170,32 +108,17 @@ def test_shifted_switching_function_fails(di_nodes):
 
 def test_scaled_costates_fail_only_the_value(di_nodes):
     t, edges = di_nodes
-    cert = certificate(DI, {}, di_solution(t, lam_scale=2), DI_BOUNDS, 0, "min_tf", segments=edges)
+    cert = certificate(DI, {}, di_solution(t, lam_scale=2), DI_BOUNDS, 0, "min_tf")
     assert cert["failed"] == ["hamiltonian"]
     assert cert["hamiltonian"]["mean"] == pytest.approx(-2.0)
     # the same arrays with free tf and another objective expect H = 0
-    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "free_tf", segments=edges)
+    cert = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "free_tf")
     assert cert["failed"] == ["hamiltonian"]
-
-
-def test_wrong_states_fail_reintegration(di_nodes):
-    t, edges = di_nodes
-    traj = di_solution(t)
-    traj.states["x"][25] += 0.03      # one corrupted node (H does not depend on x)
-    cert = certificate(DI, {}, traj, DI_BOUNDS, 0, "min_tf", segments=edges)
-    assert cert["failed"] == ["reintegration"]
-    assert cert["reintegration"]["worst_state"] == "x"
-    assert cert["reintegration"]["local_max_error"] == pytest.approx(0.03 / np.ptp(traj.states["x"]), rel=1e-3)
-    # a smooth drift passes the node-to-node check but shows in the global error
-    traj = di_solution(t)
-    traj.states["x"] = traj.states["x"] + 0.02 * np.sin(3 * t)
-    cert = certificate(DI, {}, traj, DI_BOUNDS, 0, "min_tf", segments=edges)
-    assert cert["reintegration"]["global_max_error"] > 0.015
 
 
 def test_non_collocated_rows_are_ignored(di_nodes):
     t, edges = di_nodes
-    ref = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf", segments=edges)
+    ref = certificate(DI, {}, di_solution(t), DI_BOUNDS, 0, "min_tf")
     traj = di_solution(t)
     # add the segment ends as rows with states but no control/costate (as a back end may)
     te = np.concatenate([t, edges])
@@ -207,7 +130,7 @@ def test_non_collocated_rows_are_ignored(di_nodes):
                                        np.full(len(edges), np.nan)])[order]
     full.time = te[order]
     full.states = {k: v[order] for k, v in full.states.items()}
-    cert = certificate(DI, {}, full, DI_BOUNDS, 0, "min_tf", segments=edges)
+    cert = certificate(DI, {}, full, DI_BOUNDS, 0, "min_tf")
     assert cert["nodes"] == len(t)
     assert cert["passed"] and cert["hamiltonian"]["mean"] == ref["hamiltonian"]["mean"]
     H = hamiltonian_arrays(DI, {}, full)["hamiltonian"]
@@ -238,7 +161,7 @@ def lq_solution(t, lam_scale=1.0):
 def test_lq_fixed_tf_passes():
     t, edges = lg_nodes(0, T, 10, 4)
     L = (x**2 + u**2) / 2
-    cert = certificate(LQ, {"a": 1.0}, lq_solution(t), {}, L, "fixed_tf", segments=edges)
+    cert = certificate(LQ, {"a": 1.0}, lq_solution(t), {}, L, "fixed_tf")
     assert cert["passed"], cert["failed"]
     h = cert["hamiltonian"]
     assert h["expected"] is None
@@ -248,22 +171,14 @@ def test_lq_fixed_tf_passes():
     assert cert["stationarity"]["max_relative"] < 1e-12
     assert cert["switching"]["agreement"] is None
     assert cert["bang_bang"]["per_control"] == {}
-    assert cert["reintegration"]["local_max_error"] < 1e-8
 
 
 @pytest.mark.parametrize("scale", [1.1, -1.0])
 def test_lq_wrong_costates_fail(scale):
     t, edges = lg_nodes(0, T, 10, 4)
     L = (x**2 + u**2) / 2
-    cert = certificate(LQ, {"a": 1.0}, lq_solution(t, scale), {}, L, "fixed_tf", segments=edges)
+    cert = certificate(LQ, {"a": 1.0}, lq_solution(t, scale), {}, L, "fixed_tf")
     assert "stationarity" in cert["failed"] and "hamiltonian" in cert["failed"]
-    assert "reintegration" not in cert["failed"]
-
-
-def test_lq_wrong_parameter_fails():
-    t, edges = lg_nodes(0, T, 10, 4)
-    cert = certificate(LQ, {"a": 1.3}, lq_solution(t), {}, (x**2 + u**2) / 2, "fixed_tf", segments=edges)
-    assert "reintegration" in cert["failed"]
 
 
 # ---- free final time, running cost: x' = u, J = int (1 + u^2/2), x: 0 -> 1 ----------------
@@ -273,7 +188,7 @@ def test_free_tf_with_running_cost():
     L = 1 + u**2 / 2
     traj = {"time": t, "states": {"x": np.sqrt(2) * t}, "controls": {"u": np.full_like(t, np.sqrt(2))},
             "costates": {"x": np.full_like(t, -np.sqrt(2))}}
-    cert = certificate(LQ, {"a": 1.0}, traj, {"u": (None, 10)}, L, "free_tf", segments=edges)
+    cert = certificate(LQ, {"a": 1.0}, traj, {"u": (None, 10)}, L, "free_tf")
     assert cert["passed"], cert["failed"]
     assert abs(cert["hamiltonian"]["mean"]) < 1e-12
     assert certificate(LQ, {"a": 1.0}, traj, {}, L, "min_tf")["failed"] == ["hamiltonian"]
@@ -317,7 +232,7 @@ def test_time_dependent_hamiltonian():
     X = 1 - (T2**2 * t - t**3 / 3) / 2
     traj = {"time": t, "states": {"x": X}, "controls": {"u": -lam}, "costates": {"x": lam}}
     L = u**2 / 2 + TIME * x
-    cert = certificate(LQ, {"a": 1.0}, traj, {}, L, "fixed_tf", segments=edges)
+    cert = certificate(LQ, {"a": 1.0}, traj, {}, L, "fixed_tf")
     h = cert["hamiltonian"]
     assert h["time_dependent"]
     # H itself varies by O(1) but H + int_t^T dH/dt is constant
@@ -342,28 +257,3 @@ def test_bad_inputs():
     tight = Tolerances(hamiltonian_max=0.0, hamiltonian_mean=0.0)
     assert certificate(DI, {}, di_solution(t, lam_scale=1.0 + 1e-6), DI_BOUNDS, 0, "min_tf",
                        tolerances=tight)["failed"] == ["hamiltonian"]
-
-
-@pytest.mark.parametrize("segmented", [True, False])
-def test_batched_reintegration_matches_the_per_piece_solve_ivp(segmented):
-    """The batched Radau (local pass) gives SciPy's per-piece solve_ivp numbers."""
-    from ocdsl.solve.certificate import (_ControlInterp, _Numeric, _reintegrate_batched,
-                                         _reintegrate_pieces)
-    t, edges = lg_nodes(0, 2, 7, 3)              # LG: boundaries between nodes (2-piece chains)
-    traj = di_solution(t)
-    X = np.column_stack([traj.states["x"], traj.states["v"]]) + 1e-4 * np.sin(7 * t)[:, None]
-    U = np.column_stack([np.sin(2 * t)])         # smooth control inside the bounds
-    seg = edges if segmented else None
-    uf = _ControlInterp(t, U, [(-1.0, 1.0)], seg)
-    tt = np.linspace(0, 2, 301)
-    assert np.array_equal(uf.at(tt), np.array([uf(s) for s in tt]))
-    breaks = np.array(sorted(set(t.tolist()) | ({float(s) for s in edges if t[0] < s < t[-1]}
-                                                 if segmented else set())))
-    scale = np.ptp(X, axis=0)
-    tol = Tolerances()
-    num = _Numeric(DI, {}, 0)
-    lo, go = _reintegrate_pieces(num, uf, t, X, breaks, scale, tol)
-    ln, gn = _reintegrate_batched(num, uf, t, X, breaks, scale, tol)
-    assert lo.max() > 1e-6                       # something to compare
-    assert np.allclose(ln, lo, rtol=0, atol=10 * tol.rtol)
-    assert np.allclose(gn, go, rtol=0, atol=10 * tol.rtol)

@@ -30,9 +30,15 @@ def certify_result(problem: Problem, result: Result) -> dict:
                 return {"passed": False, "skipped": "objective is nonlinear in an integral"}
             L += coef * integrand
         params = {str(k): float(v) for k, v in ph.constants.items()}
-        params.update({k: v for k, v in result.parameters.items() if k not in params})
+        params.update({s.name: float(result.parameters[s.name]) for s in problem.free_parameters
+                       if s.name in result.parameters})
         kw = {}
-        if ph.tf is None:
+        linked = any(ph.tf_symbol in c.expr.free_symbols for c in problem.boundary)
+        if ph.tf is None and linked:
+            # a final time tied to other quantities (a junction with the next phase): H is
+            # continuous across the junction, so its value is not -dPhi/dtf of this phase
+            kind = "fixed_tf"
+        elif ph.tf is None:
             dphi = sp.diff(J.subs({s: 0 for s in ph.integrals}), ph.tf_symbol)
             if dphi.free_symbols:
                 kind = "fixed_tf"     # expected value depends on the solution; check constancy only
@@ -47,17 +53,12 @@ def certify_result(problem: Problem, result: Result) -> dict:
                   "costates": {k: v * nan for k, v in traj.costates.items()}}
         bounds = {c.name: tuple(None if not math.isfinite(b) else b for b in ph.control_bounds.get(c, (-math.inf, math.inf)))
                   for c in ph.controls}
-        mesh = result.method.get("meshes", {}).get(ph.name, {})
-        segments = None
-        if mesh:
-            t0, tf = float(traj.time[0]), float(traj.time[-1])
-            segments = [t0 + (tf - t0) * b for b in mesh["breakpoints"]]
         # path constraints with their multipliers (costates.path_multipliers): H_aug
         mus = {f"mu_{k}": traj.extra.get(f"mu_{k}") for k in range(len(ph.path))}
         if ph.path and all(v is not None for v in mus.values()):
             kw["path_constraints"] = [(c.expr, c.lower, c.upper, c.text) for c in ph.path]
             kw["multipliers"] = {k: np.asarray(v, float) * nan for k, v in mus.items()}
-        per_phase[ph.name] = certificate(ph.model, params, arrays, bounds, L, kind, segments=segments, **kw)
+        per_phase[ph.name] = certificate(ph.model, params, arrays, bounds, L, kind, **kw)
     if len(per_phase) == 1:
         return next(iter(per_phase.values()))
     return {"passed": all(c.get("passed") for c in per_phase.values()), "phases": per_phase}

@@ -1,0 +1,125 @@
+"""The independent verification (ocdsl/verify) on analytic trajectories and on solves it
+must catch: every number it reports could fail."""
+import numpy as np
+import pytest
+import yaml
+
+from ocdsl.api import compile_file
+from ocdsl.result import PhaseTrajectory, Result
+from ocdsl.verify import VerifySettings, verify_result
+
+DI = {"name": "min-time double integrator",
+      "model": {"states": ["x", "v"], "controls": ["u"], "dynamics": {"x": "v", "v": "u"}},
+      "problem": {"time": {"t0": 0, "tf": "free"},
+                  "constraints": ["-1 <= u <= 1", "x(t0) == -1", "v(t0) == 0", "x(tf) == 0",
+                                  "v(tf) == 0", "0.1 <= tf <= 10"],
+                  "objective": "minimize tf"}}
+
+
+@pytest.fixture(scope="module")
+def di_problem(tmp_path_factory):
+    p = tmp_path_factory.mktemp("di") / "di.yaml"
+    p.write_text(yaml.safe_dump(DI))
+    return compile_file(p).problem
+
+
+def lgr_rows(t0, tf, segments, degree):
+    """Flipped-LGR state rows: the phase start (not collocated) and each segment's
+    collocation points, which end at the segment's end."""
+    tau = np.sort(-(np.polynomial.legendre.Legendre.basis(degree - 1)
+                    + np.polynomial.legendre.Legendre.basis(degree)).roots().real)
+    edges = np.linspace(t0, tf, segments + 1)
+    t = np.concatenate([[t0]] + [(a + b) / 2 + (b - a) / 2 * tau for a, b in zip(edges[:-1], edges[1:])])
+    return t, edges
+
+
+def di_result(segments=10, degree=4, corrupt=None, drift=0.0, objective=2.0, u_switch=1.0):
+    t, edges = lgr_rows(0.0, 2.0, segments, degree)
+    first = t <= u_switch + 1e-12
+    X = np.where(first, -1 + t**2 / 2, -(2 - t) ** 2 / 2) + drift * np.sin(3 * t)
+    V = np.where(first, t, 2 - t)
+    U = np.where(first, 1.0, -1.0)
+    col = np.ones_like(t)
+    col[0] = 0.0
+    U[0] = np.nan
+    if corrupt is not None:
+        X[corrupt] += 0.03
+    ph = PhaseTrajectory("main", t, {"x": X, "v": V}, {"u": U}, extra={"collocated": col},
+                         control_interpolation={"kind": "lagrange-segments", "breakpoints": edges.tolist()})
+    return Result("di", "optimal", objective=objective, tf=2.0, phases=[ph])
+
+
+def _check(v, name, trajectory=None):
+    return next(c for c in v["checks"] if c["name"] == name
+                and (trajectory is None or c.get("trajectory") == trajectory))
+
+
+def test_exact_solution_is_verified(di_problem):
+    v = verify_result(di_problem, di_result())
+    assert v["status"] == "verified", v["summary"]
+    assert _check(v, "dynamics per piece")["value"] < 1e-8
+    assert _check(v, "dynamics from x(t0)")["value"] < 1e-8
+    assert _check(v, "boundary conditions", "global")["value"] < 1e-8
+
+
+def test_a_corrupted_row_fails_the_dynamics_and_says_where(di_problem):
+    v = verify_result(di_problem, di_result(corrupt=17))
+    assert v["status"] == "failed"
+    c = _check(v, "dynamics per piece")
+    assert not c["passed"] and c["where"].startswith("x at t = ")
+    assert c["value"] == pytest.approx(0.03 / 1.0, rel=0.05)      # x's range is 1
+    assert "refine the mesh" in v["summary"]
+
+
+def test_a_switch_inside_a_segment_is_not_verified_and_shrinks_with_the_mesh(di_problem):
+    """7 segments on [0, 2]: t = 1 lies inside segment 4, where no interpolation of the row
+    values knows the switch time: the trajectory is right only to the mesh's resolution."""
+    coarse = _check(verify_result(di_problem, di_result(segments=7)), "dynamics per piece")
+    fine = _check(verify_result(di_problem, di_result(segments=21)), "dynamics per piece")
+    assert not coarse["passed"] and not fine["passed"]
+    assert fine["value"] < 0.6 * coarse["value"]
+
+
+def test_a_smooth_drift_fails_from_the_initial_state(di_problem):
+    v = verify_result(di_problem, di_result(drift=0.02))
+    assert not _check(v, "dynamics from x(t0)")["passed"]
+
+
+def test_a_misreported_objective_fails(di_problem):
+    v = verify_result(di_problem, di_result(objective=1.9))
+    c = _check(v, "objective", "global")
+    assert not c["passed"] and c["value"] == pytest.approx(0.05, rel=1e-6)   # |2 - 1.9| / tf
+
+
+def test_the_file_tolerance_decides(di_problem):
+    res = di_result(segments=7)
+    loose = verify_result(di_problem, res, VerifySettings(tolerance=0.5))
+    assert loose["status"] == "verified" and loose["tolerance"] == 0.5
+
+
+def test_an_internal_failure_is_an_error_not_a_pass(di_problem):
+    res = di_result()
+    res.phases[0].control_interpolation = {"kind": "quintic-magic"}
+    v = verify_result(di_problem, res)
+    assert v["status"] == "error" and "quintic-magic" in v["summary"]
+    res = di_result()
+    res.status = "infeasible"
+    assert verify_result(di_problem, res)["status"] == "skipped"
+
+
+@pytest.mark.ipopt
+def test_lgr_gaming_the_length_of_a_hanging_chain_is_caught(tmp_path):
+    """The chain's length as a state s' = sqrt(1 + u^2), s(1) = 4, with LGR: Ipopt says
+    optimal at an objective *below* the exact catenary (5.068480), the nodes' control
+    zigzags and the re-integrated length overshoots: not verified, exit code 1."""
+    from ocdsl.api import run_file
+
+    res = run_file("tests/data/hanging_chain_length_state_lgr.yaml", tmp_path / "run")
+    assert res.status == "optimal" and res.objective < 5.068480
+    assert res.verification["status"] == "failed" and not res.ok
+    again = Result.read(tmp_path / "run")
+    assert again.verification["status"] == "failed" and not again.ok
+    c = next(c for c in res.verification["checks"] if c["name"] == "boundary conditions"
+             and c["trajectory"] == "global")
+    assert not c["passed"] and c["where"] == "s(tf) == 4"
+    assert "reintegration_main" in again.tables
