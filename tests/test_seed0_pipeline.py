@@ -30,12 +30,14 @@ def test_main_scenario_and_certificate(main_run):
     assert cert["switching"]["agreement"] >= 0.99
     for u, info in cert["bang_bang"]["per_control"].items():
         assert info["fraction_at_bound"] >= 0.95, u
-    # re-integration: smooth arcs within 1e-2, switching intervals within the switch-time
-    # resolution of the 20 x 3 nodes (about 1.3e-2 measured against a resolution ~4e-2)
-    re = cert["reintegration"]
-    assert re["smooth_local_max_error"] <= 1e-2
-    assert re["switch_intervals"] > 0 and re["max_excess"] <= 1
     assert cert["passed"], cert["failed"]
+    # the paper's 20 x 3 nodes do not resolve the bang-bang switches: re-integrated, the
+    # trajectory misses by about 1e-2 of a state's range at the switches, so ocdsl does not
+    # call it verified (the paper's t_f is still reproduced, and the expect check passes)
+    v = res.verification
+    assert v["status"] == "failed" and not res.ok
+    dyn = next(c for c in v["checks"] if c["name"] == "dynamics per piece")
+    assert 1e-3 < dyn["value"] < 5e-2
 
 
 def test_fine_mesh_warm_start(main_run):
@@ -48,9 +50,13 @@ def test_fine_mesh_warm_start(main_run):
     assert 25.868 <= res.tf <= 25.873
     cert = res.certificate
     assert abs(cert["hamiltonian"]["mean"] + 1) <= 2e-3
-    # the switch-time resolution halves with h, and so does the re-integration error
-    assert cert["reintegration"]["local_max_error"] < main_run[0].certificate["reintegration"]["local_max_error"]
     assert cert["passed"], cert["failed"]
+
+    # the switch-time resolution halves with h, and so does the re-integration error
+    def dynamics(r):
+        return next(c["value"] for c in r.verification["checks"] if c["name"] == "dynamics per piece")
+
+    assert dynamics(res) < 0.75 * dynamics(main_run[0])
 
 
 def test_exact_euler_form():

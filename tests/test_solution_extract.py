@@ -67,3 +67,29 @@ def test_built_variables_start_at_the_guess(configs, scheme):
     assert len(set(ug.ravel().tolist())) == ug.size > 1
     assert all(b.X[n, j].value == xg[n, j] for n in range(lay.n_state_nodes) for j in range(len(ph.states)))
     assert all(b.U[i, j].value == ug[i, j] for i in range(lay.n_colloc) for j in range(len(ph.controls)))
+
+
+def test_angles_that_enter_only_through_sin_and_cos_are_exported_on_one_branch(tmp_path):
+    """A heading that the dynamics see only through sin/cos may take any branch at each
+    node; exported, it is one continuous branch starting in (-pi, pi]."""
+    import yaml
+
+    from ocdsl.api import compile_file
+    from ocdsl.transcribe.solution import periodic_controls, unwrap_angles
+
+    spec = {"name": "heading", "model": {"states": ["x", "y"], "controls": ["beta", "w"],
+                                        "dynamics": {"x": "cos(beta) + w", "y": "sin(beta)"}},
+            "problem": {"time": {"t0": 0, "tf": 1}, "constraints": ["x(t0) == 0", "y(t0) == 0", "0 <= w <= 1"],
+                        "objective": "maximize y(tf)"}}
+    p = tmp_path / "h.yaml"
+    p.write_text(yaml.safe_dump(spec))
+    ph = compile_file(p).problem.phases[0]
+    assert periodic_controls(ph) == [0]          # beta; w enters linearly (and is bounded)
+    U = np.column_stack([np.array([np.nan, 0.1, 0.2 + 2 * np.pi, 0.3 - 4 * np.pi, 0.4]) + 6 * np.pi,
+                         np.zeros(5)])
+    out = unwrap_angles(U, [0], [(-np.inf, np.inf), (0, 1)])
+    assert np.isnan(out[0, 0])
+    assert np.allclose(out[1:, 0], [0.1, 0.2, 0.3, 0.4])
+    # bounds that the moved values would leave: left as they are
+    kept = unwrap_angles(U, [0], [(15.0, 40.0), (0, 1)])
+    assert np.array_equal(kept, U, equal_nan=True)

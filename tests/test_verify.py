@@ -123,3 +123,47 @@ def test_lgr_gaming_the_length_of_a_hanging_chain_is_caught(tmp_path):
              and c["trajectory"] == "global")
     assert not c["passed"] and c["where"] == "s(tf) == 4"
     assert "reintegration_main" in again.tables
+
+
+@pytest.mark.ipopt
+def test_file_parameters_and_lg_segment_ends(tmp_path):
+    """A file-level constant in a boundary condition (seed 0's Table 4 rows are written
+    so) once crashed the certificate (KeyError); LG's segment ends, which hold no control
+    in the NLP, once exported an extrapolated control beyond its bounds."""
+    spec = dict(DI, parameters={"x0": -1.0})
+    spec["problem"] = dict(DI["problem"], constraints=[c.replace("x(t0) == -1", "x(t0) == x0")
+                                                       for c in DI["problem"]["constraints"]])
+    spec["method"] = {"transcription": "LG", "segments": 7, "degree": 3}
+    p = tmp_path / "di.yaml"
+    p.write_text(yaml.safe_dump(spec))
+    from ocdsl.api import run_file
+
+    res = run_file(p, tmp_path / "run", parameters={"x0": -1.2})
+    assert res.status == "optimal"
+    assert "error" not in res.certificate and "hamiltonian" in res.certificate, res.certificate
+    u = Result.read(tmp_path / "run").phase().controls["u"]
+    col = res.phase().extra["collocated"]
+    assert np.all(np.isnan(u[col == 0])) and np.all(np.isfinite(u[col == 1]))
+    assert np.nanmax(np.abs(u)) <= 1 + 1e-8
+
+
+@pytest.mark.ipopt
+def test_a_phase_without_controls_is_certified_and_verified(tmp_path):
+    """A ballistic coast (no controls) from a free initial speed: max range at fixed time."""
+    spec = {"name": "coast", "model": {"states": ["x", "v"], "controls": [],
+                                       "dynamics": {"x": "v", "v": "-0.1*v"}},
+            "parameters": {"v0": {"value": 1.0, "free": True, "bounds": [0, 2]}},
+            "problem": {"time": {"t0": 0, "tf": 1},
+                        "constraints": ["x(t0) == 0", "v(t0) == v0"],
+                        "objective": "maximize x(tf)"},
+            "method": {"segments": 4, "degree": 4}}
+    p = tmp_path / "coast.yaml"
+    p.write_text(yaml.safe_dump(spec))
+    from ocdsl.api import run_file
+
+    res = run_file(p, tmp_path / "run")
+    assert res.status == "optimal" and res.parameters["v0"] == pytest.approx(2.0, abs=1e-6)
+    assert res.objective == pytest.approx(20 * (1 - np.exp(-0.1)), rel=1e-8)
+    assert "error" not in (res.certificate or {}), res.certificate
+    assert res.verification["status"] == "verified", res.verification["summary"]
+    assert res.ok

@@ -130,7 +130,8 @@ def _add_reintegration(problem, res: Result) -> bool:
     Radau at rtol 1e-10, sampled at 6 points per node interval."""
     from scipy.integrate import solve_ivp
 
-    from ocdsl.solve.certificate import _ControlInterp, _Numeric
+    from ocdsl.solve.certificate import _Numeric
+    from ocdsl.verify.interpolate import SegmentPolynomials as _ControlInterp
 
     multi = len(res.phases) > 1
     added = False

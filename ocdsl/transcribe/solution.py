@@ -62,6 +62,41 @@ def node_values(pb: PhaseBlock) -> tuple[np.ndarray, np.ndarray]:
             _values(pb.block.U, (lay.n_colloc, len(ph.controls))))
 
 
+def periodic_controls(ph) -> list[int]:
+    """Indices of the controls that enter the phase only through 2 pi-periodic functions
+    (the dynamics, path constraints and integrands unchanged by u -> u + 2 pi) and whose
+    bounds allow more than one turn: their NLP values may sit on any branch, node by node."""
+    import sympy as sp
+
+    exprs = list(ph.rhs()) + [ph.substitute(c.expr) for c in ph.path] + \
+        [ph.substitute(e) for e in ph.integrals.values()]
+    out = []
+    for j, u in enumerate(ph.controls):
+        lo, hi = ph.bounds_of(u)
+        if hi - lo <= 2 * np.pi:
+            continue
+        shifted = {u: u + 2 * sp.pi}
+        if all(e.xreplace(shifted) == e for e in exprs if u in e.free_symbols):
+            out.append(j)
+    return out
+
+
+def unwrap_angles(U: np.ndarray, columns: list[int], bounds: list[tuple[float, float]]) -> np.ndarray:
+    """Each listed column (NaN rows kept) unwrapped along time and moved by whole turns so
+    that its first value lies in (-pi, pi], when the moved values stay inside the bounds."""
+    U = U.copy()
+    for j in columns:
+        ok = np.isfinite(U[:, j])
+        if ok.sum() < 1:
+            continue
+        w = np.unwrap(U[ok, j])
+        w -= 2 * np.pi * np.round(w[0] / (2 * np.pi))
+        lo, hi = bounds[j]
+        if np.all(w >= lo) and np.all(w <= hi):
+            U[ok, j] = w
+    return U
+
+
 def extract(tr: Transcription) -> list[PhaseTrajectory]:
     out = []
     for pb in tr.phases:
@@ -73,6 +108,12 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
         collocated = np.zeros(lay.n_state_nodes)
         for k in range(lay.mesh.segments):
             collocated[lay.colloc_state[k]] = 1.0
+        # a state node that is no collocation point (the phase start of LGR, segment ends of
+        # LG) has no control in the NLP: exported empty, never an extrapolated value
+        Us[collocated == 0] = np.nan
+        angles = periodic_controls(ph)
+        if angles:     # one branch for a control that only enters through sin/cos
+            Us = unwrap_angles(Us, angles, [ph.bounds_of(c) for c in ph.controls])
         out.append(PhaseTrajectory(
             ph.name, time,
             states={s.name: X[:, j] for j, s in enumerate(ph.states)},
