@@ -274,6 +274,8 @@ def solution_record(pp: ParametricProblem, x: np.ndarray, det: dict) -> tuple[Ph
         "terminal_errors": {t.text or str(t.expr): float(e) for t, e in zip(pp.terminals, det["errors"])},
         "terminal_error_over_zeta": {t.text or str(t.expr): float(r) for t, r in zip(pp.terminals, det["ratio"])},
         "zeta": {t.text or str(t.expr): t.zeta for t in pp.terminals},
+        # what the verification holds these terminal conditions to (ocdsl/verify)
+        "terminal_tolerances": {t.text or str(t.expr): t.zeta for t in pp.terminals},
         "decision_vector": dict(zip(pp.names(), map(float, x))),
     }
     for v in pp.variables:
@@ -283,7 +285,10 @@ def solution_record(pp: ParametricProblem, x: np.ndarray, det: dict) -> tuple[Ph
         mf = float(det["final"][cm.state_names.index("m")])
         record["m_f"] = mf
         record["m_p"] = float(tr.y[0, cm.state_names.index("m")] - mf)
-    return PhaseTrajectory("main", tr.t.copy(), states, controls), record
+    var, tf, CD = pp.decode(np.atleast_2d(x))
+    law = {"kind": "series", "layout": {"kinds": list(pp.layout.kinds), "orders": list(pp.layout.orders)},
+           "coefficients": CD[0].tolist(), "horizon": float(tf[0])}
+    return PhaseTrajectory("main", tr.t.copy(), states, controls, control_interpolation=law), record
 
 
 def _inside(det: dict) -> bool:

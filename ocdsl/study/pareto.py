@@ -88,7 +88,9 @@ class ParetoPoint:
             problem=dict(problem or {}),
             extra={"objectives": dict(self.objectives), "family": self.family,
                    "label": self.label, "pareto": bool(self.pareto),
-                   "residual": float(self.residual), **self.extra},
+                   "residual": float(self.residual),
+                   **{k: v for k, v in self.extra.items() if k != "verification"}},
+            verification=self.extra.get("verification"),
         )
 
 

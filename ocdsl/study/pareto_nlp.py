@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ocdsl.result import PhaseTrajectory
+from ocdsl.result import PhaseTrajectory, Result
 from ocdsl.study import pareto as P
 
 __all__ = ["NLPTask", "solve_nlp_task", "solve_durations", "integrated_residual", "nlp_tasks",
@@ -94,6 +94,16 @@ def compiled(path: str, parameters: dict[str, float]):
     key = ("pareto_nlp", str(Path(path).resolve()), st.st_mtime_ns, st.st_size,
            tuple(sorted((k, float(v)) for k, v in parameters.items())))
     return worker_cache(key, lambda: compile_file(path, parameters), max_items=16)
+
+
+def verification(file, phases, status: str, objective: float | None, free: dict[str, float]) -> dict:
+    """The independent verification (ocdsl/verify) of one point's trajectory, with the
+    file's settings; ``objective`` None when the point's objective is not the file's."""
+    from ocdsl.verify import VerifySettings, verify_result
+
+    res = Result(file.spec.name, status, objective=objective, phases=list(phases),
+                 parameters={**file.parameters, **free})
+    return verify_result(file.problem, res, VerifySettings.of(file.spec.verify))
 
 
 def _meshes(file):
@@ -233,7 +243,8 @@ def solve_nlp_task(task: NLPTask) -> list[P.ParetoPoint]:
             objectives={o: evaluate(e, names) for o, e in task.objectives.items()},
             variables=variables, family=task.family, status=info.status, residual=res,
             extra={"final_state": [float(v) for v in yT], "iterations": info.iterations,
-                   "solve_time_s": secs, "start": dict(start), "nlp": info.nlp, **task.tag},
+                   "solve_time_s": secs, "start": dict(start), "nlp": info.nlp, **task.tag,
+                   "verification": verification(file, traj, info.status, None, {})},
             phases=traj if task.trajectory else []))
     return out
 
@@ -359,7 +370,10 @@ class EpsilonSolver:
                                         self.parameter: float(eps)},
             family=self.family, status=info.status,
             extra={"iterations": info.iterations, "solve_time_s": secs, "nlp": info.nlp,
-                   "start": start_tag, "starts": tried},
+                   "start": start_tag, "starts": tried,
+                   "verification": verification(file, phases, info.status, float(info.objective),
+                                                {s.name: float(pyo.value(v)) for s, v in tr.scalars.items()
+                                                 if s in problem.free_parameters})},
             phases=phases if self.trajectory else [], warm=phases)
 
 

@@ -7,7 +7,10 @@ A :class:`~ocdsl.result.PhaseTrajectory` carries ``control_interpolation``:
   collocation: the NLP's own control representation);
 * ``{"kind": "cubic"}``: a not-a-knot cubic spline through the rows (dense exports of
   smooth controls: flat B-splines, series);
-* ``{"kind": "linear"}``, ``{"kind": "previous"}`` (zero-order hold).
+* ``{"kind": "linear"}``, ``{"kind": "previous"}`` (zero-order hold);
+* ``{"kind": "series", "layout": {"kinds": [...], "orders": [...]}, "coefficients": [...],
+  "horizon": T}``: the control law itself, a Fourier/polynomial series per control over
+  ``[t0, t0 + T]`` (parametric methods: ``ocdsl.simulate.ControlLayout``).
 
 Every interpolated control is clipped to its box bounds: between rows the control takes
 the bound-respecting value, never an overshoot that the solution did not have.
@@ -18,7 +21,7 @@ import math
 
 import numpy as np
 
-KINDS = ("lagrange-segments", "cubic", "linear", "previous")
+KINDS = ("lagrange-segments", "cubic", "linear", "previous", "series")
 
 
 def segment_of_nodes(t, segments) -> np.ndarray:
@@ -161,6 +164,32 @@ class _Tabulated:
         return lambda s: self(s).tolist()
 
 
+class _Series:
+    """A parametric control law evaluated exactly (clipped to bounds)."""
+
+    def __init__(self, spec: dict, t0: float, bounds):
+        from ..simulate.integrate import ControlLayout
+
+        lay = spec["layout"]
+        self.layout = ControlLayout(tuple(lay["kinds"]), tuple(int(o) for o in lay["orders"]))
+        self.coefficients = np.asarray(spec["coefficients"], float)
+        self.horizon, self.t0 = float(spec["horizon"]), float(t0)
+        self.lo = np.array([b[0] for b in bounds])
+        self.hi = np.array([b[1] for b in bounds])
+
+    def at(self, tt) -> np.ndarray:
+        from ..simulate.integrate import evaluate_controls
+
+        u = evaluate_controls(self.layout, self.coefficients, np.asarray(tt, float) - self.t0, self.horizon)
+        return np.minimum(np.maximum(u, self.lo), self.hi)
+
+    def __call__(self, tt: float) -> np.ndarray:
+        return self.at(np.array([tt]))[0]
+
+    def piece(self, tt: float):
+        return lambda s: self(s).tolist()
+
+
 def control_rows(traj, control_names) -> tuple[np.ndarray, np.ndarray]:
     """Times and control values (N, m) of the rows that hold solution values: collocated
     rows (``extra["collocated"]``) with every control finite."""
@@ -182,6 +211,8 @@ def control_interpolant(traj, control_names, bounds):
     if kind not in KINDS:
         raise ValueError(f"unknown control interpolation {kind!r}; known: {', '.join(KINDS)}")
     t, U = control_rows(traj, control_names)
+    if kind == "series":
+        return _Series(spec, float(np.asarray(traj.time, float)[0]), bounds)
     if not control_names:
         return _Tabulated(np.asarray(traj.time, float), np.zeros((len(traj.time), 0)), [], "linear")
     if len(t) == 0:
@@ -202,7 +233,7 @@ def breakpoints(traj) -> np.ndarray:
     kind = spec.get("kind", "linear")
     if kind == "lagrange-segments":
         return np.asarray(spec["breakpoints"], float)
-    if kind == "cubic":
+    if kind in ("cubic", "series"):
         return np.array([t[0], t[-1]])
     return np.unique(t)
 
