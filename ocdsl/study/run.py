@@ -200,7 +200,8 @@ def _summary(run_dir: Path) -> dict[str, Any]:
     data = json.loads((run_dir / "result.json").read_text())
     wall = data.get("wall_time_s") or {}
     sense = ((data.get("problem") or {}).get("objective") or {}).get("sense", "minimize")
-    return {"status": data.get("status"), "objective": _num(data.get("objective")),
+    return {"status": data.get("status"), "verification": (data.get("verification") or {}).get("status"),
+            "objective": _num(data.get("objective")),
             "tf": data.get("tf"), "iterations": data.get("iterations"),
             "wall_time_s": _num(wall.get("total")) if isinstance(wall, dict) else None,
             "message": (data.get("message") or "").strip().splitlines()[0][:300]
@@ -272,7 +273,7 @@ class StudyResult:
 
 
 class _Table:
-    FIXED = ["seed", "status", "objective", "tf", "iterations", "wall_time_s", "host",
+    FIXED = ["seed", "status", "verification", "objective", "tf", "iterations", "wall_time_s", "host",
              "warm_start", "message"]
 
     def __init__(self, out_dir: Path, points: list[Point], info: dict[str, Any]):
@@ -288,7 +289,8 @@ class _Table:
         for p in points:
             self.rows[p.id] = {"id": p.id, **{k: p.parameters.get(k) for k in self.pnames},
                                **{t: p.tags.get(t) for t in self.tagnames},
-                               "seed": p.seed, "status": "pending", "objective": None, "tf": None,
+                               "seed": p.seed, "status": "pending", "verification": None,
+                               "objective": None, "tf": None,
                                "iterations": None, "wall_time_s": None, "host": None,
                                "warm_start": None, "message": ""}
         self.sense = "minimize"
@@ -412,12 +414,13 @@ def _final_table(res: StudyResult, quiet: bool) -> None:
                     f"failed of {res.counts['points']}; {res.executor}; "
                     f"{res.wall_time_s:.1f} s)")
     pn = res.parameter_names[:6]
-    for c in ["id", *pn, "status", "objective", "tf", "iter", "wall s", "host"]:
-        t.add_column(c, justify="right" if c not in ("id", "status", "host") else "left")
+    for c in ["id", *pn, "status", "verification", "objective", "tf", "iter", "wall s", "host"]:
+        t.add_column(c, justify="right" if c not in ("id", "status", "verification", "host") else "left")
     for r in shown:
         style = "" if r["status"] in GOOD else ("yellow" if r["status"] == "pending" else "red")
         tf = r["tf"]
-        t.add_row(r["id"], *[_fmt(r.get(k)) for k in pn], r["status"], _fmt(r["objective"]),
+        t.add_row(r["id"], *[_fmt(r.get(k)) for k in pn], r["status"], str(r.get("verification") or ""),
+                  _fmt(r["objective"]),
                   _fmt(tf) if not isinstance(tf, dict) else json.dumps(tf),
                   _fmt(r["iterations"]), _fmt(r["wall_time_s"], 3), str(r["host"] or ""),
                   style=style)
