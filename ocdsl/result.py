@@ -41,7 +41,7 @@ class PhaseTrajectory:
     extra: dict[str, np.ndarray] = field(default_factory=dict)  # hamiltonian, switching functions...
     # how the controls between rows are meant (ocdsl/verify/interpolate.py): {"kind":
     # "lagrange-segments", "breakpoints": [...]} | {"kind": "cubic" | "linear" | "previous"}
-    control_interpolation: dict[str, Any] = field(default_factory=lambda: {"kind": "linear"})
+    control_interpolation: dict[str, Any] = field(default_factory=dict)   # {}: not recorded
 
     def columns(self) -> dict[str, np.ndarray]:
         cols = {"t": np.asarray(self.time, float)}
@@ -167,7 +167,7 @@ class Result(ResultViews):
                 states={k: cols.pop(k) for k in sn if k in cols},
                 controls={k: cols.pop(k) for k in cn if k in cols},
                 costates={k[len("lambda_"):]: cols.pop(k) for k in list(cols) if k.startswith("lambda_")},
-                extra=cols, control_interpolation=meta.get("control_interpolation", {"kind": "linear"})))
+                extra=cols, control_interpolation=meta.get("control_interpolation") or {}))
         for name in table_names:
             res.tables[name] = read_csv(run_dir / "tables" / f"{name}.csv")
         return res

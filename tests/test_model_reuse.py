@@ -35,7 +35,8 @@ def _same(a, b, tol=1e-8):
         ca, cb = pa.columns(), pb.columns()
         assert set(ca) == set(cb)
         for k in ("t", "h", "v", "m", "T"):
-            assert np.max(np.abs(ca[k] - cb[k])) <= 1e-6, k
+            assert np.array_equal(np.isnan(ca[k]), np.isnan(cb[k])), k   # rows without a control
+            assert np.nanmax(np.abs(ca[k] - cb[k])) <= 1e-6, k
 
 
 def test_reused_model_same_optima_as_fresh_builds(tmp_path):

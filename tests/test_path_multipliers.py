@@ -54,7 +54,7 @@ def analytic_traj():
 def test_exact_multiplier_certifies_and_plain_hamiltonian_does_not():
     traj, mu, edges = analytic_traj()
     assert mu.max() > 0.5                     # the arc is long enough to matter
-    cert = certificate(LQ, {}, traj, {}, L_LQ, "fixed_tf", segments=edges,
+    cert = certificate(LQ, {}, traj, {}, L_LQ, "fixed_tf",
                        path_constraints=PATH, multipliers={"mu_0": mu})
     assert cert["passed"], cert["failed"]
     assert cert["stationarity"]["max_relative"] < 1e-12
@@ -63,7 +63,7 @@ def test_exact_multiplier_certifies_and_plain_hamiltonian_does_not():
     (c,) = pm["per_constraint"]
     assert c["kind"] == "upper" and c["active_nodes"] == int(np.sum(traj["time"] < T1))
     # without the path term (backward-compatible call) the arc violates dH/du = 0
-    plain = certificate(LQ, {}, traj, {}, L_LQ, "fixed_tf", segments=edges)
+    plain = certificate(LQ, {}, traj, {}, L_LQ, "fixed_tf")
     assert "path_multipliers" not in plain
     assert plain["failed"] == ["stationarity"]
     assert plain["stationarity"]["max_relative"] > 0.3
@@ -71,7 +71,7 @@ def test_exact_multiplier_certifies_and_plain_hamiltonian_does_not():
 
 def test_wrong_multipliers_fail():
     traj, mu, edges = analytic_traj()
-    kw = dict(segments=edges, path_constraints=PATH)
+    kw = dict(path_constraints=PATH)
     # a sign-flipped multiplier: wrong sign at an upper bound and not stationary
     bad = certificate(LQ, {}, traj, {}, L_LQ, "fixed_tf", multipliers={"mu_0": -mu}, **kw)
     assert set(bad["failed"]) == {"stationarity", "path_multipliers"}
@@ -92,7 +92,7 @@ def test_lower_bound_needs_a_nonpositive_multiplier():
     """The same constraint written as ``0.5 - u >= 0`` (a lower bound): H_aug's term is
     -mu (u - 1/2), so the multiplier is -mu <= 0; +mu has the wrong sign."""
     traj, mu, edges = analytic_traj()
-    kw = dict(segments=edges, path_constraints=[(0.5 - u, 0.0, None)])
+    kw = dict(path_constraints=[(0.5 - u, 0.0, None)])
     lower = certificate(LQ, {}, traj, {}, L_LQ, "fixed_tf", multipliers={"mu_0": -mu}, **kw)
     assert lower["passed"], lower["failed"]
     assert lower["path_multipliers"]["per_constraint"][0]["kind"] == "lower"

@@ -36,7 +36,7 @@ from .checks import (evaluate, relative_violation, row, sensitivity_scale, state
                      worst)
 from .functions import PhaseFunctions
 from .integrate import IntegrationFailure, reintegrate
-from .interpolate import bounds_of, breakpoints, control_interpolant, control_rows
+from .interpolate import bounds_of, breakpoints, control_interpolant, control_rows, declared_interpolation
 
 __all__ = ["VerifySettings", "verify_result", "attach_verification", "STATUSES", "CONVERGED"]
 
@@ -155,12 +155,13 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
     for ph in problem.phases:
         traj = result.phase(ph.name) if len(result.phases) > 1 or ph.name == result.phases[0].name \
             else result.phases[0]
-        runs[ph.name] = _verify_phase(ph, traj, params, settings, checks, tables)
+        runs[ph.name] = _verify_phase(ph, traj, declared_interpolation(traj, result.method), params,
+                                      settings, checks, tables)
     _boundary_checks(problem, result, runs, params, tol, checks)
     return checks, notes
 
 
-def _verify_phase(ph, traj, params, settings, checks, tables) -> _PhaseRun:
+def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> _PhaseRun:
     tol = settings.tolerance
     names_x = [s.name for s in ph.states]
     names_u = [c.name for c in ph.controls]
@@ -172,9 +173,9 @@ def _verify_phase(ph, traj, params, settings, checks, tables) -> _PhaseRun:
     if len(t) < 2 or np.any(np.diff(t) <= 0):
         raise ValueError(f"phase {ph.name!r}: the rows' times must increase strictly (at least two rows)")
     ubounds = bounds_of(ph, names_u, "controls")
-    uf = control_interpolant(traj, names_u, ubounds)
+    uf = control_interpolant(traj, names_u, ubounds, interpolation)
     funcs = PhaseFunctions(ph, params, ph.integrals)
-    breaks = breakpoints(traj)
+    breaks = breakpoints(traj, interpolation)
     breaks = np.unique(np.clip(np.concatenate([[t[0], t[-1]], breaks]), t[0], t[-1]))
     scale_x = state_scale(X)
     nq = len(funcs.integral_symbols)

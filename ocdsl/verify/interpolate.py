@@ -203,10 +203,25 @@ def control_rows(traj, control_names) -> tuple[np.ndarray, np.ndarray]:
     return t[keep], U[keep]
 
 
-def control_interpolant(traj, control_names, bounds):
-    """The control of ``traj`` as a function of time, ``.at(times) -> (P, m)``, by the
-    trajectory's declared ``control_interpolation``; ``bounds`` a (lo, hi) per control."""
-    spec = traj.control_interpolation or {"kind": "linear"}
+def declared_interpolation(traj, method: dict | None = None) -> dict:
+    """The phase's control interpolation: as recorded with it; else, for a run folder written
+    before it was recorded, the one its pseudospectral mesh implies (segments in physical
+    time); else linear."""
+    if traj.control_interpolation:
+        return dict(traj.control_interpolation)
+    mesh = ((method or {}).get("meshes") or {}).get(traj.name)
+    t = np.asarray(traj.time, float)
+    if isinstance(mesh, dict) and mesh.get("breakpoints") and len(t) > 1:
+        s = np.asarray(mesh["breakpoints"], float)
+        return {"kind": "lagrange-segments", "breakpoints": (t[0] + (t[-1] - t[0]) * s).tolist()}
+    return {"kind": "linear"}
+
+
+def control_interpolant(traj, control_names, bounds, spec: dict | None = None):
+    """The control of ``traj`` as a function of time, ``.at(times) -> (P, m)``, by ``spec``
+    (default: the trajectory's recorded ``control_interpolation``, see
+    :func:`declared_interpolation`); ``bounds`` a (lo, hi) per control."""
+    spec = spec or traj.control_interpolation or {"kind": "linear"}
     kind = spec.get("kind", "linear")
     if kind not in KINDS:
         raise ValueError(f"unknown control interpolation {kind!r}; known: {', '.join(KINDS)}")
@@ -224,12 +239,12 @@ def control_interpolant(traj, control_names, bounds):
     return _Tabulated(t, U, bounds, kind)
 
 
-def breakpoints(traj) -> np.ndarray:
+def breakpoints(traj, spec: dict | None = None) -> np.ndarray:
     """Where the interpolated control may be non-smooth: the segment boundaries of
     ``lagrange-segments``, every row for ``linear``/``previous``, the ends for ``cubic``."""
     t = np.asarray(traj.time, float)
     t = t[np.isfinite(t)]
-    spec = traj.control_interpolation or {"kind": "linear"}
+    spec = spec or traj.control_interpolation or {"kind": "linear"}
     kind = spec.get("kind", "linear")
     if kind == "lagrange-segments":
         return np.asarray(spec["breakpoints"], float)
