@@ -5,7 +5,7 @@ with ``ocdsl.read(run_dir)`` answers exactly as the one the solve returned.
 >>> import ocdsl
 >>> res = ocdsl.load("configs/brachistochrone.yaml").solve()
 >>> res                                                   # doctest: +ELLIPSIS
-<Result 'Brachistochrone with named expressions': optimal, objective 1.80160..., 1 phase, 41 rows, expect 1/1 passed>
+<Result 'Brachistochrone with named expressions': optimal, objective 1.80160..., tf 1.80160..., 1 phase, 41 rows, expect 1/1 passed, verification verified>
 >>> again = ocdsl.read(res.write(tmp / "run"))           # the run folder, read back
 >>> at = again.sample([0.0, again.tf])                   # states and controls at any times
 >>> [round(float(v), 6) for v in at["x"]]
