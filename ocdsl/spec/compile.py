@@ -472,6 +472,9 @@ class _Compiler:
         for k in guess_items:
             if k not in known:
                 self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + did_you_mean(k, known))
+            elif not _guess_value_ok(guess_items[k]):
+                self.issue(loc + ("guess", k), f"guess for '{k}': a finite number, a list of finite numbers "
+                           "or {t: [...], values: [...]} of the same length")
         if guess.from_ is not None:
             folder = Path(guess.from_) if Path(guess.from_).is_absolute() else self.path.parent / guess.from_
             if not (folder / "result.json").exists():
@@ -650,8 +653,7 @@ class _Compiler:
                     return None
                 if expr in ph.state_bounds or expr in ph.control_bounds or expr in set(ph.states + ph.controls):
                     table = ph.state_bounds if expr in ph.states else ph.control_bounds
-                    old = table.get(expr, (-INF, INF))
-                    table[expr] = (max(old[0], lo), min(old[1], hi))
+                    table[expr] = self.narrowed(ph, expr, table.get(expr, (-INF, INF)), lo, hi, text, loc)
                     return None
                 ph.path.append(Constraint(expr, lo, hi, text, line))
                 return None
@@ -661,9 +663,29 @@ class _Compiler:
                 if fixed is not None and not (lo <= fixed <= hi):
                     self.issue(loc, f"{which} is fixed at {fixed} by `time:`, outside this range", text)
                     return None
-                setattr(ph, f"{which}_bounds", (lo, hi))
+                if which == "tf" and ph.t0 is not None and hi <= ph.t0:
+                    self.issue(loc, f"tf must be greater than t0 = {ph.t0:g}; this leaves it no room", text)
+                    return None
+                setattr(ph, f"{which}_bounds",
+                        self.narrowed(ph, expr, getattr(ph, f"{which}_bounds"), lo, hi, text, loc))
                 return None
         return Constraint(expr, lo, hi, text, line)
+
+    def narrowed(self, ph, expr, old, lo, hi, text, loc) -> tuple[float, float]:
+        """A later bound on the same quantity intersects the earlier ones (never replaces
+        them); an empty intersection names the constraint that set the other side."""
+        seen = self.__dict__.setdefault("bound_texts", {})
+        key = (ph.name, expr)
+        new = (max(old[0], lo), min(old[1], hi))
+        if new[0] > new[1]:
+            other = seen.get((key, "lo" if new[0] > hi else "hi"), "an earlier bound")
+            self.issue(loc, f"contradicts `{other}`: {expr} would have to lie in [{new[0]:g}, {new[1]:g}]", text)
+            return old
+        if lo > old[0]:
+            seen[(key, "lo")] = text
+        if hi < old[1]:
+            seen[(key, "hi")] = text
+        return new
 
     def parse_expect(self, key: str, problem: Problem) -> sp.Expr:
         if key == "objective":
@@ -712,6 +734,20 @@ def _is_number(e: sp.Expr) -> bool:
 
 def _num(x: float):
     return x if math.isfinite(x) else None
+
+
+def _guess_value_ok(value) -> bool:
+    """A guess is a number, a list of numbers or {t: [...], values: [...]}, all finite."""
+    def numbers(v):
+        return isinstance(v, list) and len(v) > 0 and all(_finite(x) for x in v)
+    if isinstance(value, dict):
+        return set(value) == {"t", "values"} and numbers(value["t"]) and numbers(value["values"]) \
+            and len(value["t"]) == len(value["values"])
+    return _finite(value) or numbers(value)
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def _midpoint(lo, hi) -> float:

@@ -53,10 +53,21 @@ def parse_expression(text: str | int | float, scope: Scope, vector: bool = False
     tree = _parse(text)
     if isinstance(tree, ast.Compare):
         raise ExprError("a relation is not allowed here, an expression is expected", str(text))
-    e = _Builder(scope, str(text)).build(tree)
+    e = _real(_Builder(scope, str(text)).build(tree), text)
     if isinstance(e, sp.MatrixBase) and not vector:
         raise ExprError(f"this is a vector of {len(e)} components where a number is expected "
                         "(use norm(...), dot(...) or a component such as r[0])", str(text))
+    return e
+
+
+def _real(e, text):
+    """Refuse complex constants (sqrt(-1), log(-2), acos(2)): no back end has a meaning for them."""
+    parts = list(e) if is_vector(e) else [e]
+    for part in parts:
+        if isinstance(part, sp.Basic) and (part.has(sp.I) or any(
+                f.is_number and f.is_extended_real is False for f in part.atoms(sp.Function, sp.Pow))):
+            raise ExprError("this has a complex value (e.g. sqrt or log of a negative number, "
+                            "asin/acos outside [-1, 1])", str(text))
     return e
 
 
@@ -80,7 +91,7 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
         raise ExprError("a constraint must be a relation using <=, >= or ==", str(text))
     ops = {ast.LtE: "<=", ast.GtE: ">=", ast.Eq: "=="}
     builder = _Builder(scope, str(text))
-    terms = [builder.build(tree.left)] + [builder.build(c) for c in tree.comparators]
+    terms = [_real(builder.build(t), text) for t in [tree.left, *tree.comparators]]
     sizes = {len(t) for t in terms if is_vector(t)}
     if len(sizes) > 1:
         raise ExprError(f"vectors of different sizes {sorted(sizes)} in one relation", str(text))

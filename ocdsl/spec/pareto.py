@@ -344,11 +344,17 @@ def check_phase_durations(phases: Any, file: str | None = None, source: str | No
 
 def load_pareto(path: str | Path) -> tuple[ParetoSpec, dict[str, Any]]:
     """Read a problem file; return its validated ``pareto:`` block and the whole document."""
+    from .loader import load_yaml
+    from .pareto_check import check_sections
+
     path = Path(path)
+    located = load_yaml(path)       # the problem file's reader: limits, tags and merge keys alike
     source = path.read_text()
     root = yaml.compose(source, Loader=yaml.SafeLoader)
-    doc = yaml.safe_load(source) or {}
+    doc = located.data
     if "pareto" not in doc:
         raise ParetoSpecError("no pareto: block", str(path), 1, None)
     check_phase_durations(doc.get("phases"), str(path), source, root)
-    return parse_pareto(doc["pareto"], str(path), source, root), doc
+    spec = parse_pareto(doc["pareto"], str(path), source, root)
+    check_sections(path, located, spec.solver)
+    return spec, doc

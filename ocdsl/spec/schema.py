@@ -15,7 +15,9 @@ Number = Union[int, float]
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    # NaN and infinity mean nothing as a time, bound, guess or setting (a NaN t0 once ran
+    # "optimal" with every time NaN); an open bound is written null
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class ParameterSpec(Strict):

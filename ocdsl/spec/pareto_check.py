@@ -1,0 +1,92 @@
+"""The sections of a Pareto file outside ``pareto:`` go through the same compile path as a
+problem file, so that ``check`` and ``run`` refuse what a problem file would refuse.
+
+A ``solver: nlp`` file is a problem file with a ``pareto:`` block: it is compiled whole. A
+``solver: closed_form`` file describes its phases as ``{duration: [lo, hi], fix: {u: v}}``
+and its boundary conditions under ``problem: constraints:`` with ``phase.x(t0)``; it is
+compiled as the multi-phase problem it stands for (each phase from 0 to a free tf within
+its duration, the fixed controls as equalities, the constraints as links, objective the sum
+of the Pareto objectives with ``phase.duration`` read as ``phase.tf``), every error at the
+line of the file where its text was written.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+from .errors import SpecError
+from .loader import Located
+
+_CLOSED_FORM_KEYS = {"name", "description", "definitions", "model", "parameters", "phases", "problem",
+                     "alternatives", "pareto", "expect"}
+
+
+def check_sections(path: str | Path, located: Located, solver: str) -> None:
+    """Compile the model and problem sections of a Pareto file; a SpecError lists every issue."""
+    from .compile import _Compiler, validate
+
+    if solver != "closed_form":
+        _Compiler(Path(path), located, validate(located), {}).compile()
+        return
+    doc = located.data
+    unknown = [k for k in doc if k not in _CLOSED_FORM_KEYS]
+    if unknown:
+        raise SpecError([located.issue((unknown[0],), f"unknown key '{unknown[0]}' in a closed-form Pareto file")])
+    stand_in, lines = _stand_in(doc, located)
+    synthetic = Located(located.file, stand_in, lines)
+    _Compiler(Path(path), synthetic, validate(synthetic), {}).compile()
+
+
+def _stand_in(doc: dict[str, Any], located: Located) -> tuple[dict, dict]:
+    """The multi-phase problem file a closed-form Pareto file stands for, and the line of
+    each of its entries in the original file."""
+    lines: dict[tuple, int] = {(): 1}
+
+    def at(new: tuple, old: tuple) -> None:
+        lines[new] = located.line(old)
+
+    out: dict[str, Any] = {k: doc[k] for k in ("name", "description", "model", "parameters") if k in doc}
+    for k in out:
+        lines.update({p: n for p, n in located.lines.items() if p[:1] == (k,)})
+    phases = doc.get("phases")
+    if not isinstance(phases, dict) or not phases:
+        raise SpecError([located.issue(("phases",), "a closed-form Pareto file needs phases: "
+                                       "{name: {duration: [lo, hi], fix: {control: value}}}")])
+    out["phases"] = {}
+    for name, ph in phases.items():
+        where = ("phases", name)
+        if not isinstance(ph, dict) or set(ph) - {"duration", "fix"}:
+            raise SpecError([located.issue(where, f"phase '{name}': give duration: and fix: only")])
+        cons = []
+        fix = ph.get("fix") or {}
+        if not isinstance(fix, dict):
+            raise SpecError([located.issue(where + ("fix",), "fix: maps controls to values, e.g. {delta: 0}")])
+        for control, value in fix.items():
+            at(("phases", name, "constraints", len(cons)), where + ("fix", control))
+            cons.append(f"{control} == {value}")
+        d = ph.get("duration")
+        if d is not None:
+            lo, hi = (d, d) if not isinstance(d, list) or len(d) != 2 else d
+            at(("phases", name, "constraints", len(cons)), where + ("duration",))
+            cons.append(f"{lo} <= tf <= {hi}")
+        out["phases"][name] = {"time": {"t0": 0, "tf": "free"}, "constraints": cons}
+        at(("phases", name), where)
+    problem = doc.get("problem") or {}
+    texts = problem.get("constraints", []) if isinstance(problem, dict) else None
+    if not isinstance(texts, list):
+        raise SpecError([located.issue(("problem",), "problem: holds constraints: [...] in a closed-form "
+                                       "Pareto file")])
+    out["links"] = [_durations(t) for t in texts]
+    for i in range(len(texts)):
+        at(("links", i), ("problem", "constraints", i))
+    objectives = ((doc.get("pareto") or {}).get("objectives") or {})
+    terms = [_durations(o.get("expr") if isinstance(o, dict) else o) for o in objectives.values()]
+    out["objective"] = "minimize " + (" + ".join(f"({t})" for t in terms) if terms else "0")
+    at(("objective",), ("pareto", "objectives"))
+    return out, lines
+
+
+def _durations(text: Any) -> Any:
+    return re.sub(r"\b([A-Za-z_]\w*)\.duration\b", r"\1.tf", text) if isinstance(text, str) else text
+
