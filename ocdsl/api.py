@@ -16,7 +16,7 @@ from . import run_folder
 from .result import Result
 from .spec import compile as spec_compile
 from .spec.errors import SpecError
-from .spec.loader import load_yaml
+from .spec.loader import load_yaml, load_yaml_text
 
 
 @dataclass
@@ -47,11 +47,12 @@ class Timer:
 
 
 def compile_file(path: str | Path, parameters: dict[str, float] | None = None,
-                 timer: Timer | None = None) -> spec_compile.LoadedFile:
-    """Parse and compile a problem file; raises SpecError with every problem found."""
+                 timer: Timer | None = None, *, text: str | None = None) -> spec_compile.LoadedFile:
+    """Parse and compile a problem file; raises SpecError with every problem found.
+    ``text`` compiles a document ocdsl generated itself, named ``path`` in its errors."""
     timer = timer or Timer()
     with timer.measure("parse"):
-        located = load_yaml(path)
+        located = load_yaml(path) if text is None else load_yaml_text(text, str(path))
         spec = spec_compile.validate(located)
     with timer.measure("symbolic"):
         return spec_compile._Compiler(Path(path), located, spec, dict(parameters or {})).compile()

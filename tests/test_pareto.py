@@ -16,7 +16,8 @@ from scipy.optimize import minimize
 from ocdsl.result import Result
 from ocdsl.spec.pareto import ParetoSpecError, load_pareto, parse_pareto
 from ocdsl.study import pareto as P
-from ocdsl.study.pareto_run import run_pareto, two_burn_pareto
+from ocdsl.study.pareto_run import run_pareto, two_burn_pareto, two_burn_problem, two_burn_trajectory
+from ocdsl.verify import verify_result
 from ocdsl.symbolic import relative_motion as rm
 from ocdsl.symbolic.registry import build_model
 
@@ -124,6 +125,40 @@ def test_every_root_integrates_to_zero_final_state(which, case_a, case_b):
     pset, y0 = (case_a, Y0_A) if which == "A" else (case_b, Y0_B)
     for p in pset.points:
         assert np.max(np.abs(_integrate_root(p, y0))) < 1e-9
+
+
+@pytest.mark.parametrize("which", ["A", "B"])
+def test_every_closed_form_point_is_verified(which, case_a, case_b):
+    """The closed-form roots go through ocdsl/verify like any solve: all verified."""
+    pset = case_a if which == "A" else case_b
+    verdicts = [p.extra["verification"]["status"] for p in pset.points]
+    assert verdicts and set(verdicts) == {"verified"}
+
+
+def test_a_perturbed_closed_form_point_fails_verification(case_a):
+    """A coast 1e-3 too long (the other durations kept): the verification names the end state."""
+    p = max(case_a.points, key=lambda q: q.variables["tp"])
+    v = p.variables
+    phases = two_burn_trajectory(Y0_A, v["t0"], v["t1"], v["tp"] + 1e-3, v["t2"], v["d1"], v["d2"])
+    res = Result("perturbed", "optimal", phases=phases)
+    verdict = verify_result(two_burn_problem(Y0_A, int(v["d1"]), int(v["d2"])), res)
+    assert verdict["status"] == "failed"
+    failed = {c["name"] for c in verdict["checks"] if not c["passed"]}
+    assert failed == {"boundary conditions"}, verdict["checks"]
+
+
+def test_a_phase_of_zero_duration_is_verified(case_a):
+    """Started where a point's wait ends, the same burns and coast with a wait of length 0
+    are a root too: the zero-length phase must verify, not crash."""
+    p = case_a.points[0]
+    v = p.variables
+    y_wait_end = tuple(float(p.phases[0].states[n][-1]) for n in ("r_av", "L_av", "l_x", "l_y"))
+    phases = two_burn_trajectory(y_wait_end, 0.0, v["t1"], v["tp"], v["t2"], v["d1"], v["d2"])
+    verdict = verify_result(two_burn_problem(y_wait_end, int(v["d1"]), int(v["d2"])),
+                            Result("no wait", "optimal", phases=phases))
+    assert verdict["status"] == "verified", verdict["summary"]
+    wait = [c for c in verdict["checks"] if c["phase"] == "wait" and c["name"] == "dynamics per piece"]
+    assert wait and "zero duration" in wait[0]["detail"]
 
 
 @pytest.mark.parametrize("which", ["A", "B"])

@@ -22,6 +22,7 @@ Two kinds of point solvers:
 from __future__ import annotations
 
 import builtins
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -37,7 +38,7 @@ from ocdsl.study import pareto as P
 from ocdsl.symbolic import relative_motion as rm
 
 __all__ = ["TwoBurnTask", "solve_two_burn_task", "two_burn_tasks", "two_burn_point",
-           "two_burn_pareto", "two_burn_trajectory", "run_pareto", "FAMILY_PREFIX"]
+           "two_burn_pareto", "two_burn_trajectory", "two_burn_problem", "run_pareto", "FAMILY_PREFIX"]
 
 PHASES = ("wait", "burn1", "coast", "burn2")
 FAMILY_PREFIX = {"same": "1", "opposite": "2"}   # the paper's rows 1.x and 2.x
@@ -56,7 +57,7 @@ def two_burn_trajectory(y0, t0, t1, tp, t2, d1, d2, nodes: int = 41) -> list[Pha
         Y = np.array([rm.segment(y, delta, float(v)) for v in s])
         out.append(PhaseTrajectory(
             name, start + s, states={n: Y[:, i] for i, n in enumerate(STATE_NAMES)},
-            controls={"delta": np.full(nodes, float(delta))},
+            controls={"delta": np.full(nodes, float(delta))}, control_interpolation={"kind": "linear"},
             extra={"l": np.hypot(Y[:, 2], Y[:, 3])}))
         y, start = Y[-1], start + dur
     return out
@@ -76,6 +77,44 @@ def two_burn_point(y0, t0, tp, d1, d2, family, final=(0.0, 0.0, 0.0, 0.0),
         family=family, residual=float(np.max(np.abs(yT - np.asarray(final, float)))),
         extra={"final_state": [float(v) for v in yT]},
         phases=two_burn_trajectory(y0, t0, t1, tp, t2, d1, d2) if trajectory else [])
+
+
+_TWO_BURN_FILE = """\
+name: two-burn programme {d1:+d}/{d2:+d} (what closed-form points are verified against)
+model: {{use: relative_motion_secular}}
+phases:
+  wait:
+    time: {{t0: 0, tf: free}}
+    constraints: [delta == 0, r_av(t0) == {y0[0]!r}, L_av(t0) == {y0[1]!r}, l_x(t0) == {y0[2]!r}, l_y(t0) == {y0[3]!r}]
+  burn1: {{time: {{t0: free, tf: free}}, constraints: [delta == {d1}]}}
+  coast: {{time: {{t0: free, tf: free}}, constraints: [delta == 0]}}
+  burn2:
+    time: {{t0: free, tf: free}}
+    constraints: [delta == {d2}, r_av(tf) == {yk[0]!r}, L_av(tf) == {yk[1]!r}, l_x(tf) == {yk[2]!r}, l_y(tf) == {yk[3]!r}]
+links: ["continuous(wait, burn1, coast, burn2)"]
+objective: minimize burn2.tf
+"""
+
+
+@functools.lru_cache(maxsize=16)     # one compile per sign pattern and start, not per point
+def two_burn_problem(y0: tuple, d1: int, d2: int, final: tuple = (0.0, 0.0, 0.0, 0.0)):
+    """The two-burn programme of one sign pattern as a compiled problem file, so that the
+    closed-form points go through the same verification (ocdsl/verify) as every solve."""
+    from ocdsl.api import compile_file
+
+    text = _TWO_BURN_FILE.format(y0=[float(v) for v in y0], yk=[float(v) for v in final],
+                                 d1=int(d1), d2=int(d2))
+    return compile_file("<two-burn programme>", text=text).problem
+
+
+def two_burn_verification(task: "TwoBurnTask", point: P.ParetoPoint) -> dict:
+    """The verdict of ocdsl/verify on a closed-form point's trajectory (objective not
+    checked: a Pareto point has two)."""
+    from ocdsl.verify import verify_result
+
+    problem = two_burn_problem(task.y0, task.d1, task.d2, task.final)
+    res = Result("two-burn point", "optimal", phases=list(point.phases))
+    return verify_result(problem, res)
 
 
 @dataclass
@@ -124,6 +163,7 @@ def solve_two_burn_task(task: TwoBurnTask) -> list[P.ParetoPoint]:
         for p in found:
             v = p.variables
             p.phases = two_burn_trajectory(task.y0, v["t0"], v["t1"], v["tp"], v["t2"], task.d1, task.d2)
+            p.extra["verification"] = two_burn_verification(task, p)
     return found
 
 

@@ -36,7 +36,8 @@ from .checks import (evaluate, relative_violation, row, sensitivity_scale, state
                      worst)
 from .functions import PhaseFunctions
 from .integrate import IntegrationFailure, reintegrate
-from .interpolate import bounds_of, breakpoints, control_interpolant, control_rows, declared_interpolation
+from .interpolate import (_Tabulated, bounds_of, breakpoints, control_interpolant, control_rows,
+                          declared_interpolation)
 
 __all__ = ["VerifySettings", "verify_result", "attach_verification", "STATUSES", "CONVERGED"]
 
@@ -170,9 +171,11 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
         else np.zeros((len(t_all), 0))
     keep = np.isfinite(t_all) & np.isfinite(X_all).all(axis=1)
     t, X = t_all[keep], X_all[keep]
+    ubounds = bounds_of(ph, names_u, "controls")
+    if len(t) >= 1 and np.ptp(t) == 0:
+        return _zero_duration_phase(ph, traj, t, X, names_x, names_u, ubounds, tol, checks)
     if len(t) < 2 or np.any(np.diff(t) <= 0):
         raise ValueError(f"phase {ph.name!r}: the rows' times must increase strictly (at least two rows)")
-    ubounds = bounds_of(ph, names_u, "controls")
     uf = control_interpolant(traj, names_u, ubounds, interpolation)
     funcs = PhaseFunctions(ph, params, ph.integrals)
     breaks = breakpoints(traj, interpolation)
@@ -211,15 +214,7 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
                                for j, (lo, hi) in enumerate(sbounds)])
         v, where = worst(err, names_x, grid)
         checks.append(row("state bounds", pname, v, tol, where, f"{len(grid)} points"))
-    if names_u and any(math.isfinite(b) for lo_hi in ubounds for b in lo_hi):
-        tr, Ur = control_rows(traj, names_u)
-        scale_u = np.array([hi - lo if math.isfinite(hi - lo) and hi > lo else
-                            max(float(np.ptp(Ur[:, j])) if len(Ur) else 0.0, 1e-12)
-                            for j, (lo, hi) in enumerate(ubounds)])
-        err = np.column_stack([relative_violation(Ur[:, j], lo, hi, scale_u[j])
-                               for j, (lo, hi) in enumerate(ubounds)])
-        v, where = worst(err, names_u, tr)
-        checks.append(row("control bounds", pname, v, tol, where, f"{len(tr)} exported rows"))
+    _control_bounds_check(ph, traj, names_u, ubounds, tol, checks)
     if funcs.g is not None:
         G = funcs.g(grid, Yl[:, :funcs.n], Ug)
         gscale = _path_scales(funcs, t, X, uf.at(t), scale_x, ubounds, G)
@@ -228,6 +223,37 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
         v, where = worst(err, [c.text or str(c.expr) for c in funcs.path], grid)
         checks.append(row("path constraints", pname, v, tol, where, f"{len(grid)} points"))
     return _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf)
+
+
+def _control_bounds_check(ph, traj, names_u, ubounds, tol, checks) -> None:
+    """The exported controls, row by row, against their bounds."""
+    if not names_u or not any(math.isfinite(b) for lo_hi in ubounds for b in lo_hi):
+        return
+    tr, Ur = control_rows(traj, names_u)
+    scale_u = np.array([hi - lo if math.isfinite(hi - lo) and hi > lo else
+                        max(float(np.ptp(Ur[:, j])) if len(Ur) else 0.0, 1e-12)
+                        for j, (lo, hi) in enumerate(ubounds)])
+    err = np.column_stack([relative_violation(Ur[:, j], lo, hi, scale_u[j])
+                           for j, (lo, hi) in enumerate(ubounds)])
+    v, where = worst(err, names_u, tr)
+    checks.append(row("control bounds", ph.name, v, tol, where, f"{len(tr)} exported rows"))
+
+
+def _zero_duration_phase(ph, traj, t, X, names_x, names_u, ubounds, tol, checks) -> _PhaseRun:
+    """A phase that takes no time (e.g. a wait of length 0): nothing to integrate; its rows
+    must all hold one state, its integrals are zero and its ends are that state."""
+    scale_x = state_scale(X)
+    if names_x:
+        v, where = worst(np.abs(X - X[0]) / scale_x, names_x, t)
+        checks.append(row("dynamics per piece", ph.name, v, tol, where,
+                          "zero duration: every row must hold the same state"))
+    _control_bounds_check(ph, traj, names_u, ubounds, tol, checks)
+    tr, Ur = control_rows(traj, names_u)
+    first = Ur[:1] if len(Ur) else np.zeros((1, len(names_u)))
+    uf = _Tabulated(t[:1], first, ubounds, "previous")
+    nq = len(ph.integrals)
+    end = np.concatenate([X[0], np.zeros(nq)])
+    return _PhaseRun(t, X, scale_x, np.full(nq, 1e-12), end, end, uf)
 
 
 def _path_scales(funcs, t, X, U, scale_x, ubounds, G) -> np.ndarray:
