@@ -123,6 +123,26 @@ def test_lgr_gaming_the_length_of_a_hanging_chain_is_caught(tmp_path):
              and c["trajectory"] == "global")
     assert not c["passed"] and c["where"] == "s(tf) == 4"
     assert "reintegration_main" in again.tables
+    # the advice is not "refine": the control jumps at one node, the scheme is exploited
+    assert "jumps at a single node" in res.verification["summary"]
+    assert "transcription: LG" in res.verification["summary"]
+
+
+def test_irregular_controls_spikes_and_zigzags_but_not_bangs_or_noise():
+    from ocdsl.verify.checks import irregular_controls
+
+    t = np.linspace(0, 1, 21)
+    smooth = np.sin(3 * t)
+    spike = smooth.copy()
+    spike[7] = -40.0
+    zigzag = smooth + 0.3 * (-1) ** np.arange(21)
+    bang = np.where(t < 0.45, 1.0, -1.0)
+    noise = -1.0 + 1e-8 * (-1) ** np.arange(21)
+    U = np.column_stack([smooth, spike, zigzag, bang, noise])
+    notes = irregular_controls(t, U, ["smooth", "spike", "zigzag", "bang", "noise"])
+    assert len(notes) == 2, notes
+    assert notes[0].startswith("spike jumps at a single node (t = 0.35)")
+    assert notes[1].startswith("zigzag zigzags from node to node")
 
 
 @pytest.mark.ipopt

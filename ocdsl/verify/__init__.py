@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .checks import (evaluate, relative_violation, row, sensitivity_scale, state_scale,
-                     worst)
+from .checks import (evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
+                     state_scale, worst)
 from .functions import PhaseFunctions
 from .integrate import IntegrationFailure, reintegrate
 from .interpolate import (_Tabulated, bounds_of, breakpoints, control_interpolant, control_rows,
@@ -93,7 +93,7 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     status = "failed" if failed else "verified"
     out = {**head, "status": status, "checks": checks, "notes": notes,
            "wall_time_s": round(time.perf_counter() - start, 6)}
-    out["summary"] = _summary(failed, settings) if failed else \
+    out["summary"] = _summary(failed, notes) if failed else \
         f"verified: {len(checks)} checks within {settings.tolerance:g}"
     return out
 
@@ -117,13 +117,15 @@ HINTS = {
 }
 
 
-def _summary(failed: list[dict], settings: VerifySettings) -> str:
+def _summary(failed: list[dict], notes: list[str]) -> str:
+    """The first failed check, and what to change: an irregular control's note where there
+    is one (refining is then the wrong advice), else the check's hint."""
     c = failed[0]
     where = f" ({c['where']})" if c.get("where") else ""
     phase = f" in phase {c['phase']}" if c.get("phase") and c["phase"] != "main" else ""
     more = f"; {len(failed) - 1} more failed" if len(failed) > 1 else ""
-    return (f"not verified: {c['name']}{phase} {c['value']:.3g} > {c['limit']:.3g}{where}{more}. "
-            f"{HINTS.get(c['name'], '')}")
+    hint = notes[0] if notes else HINTS.get(c["name"], "")
+    return f"not verified: {c['name']}{phase} {c['value']:.3g} > {c['limit']:.3g}{where}{more}. {hint}"
 
 
 def _numbers(values: dict) -> dict[str, float]:
@@ -158,6 +160,11 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
             else result.phases[0]
         runs[ph.name] = _verify_phase(ph, traj, declared_interpolation(traj, result.method), params,
                                       settings, checks, tables)
+        names_u = [c.name for c in ph.controls]
+        if names_u:
+            tr, Ur = control_rows(traj, names_u)
+            notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n
+                      for n in irregular_controls(tr, Ur, names_u)]
     _boundary_checks(problem, result, runs, params, tol, checks)
     return checks, notes
 

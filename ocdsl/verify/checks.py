@@ -71,3 +71,34 @@ def worst(err: np.ndarray, names: list[str], t: np.ndarray) -> tuple[float, str]
     e = np.where(np.isfinite(err), err, np.inf)
     i, j = np.unravel_index(int(np.argmax(e)), e.shape)
     return float(e[i, j]), f"{names[j]} at t = {t[i]:.6g}"
+
+
+def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str]) -> list[str]:
+    """Notes on controls that an NLP shapes node by node instead of resolving: an isolated
+    spike (one node far from both neighbours, on the same side) or a zigzag (the differences
+    alternating in sign over most rows). Either means the collocation scheme is exploited,
+    and refining alone may not help, so the summary says what else to change."""
+    notes = []
+    advice = ("the NLP exploits the collocation scheme instead of resolving the solution (typical "
+              "of LGR/LGL with an integral constraint or a singular arc); refining alone may not help: "
+              "try `transcription: LG`, a small penalty on the control, or `mesh:` (it locates switches)")
+    for j, name in enumerate(names):
+        keep = np.isfinite(U[:, j])
+        u, tt = U[keep, j], t[keep]
+        if len(u) < 6:
+            continue
+        size = max(float(np.ptp(u)), 1e-4 * max(1.0, float(np.max(np.abs(u)))))   # not noise on a constant
+        left, right = u[1:-1] - u[:-2], u[1:-1] - u[2:]
+        spike = np.minimum(np.abs(left), np.abs(right))
+        isolated = (np.sign(left) == np.sign(right)) & (spike > 10 * np.abs(u[2:] - u[:-2])) \
+            & (spike > 0.2 * size)
+        d = np.diff(u)
+        big = np.abs(d) > 1e-2 * size
+        alternating = (np.sign(d[1:]) != np.sign(d[:-1])) & big[1:] & big[:-1]
+        if alternating.mean() > 0.5:
+            notes.append(f"{name} zigzags from node to node ({alternating.mean():.0%} of the steps "
+                         f"alternate): {advice}")
+        elif isolated.any():
+            i = int(np.argmax(np.where(isolated, spike, -np.inf)))
+            notes.append(f"{name} jumps at a single node (t = {tt[i + 1]:.6g}): {advice}")
+    return notes
