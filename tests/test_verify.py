@@ -62,6 +62,17 @@ def test_exact_solution_is_verified(di_problem):
     assert _check(v, "boundary conditions", "global")["value"] < 1e-8
 
 
+def test_another_phases_constant_never_replaces_this_phases_control(di_problem):
+    """A multi-phase file whose coast phase has a constant u = 0 puts u in the result's
+    flat parameters; the re-integration must still fly this phase's control u (the
+    three-phase Goddard file, with thrust T a constant in boost/coast and a control in
+    the singular phase, was called not verified that way)."""
+    res = di_result()
+    res.parameters = {"u": 0.0}
+    v = verify_result(di_problem, res)
+    assert v["status"] == "verified", v["summary"]
+
+
 def test_a_corrupted_row_fails_the_dynamics_and_says_where(di_problem):
     v = verify_result(di_problem, di_result(corrupt=17))
     assert v["status"] == "failed"

@@ -43,7 +43,10 @@ class PhaseFunctions:
         self.n, self.m = len(self.states), len(self.controls)
         subs = {k: sp.Float(v) for k, v in phase.constants.items()}
         by_name = {str(k): k for k in phase.model.parameters}
+        own = {s.name for s in (*phase.states, *phase.controls)}
         for name, v in values.items():
+            if name in own:     # another phase's constant of that name, not this phase's variable
+                continue
             key = by_name.get(name, sp.Symbol(name, real=True))
             subs.setdefault(key, sp.Float(float(v)))
         self._subs = subs
