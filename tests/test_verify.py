@@ -62,6 +62,20 @@ def test_exact_solution_is_verified(di_problem):
     assert _check(v, "boundary conditions", "global")["value"] < 1e-8
 
 
+def test_a_jump_at_a_segment_end_fails_the_piece_that_ends_there(di_problem):
+    """Rows shifted by 0.03 from one segment end on: each segment is consistent in itself,
+    only the piece arriving at the junction misses. The piece-by-piece check must see it
+    (it once compared the junction's row with the next piece's start, i.e. with itself)."""
+    res = di_result()
+    t = res.phases[0].time
+    edges = res.phases[0].control_interpolation["breakpoints"]
+    res.phases[0].states["x"] = np.where(t >= edges[5] - 1e-12, res.phases[0].states["x"] + 0.03,
+                                         res.phases[0].states["x"])
+    c = _check(verify_result(di_problem, res), "dynamics per piece")
+    assert not c["passed"] and c["value"] == pytest.approx(0.03, rel=0.05)
+    assert c["where"] == f"x at t = {edges[5]:.6g}"
+
+
 def test_another_phases_constant_never_replaces_this_phases_control(di_problem):
     """A multi-phase file whose coast phase has a constant u = 0 puts u in the result's
     flat parameters; the re-integration must still fly this phase's control u (the
