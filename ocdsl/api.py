@@ -121,14 +121,30 @@ def execute(file, timer: Timer, **kwargs) -> Result:
         from .control.problem_file import run_controller_file
 
         result = run_controller_file(file, timer)
-        result.verification = {"status": "not_applicable", "checks": [],
-                               "summary": "a closed-loop simulation: its trajectory is the integration itself"}
+        verify_closed_loop(file, result, timer)
         return result
     from .run import execute as run_method
 
     result = run_method(file, timer, **kwargs)
     verify(file, result, timer)
     return result
+
+
+def verify_closed_loop(file, result: Result, timer: Timer) -> None:
+    """Each law's closed-loop run flown again by the verification's integrator
+    (:mod:`ocdsl.verify.closed_loop`): the simulation's fixed step is what is checked."""
+    from .control.simulate import saturation_limits
+    from .verify import VerifySettings, verify_result
+    from .verify.closed_loop import closed_loop_problem
+
+    spec = file.controller
+    laws = [ph.name for ph in result.phases]
+    with timer.measure("verify"):
+        problem = closed_loop_problem(file.model, result.parameters, laws,
+                                      saturation_limits(spec.saturation, len(file.model.controls)),
+                                      spec.simulate.horizon)
+        result.verification = verify_result(problem, result,
+                                            VerifySettings.of(file.spec.verify).closed_loop())
 
 
 def verify(file, result: Result, timer: Timer) -> None:

@@ -212,3 +212,63 @@ def test_a_phase_without_controls_is_certified_and_verified(tmp_path):
     assert "error" not in (res.certificate or {}), res.certificate
     assert res.verification["status"] == "verified", res.verification["summary"]
     assert res.ok
+
+
+def test_batched_local_pass_equals_piece_by_piece(di_problem):
+    """Zero-order-hold rows (a closed-loop run's shape): the batched local pass gives what
+    integrating each piece alone gives, arrival values at the rows included."""
+    from ocdsl.verify import integrate as I
+    from ocdsl.verify.functions import PhaseFunctions
+    from ocdsl.verify.interpolate import control_interpolant
+
+    t = np.linspace(0.0, 2.0, 201)
+    u = np.sin(3 * t)
+    x, v = np.zeros_like(t), np.zeros_like(t)
+    for k in range(200):         # exact ZOH flight, then a defect of 1e-4 in v at row 120
+        h = t[k + 1] - t[k]
+        x[k + 1] = x[k] + v[k] * h + u[k] * h * h / 2
+        v[k + 1] = v[k] + u[k] * h + (1e-4 if k + 1 == 120 else 0.0)
+    traj = PhaseTrajectory("main", t, {"x": x, "v": v}, {"u": u}, control_interpolation={"kind": "previous"})
+    ph = di_problem.phases[0]
+    funcs = PhaseFunctions(ph, {}, ph.integrals)
+    uf = control_interpolant(traj, ["u"], [(-1.0, 1.0)], traj.control_interpolation)
+    X = np.column_stack([x, v])
+    scale = np.array([np.ptp(x), np.ptp(v)])
+    grid = I.dense_grid(t, t, 3)
+    batched = I.batched_local_pass(funcs, uf, grid, t, X, 3, 1e-10, scale, 0.0)
+    assert batched is not None and batched.methods == {"DOP853 (batched)"}
+
+    def from_rows(k, y_prev):
+        return X[k]
+    alone = I.integrate_pass(funcs, uf, grid, t, from_rows, 1e-10, scale, 0.0)
+    assert np.max(np.abs(batched.Y - alone.Y) / scale) < 1e-9
+    at_rows = np.searchsorted(grid, t)
+    err = np.abs(batched.Y[at_rows] - X) / scale
+    assert err[:, 1].argmax() == 120 and err[120, 1] == pytest.approx(1e-4 / scale[1], rel=1e-3)
+    assert np.delete(err, 120, axis=0).max() < 1e-9
+
+
+CLOSED_LOOP = {"name": "LQR on a double integrator",
+               "model": {"states": ["x", "v"], "controls": ["u"], "dynamics": {"x": "v", "v": "u"}},
+               "controller": {"type": "lqr", "Q": [1, 1], "R": [1], "saturation": 0.8,
+                              "simulate": {"x0": {"x": 1, "v": 0}, "horizon": 10}}}
+
+
+@pytest.mark.parametrize("step,integrator,verdict", [(0.01, "rk4", "verified"), (0.5, "euler", "failed")])
+def test_closed_loop_runs_are_verified_by_their_own_step(tmp_path, step, integrator, verdict):
+    """A controller file's simulation is flown again piece by piece (one hold interval each)
+    by the verification's integrator: Euler at half a second misses, RK4 at 0.01 s does not;
+    the recorded controls are held to the saturation."""
+    from ocdsl.api import run_file
+
+    spec = yaml.safe_load(yaml.safe_dump(CLOSED_LOOP))
+    spec["controller"]["simulate"].update(step=step, integrator=integrator)
+    p = tmp_path / "lqr.yaml"
+    p.write_text(yaml.safe_dump(spec))
+    res = run_file(p, tmp_path / "run")
+    v = Result.read(tmp_path / "run").verification
+    assert res.status == "stable" and v["status"] == verdict, v.get("summary")
+    names = {c["name"] for c in v["checks"]}
+    assert names == {"dynamics per piece", "control bounds"}       # no open-loop replay
+    if verdict == "failed":
+        assert "simulate.step" in v["summary"] and not res.ok

@@ -135,7 +135,7 @@ def run_one(model: Model, spec: ControllerSpec, kind: str, sdc: sdcmod.SDC,
     controls = [str(u) for u in model.controls]
     phase = PhaseTrajectory("main", sim.t, states={nm: sim.z[:, i] for i, nm in enumerate(names)},
                             controls={c: sim.u[:, j] for j, c in enumerate(controls)},
-                            extra={"cost": sim.cost})
+                            extra={"cost": sim.cost}, control_interpolation={"kind": "previous"})
     every = int(round((sim_spec.update or sim_spec.step) / sim_spec.step))
     ctime = np.full(len(sim.t), np.nan)
     ctime[::every][:len(sim.ctrl_time)] = sim.ctrl_time[:len(ctime[::every])]

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -42,7 +42,7 @@ from .interpolate import (_Tabulated, bounds_of, breakpoints, control_interpolan
 __all__ = ["VerifySettings", "verify_result", "attach_verification", "STATUSES", "CONVERGED"]
 
 STATUSES = ("verified", "failed", "error", "skipped", "not_applicable")
-CONVERGED = ("optimal", "acceptable", "feasible")   # results with a trajectory worth verifying
+CONVERGED = ("optimal", "acceptable", "feasible", "stable")   # results with a trajectory worth verifying
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,7 @@ class VerifySettings:
     mode: str = "enforce"          # or "warn": reported, does not fail the run
     rtol: float = 1e-10            # the integrator's (well below tolerance)
     per_interval: int = 3          # dense points between consecutive rows
+    open_loop: bool = True         # also fly the control from x(t0); off for closed-loop runs
 
     @classmethod
     def of(cls, spec) -> "VerifySettings":
@@ -59,6 +60,11 @@ class VerifySettings:
             return cls()
         return cls(tolerance=float(spec.tolerance), mode=str(spec.mode),
                    rtol=min(1e-10, float(spec.tolerance) * 1e-5))
+
+    def closed_loop(self) -> "VerifySettings":
+        """The same, for a closed-loop run: its control came from feedback on the simulated
+        state, so flying it open loop from x(t0) tests the plant's stability, not the run."""
+        return replace(self, open_loop=False)
 
 
 def attach_verification(problem, result, settings: VerifySettings | None = None) -> None:
@@ -93,7 +99,7 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     status = "failed" if failed else "verified"
     out = {**head, "status": status, "checks": checks, "notes": notes,
            "wall_time_s": round(time.perf_counter() - start, 6)}
-    out["summary"] = _summary(failed, notes) if failed else \
+    out["summary"] = _summary(failed, notes, settings) if failed else \
         f"verified: {len(checks)} checks within {settings.tolerance:g}"
     return out
 
@@ -117,14 +123,22 @@ HINTS = {
 }
 
 
-def _summary(failed: list[dict], notes: list[str]) -> str:
+CLOSED_LOOP_HINTS = {
+    "dynamics per piece": "the simulation's integrator is not accurate at its step: a smaller "
+                          "`simulate.step`, or `integrator: dop853`",
+    "control bounds": "a recorded control exceeds the saturation limits",
+}
+
+
+def _summary(failed: list[dict], notes: list[str], settings: VerifySettings) -> str:
     """The first failed check, and what to change: an irregular control's note where there
     is one (refining is then the wrong advice), else the check's hint."""
     c = failed[0]
     where = f" ({c['where']})" if c.get("where") else ""
     phase = f" in phase {c['phase']}" if c.get("phase") and c["phase"] != "main" else ""
     more = f"; {len(failed) - 1} more failed" if len(failed) > 1 else ""
-    hint = notes[0] if notes else HINTS.get(c["name"], "")
+    hints = HINTS if settings.open_loop else {**HINTS, **CLOSED_LOOP_HINTS}
+    hint = notes[0] if notes else hints.get(c["name"], "")
     return f"not verified: {c['name']}{phase} {c['value']:.3g} > {c['limit']:.3g}{where}{more}. {hint}"
 
 
@@ -161,11 +175,11 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
         runs[ph.name] = _verify_phase(ph, traj, declared_interpolation(traj, result.method), params,
                                       settings, checks, tables)
         names_u = [c.name for c in ph.controls]
-        if names_u:
+        if names_u and settings.open_loop:     # collocation advice; a feedback law may chatter
             tr, Ur = control_rows(traj, names_u)
             notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n
                       for n in irregular_controls(tr, Ur, names_u)]
-    _boundary_checks(problem, result, runs, params, tol, checks)
+    _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
     return checks, notes
 
 
@@ -195,7 +209,8 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
     else:
         scale_q = np.zeros(0)
     scale = np.concatenate([scale_x, scale_q])
-    glob, local = reintegrate(funcs, uf, t, X, breaks, settings.rtol, scale, settings.per_interval)
+    glob, local = reintegrate(funcs, uf, t, X, breaks, settings.rtol, scale, settings.per_interval,
+                              settings.open_loop)
     at_rows = np.searchsorted(glob.t, t)
     pname = ph.name
     if funcs.n:
@@ -204,9 +219,10 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
         v, where = worst(el, names_x, t)
         checks.append(row("dynamics per piece", pname, v, tol, where,
                           f"{len(breaks) - 1} pieces, {', '.join(sorted(local.methods))}"))
-        v, where = worst(eg, names_x, t)
-        checks.append(row("dynamics from x(t0)", pname, v, tol, where,
-                          f"{', '.join(sorted(glob.methods))}, {glob.steps} steps"))
+        if settings.open_loop:
+            v, where = worst(eg, names_x, t)
+            checks.append(row("dynamics from x(t0)", pname, v, tol, where,
+                              f"{', '.join(sorted(glob.methods))}, {glob.steps} steps"))
         table = {"t": glob.t}
         for j, n in enumerate(names_x):
             table[n] = glob.Y[:, j]
@@ -317,10 +333,11 @@ def _points(problem, result, runs, params, which: str):
     return point, scales
 
 
-def _boundary_checks(problem, result, runs, params, tol, checks) -> None:
+def _boundary_checks(problem, result, runs, params, tol, checks, open_loop: bool = True) -> None:
     declared = _numbers(result.extra.get("terminal_tolerances", {}) or {})
     integral_symbols = set(problem.integrals)
-    for which, label in (("global", "from x(t0)"), ("local", "per piece")):
+    passes = (("global", "from x(t0)"), ("local", "per piece")) if open_loop else (("local", "per piece"),)
+    for which, label in passes:
         point, scales = _points(problem, result, runs, params, which)
         groups: dict[str, list] = {"boundary conditions": [], "integral constraints": []}
         for c in problem.boundary:
