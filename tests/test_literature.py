@@ -1,0 +1,184 @@
+"""Published optimal-control problems written from the docs as a user would
+(configs/lit_*.yaml, docs/literature.md; issue 24). Each run must either match its published
+value within the file's stated tolerance and be verified, or be flagged as not verified; the
+verdict of every file is pinned here. The reference values that are closed forms or exact
+integrations are recomputed independently of ocdsl below (SciPy only)."""
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import quad, solve_ivp
+from scipy.linalg import expm
+from scipy.optimize import brentq, fsolve
+
+from conftest import CONFIGS
+
+
+def _case(status="optimal", verification="verified", expect_pass=True, slow=False, reason=None):
+    return dict(status=status, verification=verification, expect_pass=expect_pass, slow=slow,
+                reason=reason)
+
+
+# verdict of each file at its own method (docs/literature.md has the numbers and wall times)
+CASES = {
+    "catenary": _case(),
+    "orbit_raising": _case(),
+    "linear_tangent": _case(),
+    "linear_tangent_parameters": _case(),
+    "bryson_denham_touch": _case(),
+    "isoperimetric": _case(),
+    "brachistochrone_wall": _case(),
+    "hypersensitive_linear": _case(),
+    "min_fuel_double_integrator": _case(slow=True),
+    "rayleigh_mixed": _case(slow=True),
+    "catalyst_mixing": _case(slow=True),
+    "singular_aly": _case(slow=True),
+    "tumour": _case(slow=True),
+    "goddard_cops": _case(slow=True),
+}
+# published value reproduced, but the verification fails for a reason outside the file:
+# report_literature.md D1 (the coast phase's constant T = 0 substituted into the singular
+# phase's control T by the re-integration)
+GODDARD_3 = "goddard_three_phase"
+# not verified: adaptive refinement stops at max_iterations (largest estimated error 2e-5),
+# J settles at 7.910916, 4.5e-5 above the published 7.91055654 (expect fails at rtol 1e-6)
+FFR = "free_flying_robot"
+
+
+def _run(name: str, out: Path) -> dict:
+    from ocdsl.api import run_file
+
+    run_file(CONFIGS / f"lit_{name}.yaml", out / name)
+    return json.loads((out / name / "result.json").read_text())
+
+
+def _assert_case(name: str, data: dict, case: dict) -> None:
+    v = data["verification"]
+    assert data["status"] == case["status"], (name, data["status"], data.get("message"))
+    assert v["status"] == case["verification"], (name, v.get("summary"))
+    checks = data["expect"]
+    assert checks, f"{name}: no expect checks"
+    for check in checks:
+        # the published value at the file's tolerance, as ocdsl compared it; recomputed here
+        ref, val = check["reference"], check["value"]
+        tol = (check["rtol"] or 0) * abs(ref) + (check["atol"] or 0)
+        assert (abs(val - ref) <= tol) == check["passed"], (name, check)
+        assert check["passed"] is case["expect_pass"], (name, check)
+
+
+def _params():
+    for name, case in CASES.items():
+        marks = [pytest.mark.ipopt] + ([pytest.mark.slow] if case["slow"] else [])
+        yield pytest.param(name, marks=marks, id=name)
+
+
+@pytest.mark.parametrize("name", list(_params()))
+def test_published_problem(name, tmp_path):
+    _assert_case(name, _run(name, tmp_path), CASES[name])
+
+
+@pytest.fixture(scope="module")
+def goddard_three_phase(tmp_path_factory) -> dict:
+    return _run(GODDARD_3, tmp_path_factory.mktemp("lit"))
+
+
+@pytest.mark.ipopt
+def test_goddard_three_phase_value(goddard_three_phase):
+    """The three-phase Goddard rocket reproduces h(tf) = 18550.8718638 (yapss) with LGL; its
+    verification fails today only because of defect D1 (see the strict xfail below)."""
+    data = goddard_three_phase
+    assert data["status"] == "optimal"
+    (check,) = data["expect"]
+    assert check["passed"] and abs(check["value"] / 18550.8718638 - 1) < 1e-7
+    assert data["verification"]["status"] == "failed"
+
+
+@pytest.mark.ipopt
+@pytest.mark.xfail(strict=True, reason="D1: verify substitutes the coast phase's T = 0 into the "
+                   "singular phase's control T (report_literature.md)")
+def test_goddard_three_phase_verifies(goddard_three_phase):
+    data = goddard_three_phase
+    assert data["verification"]["status"] == "verified", data["verification"]["summary"]
+
+
+@pytest.mark.slow
+@pytest.mark.ipopt
+def test_free_flying_robot_not_verified(tmp_path):
+    data = _run(FFR, tmp_path)
+    assert data["status"] == "mesh_not_converged"
+    assert data["verification"]["status"] == "skipped"
+    (check,) = data["expect"]
+    assert not check["passed"] and 1e-5 < check["relative_error"] < 1e-4
+
+
+# ---- the reference values, recomputed independently of ocdsl --------------------------------
+
+def test_catenary_reference():
+    """x = a cosh((t - b)/a) + c through (0, 1), (1, 3) with length 4: J = 5.068480."""
+    def eqs(p):
+        a, b, c = p
+        return [a * math.cosh(-b / a) + c - 1, a * math.cosh((1 - b) / a) + c - 3,
+                a * (math.sinh((1 - b) / a) + math.sinh(b / a)) - 4]
+    a, b, c = fsolve(eqs, [0.3, 0.3, -0.5], xtol=1e-14)
+    assert max(map(abs, eqs([a, b, c]))) < 1e-10
+    J = quad(lambda t: (a * math.cosh((t - b) / a) + c) * math.cosh((t - b) / a), 0, 1,
+             epsabs=1e-13, limit=200)[0]
+    assert J == pytest.approx(5.068480, abs=5e-7)
+
+
+def test_aly_reference():
+    """u = -1 to ts, then the singular arc u = x1 with x2(5) = 0 (x1 = C cosh(5 - t))."""
+    ts = brentq(lambda s: (1 - s) + (s - s * s / 2) * math.tanh(5 - s), 1.0, 2.0, xtol=1e-15)
+    C = (ts - ts * ts / 2) / math.cosh(5 - ts)
+    J = quad(lambda t: ((t - t * t / 2) ** 2 + (1 - t) ** 2) / 2, 0, ts, epsabs=1e-15)[0] \
+        + quad(lambda t: C * C * (math.cosh(5 - t) ** 2 + math.sinh(5 - t) ** 2) / 2, ts, 5,
+               epsabs=1e-15)[0]
+    assert J == pytest.approx(0.3769919302879714, rel=1e-12)
+
+
+def test_min_fuel_reference():
+    """Bryson & Ho pp. 116-117: simulate the bang-off-bang control, check the end state."""
+    x0, v0, tf = 0.1, 0.5, 1.5
+    r = math.sqrt((tf - v0) ** 2 - 4 * x0 - 2 * v0 ** 2)
+    t1, t2 = (tf + v0 - r) / 2, (tf + v0 + r) / 2
+    u = lambda t: -1.0 if t < t1 else (0.0 if t < t2 else 1.0)
+    sol = solve_ivp(lambda t, y: [y[1], u(t)], [0, tf], [x0, v0], rtol=1e-12, atol=1e-14,
+                    max_step=1e-3)
+    assert np.abs(sol.y[:, -1]).max() < 1e-5
+    assert t1 + (tf - t2) == pytest.approx(1.1837722339831620, rel=1e-14)
+
+
+def test_bryson_denham_touch_reference():
+    """Two cubics meeting x = l, v = 0 at t = 1/2: J = 8 (1 - 6 l + 12 l**2)."""
+    l = 1 / 5
+    # x = t + a t^2 + b t^3 on [0, 1/2] with x(1/2) = l, v(1/2) = 0; mirrored after
+    a, b = np.linalg.solve([[1 / 4, 1 / 8], [1.0, 3 / 4]], [l - 1 / 2, -1.0])
+    J = 2 * quad(lambda t: (2 * a + 6 * b * t) ** 2 / 2, 0, 0.5)[0]
+    assert J == pytest.approx(8 * (1 - 6 * l + 12 * l * l), rel=1e-12) and J == pytest.approx(2.24)
+
+
+def test_hypersensitive_reference():
+    """Hamiltonian system z' = A z, z = (x, lambda), u = -lambda, against dymos' closed form."""
+    A = np.array([[-1.0, -1.0], [-1.0, 1.0]])
+    lam0 = (1.0 - expm(A * 10)[0, 0] * 1.5) / expm(A * 10)[0, 1]
+    z0 = np.array([1.5, lam0])
+    J = quad(lambda t: 0.5 * np.sum((expm(A * t) @ z0) ** 2), 0, 10, limit=400, epsabs=1e-13)[0]
+    assert J == pytest.approx(1.673093978412, rel=1e-10)
+
+
+def test_tumour_bang_off_reference():
+    """Full dose to t = A/a = 0.2, then none until p = q: p = 7571.670038 at tf = 1.1963497,
+    1.5e-7 below Betts' 7571.6712."""
+    xi, b, d, G, mu, A, a = 0.084, 5.85, 0.00873, 0.15, 0.02, 15.0, 75.0
+    pmax = ((b - mu) / d) ** 1.5
+    rhs = lambda t, y, u: [-xi * y[0] * math.log(y[0] / y[1]),
+                           y[1] * (b - (mu + d * y[0] ** (2 / 3) + G * u))]
+    y = solve_ivp(rhs, [0, A / a], [pmax / 2, pmax / 4], args=(a,), rtol=1e-12, atol=1e-9).y[:, -1]
+    meet = lambda t, y, u: y[0] - y[1]
+    meet.terminal = True
+    s = solve_ivp(rhs, [A / a, 5], y, args=(0.0,), rtol=1e-12, atol=1e-9, events=meet)
+    p, tf = s.y_events[0][0][0], s.t_events[0][0]
+    assert p == pytest.approx(7571.670038, abs=2e-6) and tf == pytest.approx(1.1963497, abs=1e-7)
+    assert p < 7571.6712
