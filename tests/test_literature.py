@@ -103,6 +103,27 @@ def test_goddard_three_phase_verifies(goddard_three_phase):
     assert data["verification"]["status"] == "verified", data["verification"]["summary"]
 
 
+@pytest.mark.ipopt
+@pytest.mark.xfail(strict=True, reason="D2: the tumour file on a uniform LG 12 x 4 mesh says optimal "
+                   "and verified with tf = 1.2 (the guess), 3.2e-3 after the exact 1.1963497, "
+                   "p(tf) 1.4e-6 high; nothing checks stationarity in the free tf "
+                   "(report_literature.md)")
+def test_tumour_uniform_mesh_not_verified_with_wrong_tf(tmp_path):
+    import yaml
+    from ocdsl.api import run_file
+
+    spec = yaml.safe_load((CONFIGS / "lit_tumour.yaml").read_text())
+    spec["method"] = {"transcription": "LG", "segments": 12, "degree": 4}
+    path = tmp_path / "tumour_lg.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    run_file(path, tmp_path / "run")
+    data = json.loads((tmp_path / "run" / "result.json").read_text())
+    if data["status"] == "optimal" and data["verification"]["status"] == "verified":
+        # the exact bang-off optimum (test_tumour_bang_off_reference)
+        assert data["tf"] == pytest.approx(1.1963497, rel=1e-3)
+        assert data["objective"] == pytest.approx(7571.670038, rel=1e-6)
+
+
 @pytest.mark.slow
 @pytest.mark.ipopt
 def test_free_flying_robot_not_verified(tmp_path):
