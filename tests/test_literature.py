@@ -31,6 +31,7 @@ CASES = {
     "isoperimetric": _case(),
     "brachistochrone_wall": _case(),
     "hypersensitive_linear": _case(),
+    "bryson_denham_three_phase": _case(),
     "min_fuel_double_integrator": _case(slow=True),
     "rayleigh_mixed": _case(slow=True),
     "catalyst_mixing": _case(slow=True),
