@@ -204,3 +204,30 @@ def test_tumour_bang_off_reference():
     p, tf = s.y_events[0][0][0], s.t_events[0][0]
     assert p == pytest.approx(7571.670038, abs=2e-6) and tf == pytest.approx(1.1963497, abs=1e-7)
     assert p < 7571.6712
+
+
+@pytest.mark.xfail(strict=True, reason="D3: a `phases:` file with one phase raises AttributeError in "
+                   "spec/compile.py describe() (report_literature.md)")
+def test_one_phase_under_phases_is_no_traceback(tmp_path):
+    """Found while cutting the Delta III file down to one phase: `ocdsl check` must either
+    accept a `phases:` block with a single phase or refuse it in one message, never crash."""
+    from click.testing import CliRunner
+
+    from ocdsl.cli import main
+
+    path = tmp_path / "one_phase.yaml"
+    path.write_text("""name: one phase under phases
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+phases:
+  only:
+    time: {t0: 0, tf: 1}
+    constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
+    objective: integral(u**2)
+objective: minimize 0
+""")
+    res = CliRunner().invoke(main, ["check", str(path)])
+    assert res.exception is None or isinstance(res.exception, SystemExit), repr(res.exception)
+    assert res.exit_code in (0, 2), res.output
