@@ -231,3 +231,34 @@ objective: minimize 0
     res = CliRunner().invoke(main, ["check", str(path)])
     assert res.exception is None or isinstance(res.exception, SystemExit), repr(res.exception)
     assert res.exit_code in (0, 2), res.output
+
+
+@pytest.mark.ipopt
+@pytest.mark.xfail(strict=True, reason="D4: SymPy folds 0.001*exp(-(x - 2)/H) with H = 1e-3 into "
+                   "a float beyond 1e308 times exp(-1000 x); the float64 NLP sees inf*0 "
+                   "(report_literature.md)")
+def test_exp_with_small_scale_height_solves(tmp_path):
+    """Found writing the Delta III ascent (density exp(-(r - 1)/hs), hs = h0/R_e = 1.13e-3):
+    x' = u + 0.001 exp(-(x - 2)/H) from 2 to 3 must solve like the same problem written in
+    y = x - 2 (which does: optimal, verified)."""
+    from ocdsl.api import run_file
+
+    text = """name: exp with a small scale height
+model:
+  states: [{s}]
+  controls: [u]
+  parameters: {{H: 0.001}}
+  dynamics: {{{s}: u + 0.001*exp(-({s} - {a})/H)}}
+problem:
+  time: {{t0: 0, tf: 1}}
+  constraints: [{s}(t0) == {a}, {s}(tf) == {b}]
+  objective: minimize integral(u**2)
+method: {{transcription: LGR, segments: 4, degree: 4}}
+"""
+    (tmp_path / "y.yaml").write_text(text.format(s="y", a=0, b=1))
+    (tmp_path / "x.yaml").write_text(text.format(s="x", a=2, b=3))
+    shifted = run_file(tmp_path / "y.yaml", tmp_path / "y")
+    assert shifted.status == "optimal" and shifted.verified
+    res = run_file(tmp_path / "x.yaml", tmp_path / "x")
+    assert res.status == "optimal", res.message
+    assert res.objective == pytest.approx(shifted.objective, rel=1e-8)
