@@ -38,6 +38,7 @@ CASES = {
     "singular_aly": _case(slow=True),
     "tumour": _case(slow=True),
     "goddard_cops": _case(slow=True),
+    "delta_iii": _case(slow=True),
 }
 # published value reproduced, but the verification fails for a reason outside the file:
 # report_literature.md D1 (the coast phase's constant T = 0 substituted into the singular
