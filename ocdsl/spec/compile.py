@@ -26,6 +26,8 @@ from .schema import ModelSpec, ParameterSpec, ProblemFile, PseudospectralMethod,
 
 PSEUDOSPECTRAL = ("LG", "LGR", "LGL", "LGR-start")
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+MAX_VARIABLES = 1000   # states + controls of a model (docs/problem-language.md, "Input limits")
+MAX_CONSTRAINTS = 1000  # constraints of a phase, and links (about 1 ms each to compile)
 
 
 @dataclass
@@ -96,11 +98,7 @@ def _known_keys(loc: tuple) -> list[str]:
 
 
 def _source_line(located: Located, loc: tuple) -> str:
-    line = located.line(loc)
-    try:
-        return Path(located.file).read_text().splitlines()[line - 1].strip() if line else ""
-    except (OSError, IndexError):
-        return ""
+    return located.source(located.line(loc))
 
 
 class _Compiler:
@@ -209,7 +207,9 @@ class _Compiler:
         for ph, (phase_spec_loc, texts) in zip(phases, self._phase_constraint_texts()):
             boundary += self.constraints(ph, phases, texts, phase_spec_loc)
         multi = len(phases) > 1
-        for i, text in enumerate(spec.links):
+        if len(spec.links) > MAX_CONSTRAINTS:
+            self.issue(("links",), f"{len(spec.links)} links: more than the limit of {MAX_CONSTRAINTS}")
+        for i, text in enumerate(spec.links[:MAX_CONSTRAINTS]):
             joined = self.guarded(("links", i), parse_continuity, text)
             if joined is None:
                 boundary += self.relations(None, phases, text, ("links", i), link=True)
@@ -351,6 +351,10 @@ class _Compiler:
         return self.inline_model(mspec, loc)
 
     def inline_model(self, m: ModelSpec, loc: tuple) -> Model | None:
+        if len(m.states) + len(m.controls) > MAX_VARIABLES:   # compile time grows with the square
+            self.issue(loc + ("states",), f"{len(m.states)} states and {len(m.controls)} controls: more "
+                       f"than the limit of {MAX_VARIABLES} together")
+            return None
         names: dict[str, sp.Basic] = {"t": TIME}
         ok = True
         declared: dict[str, tuple] = {}
@@ -390,6 +394,9 @@ class _Compiler:
         dynamics: dict[sp.Symbol, sp.Expr] = {}
         covered: set[str] = set()
         for name, text in m.dynamics.items():
+            if name in m.states and name not in names:     # an invalid state name, reported above
+                ok = False
+                continue
             targets = self.dynamics_targets(name, m, vectors, loc)
             if targets is None:
                 ok = False
@@ -411,7 +418,7 @@ class _Compiler:
                     ok = False
                 dynamics[names[target]] = value
         for i, s in enumerate(m.states):
-            if s not in covered:
+            if s not in covered and s in names:
                 self.issue(loc + ("states", i), f"state '{s}' has no dynamics (add `{s}: ...` under dynamics)")
                 ok = False
         if not ok:
@@ -596,6 +603,9 @@ class _Compiler:
         return Objective(m.group(1), expr, str(text))
 
     def constraints(self, ph: Phase, phases, texts, loc) -> list[Constraint]:
+        if len(texts) > MAX_CONSTRAINTS:
+            self.issue(loc, f"{len(texts)} constraints: more than the limit of {MAX_CONSTRAINTS}")
+            return []
         out: list[Constraint] = []
         for i, text in enumerate(texts):
             out += self.relations(ph, phases, text, loc + (i,))

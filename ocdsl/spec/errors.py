@@ -13,7 +13,8 @@ class Issue:
 
     def __str__(self) -> str:
         where = f"{self.file}:{self.line}" if self.line else self.file
-        shown = f"\n    {self.text}" if self.text else ""
+        text = self.text if len(self.text) <= 200 else self.text[:200] + " ..."
+        shown = f"\n    {text}" if text else ""
         return f"{where}: {self.message}{shown}"
 
 

@@ -30,6 +30,11 @@ CONSTANTS = {"pi": sp.pi, "inf": sp.oo}
 RESERVED = set(FUNCTIONS) | set(VECTOR_FUNCTIONS) | set(CONSTANTS) | {"integral", "t", "t0", "tf", "continuous"}
 MAX_EXPONENT = 64          # larger literal exponents are almost surely typos or attacks
 MAX_TEXT = 20_000
+# Input limits (docs/problem-language.md): nesting counts calls, powers, unary minus and
+# parentheses (a long sum a + b + c + ... is one level); SymPy's own recursion ends past
+# about 150 nested calls, so 64 leaves room for named expressions used inside others
+MAX_NESTING = 64
+MAX_MAGNITUDE = 300        # a constant beyond 1e300 is refused before SymPy computes it
 
 
 @dataclass
@@ -150,13 +155,46 @@ def _parse(text: str | int | float) -> ast.expr:
         raise ExprError(f"expected an expression (text), got {type(text).__name__}", str(text))
     if len(text) > MAX_TEXT:
         raise ExprError(f"expression longer than {MAX_TEXT} characters", text[:60] + "...")
+    if re.search(r"\d{301}", text):    # Python refuses 4,300 digits, float() 309 anyway
+        raise ExprError("a number of more than 300 digits", text[:60] + "...")
     try:
-        return ast.parse(text.strip(), mode="eval").body
+        tree = ast.parse(text.strip(), mode="eval").body
     except SyntaxError as e:
         hint = ""
         if re.search(r"(?<![<>=!])=(?!=)", text):
             hint = "; an equality is written with ==, e.g. x(t0) == 1"
         raise ExprError(f"syntax error ({e.msg}){hint}", text) from None
+    except (RecursionError, MemoryError, ValueError) as e:   # Python's own parser limits
+        raise ExprError(f"expression too long or nested too deeply for the parser ({type(e).__name__})",
+                        text[:60]) from None
+    _check_nesting(tree, text)
+    return tree
+
+
+def _check_nesting(tree: ast.AST, text: str) -> None:
+    """Refuse deeper nesting than MAX_NESTING before anything is built (without recursion)."""
+    stack = [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise ExprError(f"expression nested deeper than {MAX_NESTING} levels", text[:60] + "...")
+        for child in ast.iter_child_nodes(node):
+            if not isinstance(child, ast.expr):      # Load contexts, operators
+                continue
+            chained = isinstance(node, ast.BinOp) and child is node.left and isinstance(child, ast.BinOp)
+            stack.append((child, depth if chained else depth + 1))
+
+
+def _log10_abs(x: sp.Expr) -> float:
+    """log10 |x| of a numeric constant, without computing a huge integer's float."""
+    if x.is_Integer:
+        n = abs(int(x))
+        return 0.0 if n == 0 else max(0.0, (n.bit_length() - 1) * 0.30103)
+    try:
+        v = abs(complex(x.evalf(15)))
+    except (TypeError, ValueError, OverflowError):
+        return math.inf
+    return math.log10(v) if v > 0 else 0.0
 
 
 class _Builder:
@@ -217,7 +255,26 @@ class _Builder:
         raise self.fail(f"operator '{ast.unparse(node)}' is not allowed")
 
     def _BinOp(self, node: ast.BinOp) -> sp.Expr:
-        a, b = self.build(node.left), self.build(node.right)
+        # a chain a + b - c + ... (left-nested in the tree) is walked in a loop, not by recursion
+        chain = []
+        while isinstance(node, ast.BinOp) and not isinstance(node.op, ast.Pow):
+            chain.append(node)
+            node = node.left
+        if not chain:
+            return self._binary(node, self.build(node.left), self.build(node.right))
+        acc = self.build(node)
+        terms: list = []     # scalar terms of a sum gathered, added once (linear, not quadratic)
+        for n in reversed(chain):
+            b = self.build(n.right)
+            if isinstance(n.op, (ast.Add, ast.Sub)) and not (is_vector(acc) or is_vector(b)):
+                terms.append(b if isinstance(n.op, ast.Add) else -b)
+                continue
+            if terms:
+                acc, terms = sp.Add(acc, *terms), []
+            acc = self._binary(n, acc, b)
+        return sp.Add(acc, *terms) if terms else acc
+
+    def _binary(self, node: ast.BinOp, a, b) -> sp.Expr:
         op = type(node.op)
         if is_vector(a) or is_vector(b):
             return self._vector_op(op, a, b, node)
@@ -226,6 +283,8 @@ class _Builder:
         if op is ast.Sub:
             return a - b
         if op is ast.Mult:
+            if a.is_Number and b.is_Number and _log10_abs(a) + _log10_abs(b) > MAX_MAGNITUDE:
+                raise self.fail(f"a constant beyond 1e{MAX_MAGNITUDE}")
             return a * b
         if op is ast.Div:
             if b == 0:
@@ -234,6 +293,8 @@ class _Builder:
         if op is ast.Pow:
             if b.is_number and (not b.is_finite or abs(float(b)) > MAX_EXPONENT):
                 raise self.fail(f"exponent {b} too large (limit {MAX_EXPONENT})")
+            if a.is_number and b.is_number and _log10_abs(a) * abs(float(b)) > MAX_MAGNITUDE:
+                raise self.fail(f"a constant beyond 1e{MAX_MAGNITUDE} ('{ast.unparse(node)[:60]}')")
             return a ** b
         raise self.fail(f"operator in '{ast.unparse(node)}' is not allowed (use + - * / **)")
 

@@ -350,7 +350,7 @@ def load_pareto(path: str | Path) -> tuple[ParetoSpec, dict[str, Any]]:
     path = Path(path)
     located = load_yaml(path)       # the problem file's reader: limits, tags and merge keys alike
     source = path.read_text()
-    root = yaml.compose(source, Loader=yaml.SafeLoader)
+    root = yaml.compose(source, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     doc = located.data
     if "pareto" not in doc:
         raise ParetoSpecError("no pareto: block", str(path), 1, None)

@@ -34,7 +34,7 @@ def check_sections(path: str | Path, located: Located, solver: str) -> None:
     if unknown:
         raise SpecError([located.issue((unknown[0],), f"unknown key '{unknown[0]}' in a closed-form Pareto file")])
     stand_in, lines = _stand_in(doc, located)
-    synthetic = Located(located.file, stand_in, lines)
+    synthetic = Located(located.file, stand_in, lines, located._text)
     _Compiler(Path(path), synthetic, validate(synthetic), {}).compile()
 
 

@@ -37,6 +37,8 @@ import yaml
 from pydantic import StrictBool, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 
+MAX_POINTS = 100_000      # docs/problem-language.md, "Input limits"
+
 class StudyError(ValueError):
     """A mistake in a study (or in how it is run): one clear line, with file and line."""
 
@@ -211,9 +213,27 @@ class StudySpec(_Strict):
     def _something(self) -> "StudySpec":
         if self.sweep is None and self.starts is None and self.monte_carlo is None:
             raise ValueError("a study needs at least one of `sweep`, `starts`, `monte-carlo`")
+        n = self.point_count()
+        if n > MAX_POINTS:     # counted, not generated (num: 200000000 once ended in MemoryError)
+            raise ValueError(f"the study has {n:,} points, more than the limit of {MAX_POINTS:,}")
         if self.continuation and self.sweep is None:
             raise ValueError("`continuation: true` needs a `sweep` to continue along")
         return self
+
+    def point_count(self) -> int:
+        """Points of the study (sweep x samples x starts), without making them."""
+        def size(v: Values) -> int:
+            return v.num if isinstance(v, Range) else len(v)
+
+        n = 1
+        if self.sweep is not None:
+            if self.sweep.grid is not None:
+                n = math.prod(size(v) for v in self.sweep.grid.values())
+            elif self.sweep.zip_ is not None:
+                n = max((size(v) for v in self.sweep.zip_.values()), default=0)
+            else:
+                n = len(self.sweep.list_ or [])
+        return n * (self.monte_carlo.n if self.monte_carlo else 1) * (self.starts.n if self.starts else 1)
 
 
 # ---------------------------------------------------------------------------------------
@@ -434,13 +454,15 @@ def _key_lines(node: yaml.Node, path: tuple = ()) -> dict[tuple, int]:
 
 
 def _read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
+    from ..spec.loader import load_yaml
+
+    data = load_yaml(path).data     # the problem file's limits (size, nesting, aliases, tags): a SpecError
     try:
         text = path.read_text()
     except OSError as exc:
         raise StudyError(f"cannot read the file ({exc.strerror})", str(path)) from None
     try:
-        data = yaml.safe_load(text)
-        node = yaml.compose(text)
+        node = yaml.compose(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         raise StudyError(f"not valid YAML: {getattr(exc, 'problem', exc)}", str(path),
