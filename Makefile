@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 export PYOMO_CONFIG_DIR := $(CURDIR)/$(VENV)/share/pyomo
 export MPLBACKEND := Agg
 
-.PHONY: setup demo test bench bench-peers reproduce clean
+.PHONY: setup demo test bench bench-peers reproduce fuzz clean
 
 setup:
 	@./scripts/setup.sh
@@ -25,6 +25,11 @@ bench-peers: setup
 	  configs/minimal_double_integrator.yaml configs/brachistochrone.yaml configs/bryson_denham.yaml \
 	  configs/moon_landing.yaml configs/goddard.yaml configs/seed0_rendezvous.yaml \
 	  --scaling configs/brachistochrone.yaml --series-solve 100
+
+# 10,000 mutated configs/ files through the compile entry (tests/fuzzing.py): exit 1 on any
+# exception other than a SpecError with a line, or a case over 5 s of CPU
+fuzz: setup
+	$(PY) tests/fuzzing.py --files 10000 --log runs/fuzz
 
 reproduce: setup
 	$(PY) -m pytest -q -m slow --timeout 3600
