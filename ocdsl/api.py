@@ -99,8 +99,11 @@ class Loaded:
                 from .solve.reuse import ModelReuse
 
                 self._reuse = ModelReuse(self)
-            result = self._reuse.solve(file, parameters, timer, seed=seed, warm_start=warm_start,
-                                       verbose=verbose, progress=progress)
+            from .solve.ipopt import time_limit
+
+            with time_limit(file.spec.solver.time_limit):
+                result = self._reuse.solve(file, parameters, timer, seed=seed, warm_start=warm_start,
+                                           verbose=verbose, progress=progress)
             if result is not None:
                 verify(file, result, timer)
         if result is None:
@@ -114,9 +117,17 @@ def load(path: str | Path, parameters: dict[str, float] | None = None) -> Loaded
     return Loaded(path, parameters)
 
 
-def execute(file, timer: Timer, **kwargs) -> Result:
+def execute(file, timer: Timer, time_limit: float | None = None, **kwargs) -> Result:
     """Controller files go to the closed-loop back end; the rest to ``ocdsl.run.execute``,
-    whose result is then verified (:func:`verify`)."""
+    whose result is then verified (:func:`verify`). The solves share the wall-clock limit
+    ``time_limit`` (default: the file's ``solver: time_limit``)."""
+    from .solve.ipopt import time_limit as limited
+
+    with limited(time_limit or file.spec.solver.time_limit):
+        return _execute(file, timer, **kwargs)
+
+
+def _execute(file, timer: Timer, **kwargs) -> Result:
     if file.controller is not None:
         from .control.problem_file import run_controller_file
 
@@ -124,8 +135,15 @@ def execute(file, timer: Timer, **kwargs) -> Result:
         verify_closed_loop(file, result, timer)
         return result
     from .run import execute as run_method
+    from .solve.ipopt import interrupted
 
     result = run_method(file, timer, **kwargs)
+    if interrupted():      # Ctrl-C: the run stops here, its last iterate is the result
+        result.status = "interrupted"
+        if not result.message.startswith("interrupted"):
+            result.message = f"interrupted (Ctrl-C); {result.message}"
+        result.verification = {"status": "skipped", "checks": [], "summary": "the run was interrupted (Ctrl-C)"}
+        return result
     verify(file, result, timer)
     return result
 
@@ -170,7 +188,7 @@ def write_run(result: Result, out: str | Path, source: Path | None, force: bool 
 
 def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str, float] | None = None,
              seed: int | None = None, warm_start: str | Path | None = None, quiet: bool = True,
-             verbose: bool = False, force: bool = False) -> Result:
+             verbose: bool = False, force: bool = False, time_limit: float | None = None) -> Result:
     """Parse, build, solve and write the run folder. Never raises for a failed solve.
 
     A bad problem file still raises :class:`SpecError`, and an ``out_dir`` ocdsl may not
@@ -183,7 +201,8 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     if out_dir is not None:
         run_folder.check_destination(out_dir, "run", force=force)
     try:
-        result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=not quiet)
+        result = execute(file, timer, time_limit, seed=seed, warm_start=warm_start, verbose=verbose,
+                         progress=not quiet)
     except SpecError:
         raise
     except Exception as e:  # a crash in a back end still leaves a diagnosed run folder

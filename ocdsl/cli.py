@@ -1,7 +1,8 @@
 """The ``ocdsl`` command. Imports are lazy so that ``ocdsl --help`` starts fast.
 
 Exit codes: 0 solved and every expect check passed; 1 the run failed or a check failed
-(the run folder is still written, with the diagnosis); 2 bad problem file or bad usage.
+(the run folder is still written, with the diagnosis); 2 bad problem file or bad usage;
+130 interrupted by Ctrl-C (the run folder holds the last iterate, status interrupted).
 """
 from __future__ import annotations
 
@@ -59,18 +60,26 @@ def main() -> None:
 @click.option("--quiet", "-q", is_flag=True, help="no progress line and no summary")
 @click.option("--force", is_flag=True, help="replace an earlier ocdsl folder of another kind at --out "
               "(never files ocdsl did not write)")
-def run(file, out, params, seed, warm_start, report, verbose, quiet, force):
+@click.option("--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
+              help="wall-clock limit of the solves (default: the file's solver: time_limit, 3600 s)")
+def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time_limit):
     """Solve FILE and write a run folder (result.json, trajectory.csv, ...).
 
     --out must be a new folder, an empty one or an earlier ocdsl run folder (it is
     replaced in one step); any other folder is refused and left as it is."""
     from .api import run_file
+    from .solve.ipopt import interruptible
 
     out = Path(out) if out else Path("runs") / Path(file).stem
     if _has_block(file, "pareto"):
         sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet, force))
-    result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
-                              quiet=quiet, verbose=verbose, force=force)
+    with interruptible():      # Ctrl-C: the last iterate is written, status interrupted, exit 130
+        result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
+                                  quiet=quiet, verbose=verbose, force=force, time_limit=time_limit)
+    if result.status == "interrupted":
+        if not quiet:
+            _summary(result, out)
+        sys.exit(130)
     if report:
         _make_reports([out], None)
     if not quiet:
@@ -124,8 +133,11 @@ def _summary(result, out: Path) -> None:
     if result.status not in ("optimal",) and result.message:
         con.print(f"  {result.message.splitlines()[0]}")
     t = Table(show_header=False, box=None, padding=(0, 2))
-    if result.objective is not None:
+    # a failed run's objective is its last iterate's (or the guess's): never shown as a result
+    if result.objective is not None and result.status in ("optimal", "acceptable"):
         t.add_row("objective", f"{result.objective:.10g}")
+    elif result.objective is not None and result.iterations:
+        t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
     if isinstance(result.tf, dict):
         t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()))
     elif result.tf is not None:

@@ -26,7 +26,7 @@ from . import run_folder
 from .result_views import ResultViews
 
 STATUSES = ("optimal", "acceptable", "infeasible", "max_iter", "error", "mesh_not_converged",
-            "feasible", "stable", "unstable", "not_run")
+            "feasible", "stable", "unstable", "not_run", "time_limit", "diverged", "interrupted")
 
 
 @dataclass

@@ -106,6 +106,14 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         records.append(_start_record(i, s, info))
         if _better(info, best, problem.objective.sense):
             best, best_tr = info, tr      # each start builds its own model, which keeps its values
+    if best.status == "infeasible":
+        from .solve.diagnose import elastic
+
+        with timer.measure("diagnose"):
+            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed) for ph in problem.phases}
+            named = elastic(problem, meshes, guesses, file.spec.solver.options)
+            if named:    # names the conditions themselves, not the rows Ipopt stopped on
+                best.message = best.message.split(" Constraints that Ipopt")[0] + named
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records

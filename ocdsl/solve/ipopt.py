@@ -2,11 +2,14 @@
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import ctypes
 import ctypes.util
 import functools
 import os
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -16,8 +19,11 @@ STATUS_MAP = {
     "Algorithm terminated successfully at a locally optimal point, satisfying the convergence tolerances (can be specified by options).": "optimal",
     "Algorithm stopped at a point that was converged, not to \"desired\" tolerances, but to \"acceptable\" tolerances (see the acceptable-... options).": "acceptable",
     "Maximum number of iterations exceeded (can be specified by an option).": "max_iter",
-    "Maximum CPU time exceeded.": "max_iter",
-    "Maximum wallclock time exceeded.": "max_iter",
+    "Maximum CPU time exceeded.": "time_limit",
+    "Maximum wallclock time exceeded.": "time_limit",
+    "It seems that the iterates diverge.": "diverged",
+    "The user call-back function intermediate_callback (see Section 3.3.4 in the documentation) returned "
+    "false, i.e., the user code requested a premature termination of the optimization.": "interrupted",
     "Problem may be infeasible.": "infeasible",
     "Algorithm converged to a point of local infeasibility. Problem may be infeasible.": "infeasible",
 }
@@ -37,6 +43,50 @@ STATUS_MAP = {
 # optimum is unchanged (tests/test_examples.py, test_costates.py, test_fast_paths.py).
 # User options still override it.
 DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mumps_permuting_scaling": 0}
+# Ipopt's ApplicationReturnStatus codes that cyipopt's messages lack ("Unknown status")
+STATUS_CODES = {-4: "time_limit", -5: "time_limit", 5: "interrupted"}
+
+_INTERRUPTED = threading.Event()
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Inside, Ctrl-C (SIGINT) stops the running solve at its next iteration, which returns
+    its last iterate with status ``interrupted``, and later solves do not start; a second
+    Ctrl-C raises KeyboardInterrupt as usual. Only in the main thread (signals go there)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _INTERRUPTED.clear()
+
+    def handler(signum, frame):
+        if _INTERRUPTED.is_set():
+            raise KeyboardInterrupt
+        _INTERRUPTED.set()
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def interrupted() -> bool:
+    return _INTERRUPTED.is_set()
+
+# the run's wall-clock deadline (time.monotonic()), set by ``time_limit``; every solve
+# gets the time left as Ipopt's max_wall_time
+_DEADLINE: "contextvars.ContextVar[tuple[float, float] | None]" = contextvars.ContextVar("deadline", default=None)
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float | None):
+    """Solves inside share ``seconds`` of wall-clock time (a run's mesh iterations and starts)."""
+    token = _DEADLINE.set(None if seconds is None else (time.monotonic() + float(seconds), float(seconds)))
+    try:
+        yield
+    finally:
+        _DEADLINE.reset(token)
 
 
 @contextlib.contextmanager
@@ -228,6 +278,15 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         return out
 
     opts = options_with(DEFAULT_OPTIONS, options or {})
+    if interrupted():
+        return SolveInfo("interrupted", "interrupted (Ctrl-C) before this solve", 0, None, 0.0)
+    deadline = _DEADLINE.get()
+    if deadline is not None:
+        left = deadline[0] - time.monotonic()
+        if left <= 0:
+            return SolveInfo("time_limit", f"the run's time limit of {deadline[1]:g} s was reached before "
+                             "this solve (solver: time_limit, or ocdsl run --time-limit)", 0, None, 0.0)
+        opts["max_wall_time"] = min(float(opts.get("max_wall_time", left)), left)
     try:
         if multipliers is None:
             return _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
@@ -268,16 +327,18 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
             progress.update(it, obj, inf_pr, inf_du)
         if on_iteration:
             on_iteration(it, obj, inf_pr, inf_du)
-        return True
+        return not _INTERRUPTED.is_set()       # False: Ipopt stops, keeping this iterate
 
     t = time.perf_counter()
+    code = None
     try:
         # gc_frozen: the hand-over's full collections do not walk the built model again
         # (reports/bench/levers.md section 11); the environment: the ASL's x87 precision
         with pseudospectral.gc_frozen(), floating_point_environment_kept():
             direct, why = direct_nlp(transcription)
             if direct is not None:
-                msg, nlp_info = _solve_direct_nlp(direct, opts, verbose, callback, multipliers)
+                msg, nlp_info, code = _solve_direct_nlp(direct, opts, verbose, callback, multipliers,
+                                                        transcription)
             elif multipliers is not None:
                 msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
             else:
@@ -293,12 +354,26 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
                             "equality_constraints": int(nlp.n_eq_constraints()),
                             "inequality_constraints": int(nlp.n_ineq_constraints()),
                             "evaluation": f"PyNumero (ASL): {why}"}
+    except _BadStart as e:
+        return SolveInfo("error", str(e), 0, None, time.perf_counter() - t)
     except Exception as e:  # evaluation errors, bad options...
         return SolveInfo("error", f"{type(e).__name__}: {e}", len(history) and history[-1][0],
                          None, time.perf_counter() - t, history=history)
     elapsed = time.perf_counter() - t
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
-    status = STATUS_MAP.get(msg, "error")
+    # Ipopt's message, possibly followed by a diagnosis (an infeasible end's unmet constraints)
+    status = next((v for k, v in STATUS_MAP.items() if msg.startswith(k)), None) or STATUS_CODES.get(code, "error")
+    if interrupted() and status in ("interrupted", "error"):
+        status = "interrupted"
+        msg = f"interrupted (Ctrl-C) at iteration {history[-1][0] if history else 0}; the last iterate is written"
+    if status == "time_limit":
+        deadline = _DEADLINE.get()
+        limit = f"the run's time limit of {deadline[1]:g} s" if deadline else "Ipopt's max_wall_time"
+        msg = f"{limit} was reached; the last iterate is written (Ipopt: {msg})"
+    if status in ("max_iter", "diverged", "time_limit", "error"):
+        from .diagnose import diverging
+
+        msg += diverging(history)
     obj = None
     try:
         obj = float(pyo.value(next(model.component_data_objects(pyo.Objective, active=True))))
@@ -336,15 +411,27 @@ def _start_multipliers(multipliers: Multipliers, constraints, variables, lower, 
     return {"lagrange": lam, "zl": zl, "zu": zu}
 
 
+class _BadStart(Exception):
+    """The NLP is not finite at its starting point; the message names where."""
+
+
 def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
-                      multipliers: Multipliers | None):
+                      multipliers: Multipliers | None, transcription=None):
     """Ipopt on a ``DirectNLP`` (cyipopt.Problem), starting from the model's values and, when
     given, the multipliers; the solution, duals and bound multipliers are loaded into the
     model as ``_solve_pynumero_with_multipliers`` does. Returns (Ipopt's status message, the
-    NLP's sizes)."""
+    NLP's sizes, Ipopt's status code); a start where the NLP is not finite is refused with
+    :class:`_BadStart` before Ipopt runs, and an infeasible end names the constraints left
+    unmet (ocdsl/solve/diagnose.py)."""
     import cyipopt
     from pyomo.common.tee import capture_output
 
+    from . import diagnose
+
+    if transcription is not None:
+        bad = diagnose.nonfinite_at_start(transcription, nlp)
+        if bad:
+            raise _BadStart(bad)
     nlp.intermediate = callback
     problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
     for k, v in opts.items():
@@ -357,7 +444,11 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
         nlp.load(x, info["mult_g"], info["mult_x_L"], info["mult_x_U"])
     finally:
         problem.close()
-    return info["status_msg"], nlp.info()
+    msg = info["status_msg"]
+    msg = msg.decode() if isinstance(msg, bytes) else str(msg)
+    if transcription is not None and STATUS_MAP.get(msg) == "infeasible":
+        msg += diagnose.infeasibility_message(transcription, nlp, x)
+    return msg, nlp.info(), info.get("status")
 
 
 def pynumero_nlp(model):

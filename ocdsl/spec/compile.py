@@ -226,6 +226,7 @@ class _Compiler:
                     if part is not None:
                         obj.expr = obj.expr + (part if obj.sense == "minimize" else -part)
         self.check_resolved(phases, boundary, obj)
+        self.check_contradictions(boundary)
         if self.issues:
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)
@@ -288,6 +289,17 @@ class _Compiler:
                 self.issue(loc, f"the objective uses {', '.join(left)}, which has no value here "
                            "(boundary values, phase times, integrals, free parameters and constants only)")
 
+    def check_contradictions(self, boundary: list[Constraint]) -> None:
+        """Boundary constraints on the same quantity whose ranges do not meet (x(t0) == 1 and
+        x(t0) == 2): an error naming both, not an infeasible solve."""
+        first: dict[sp.Expr, Constraint] = {}
+        for c in boundary:
+            other = first.setdefault(c.expr, c)
+            if other is not c and (c.lower > other.upper or c.upper < other.lower):
+                self.issues.append(Issue(str(self.path), c.line, f"contradicts `{other.text}`"
+                                         + (f" (line {other.line})" if other.line else "")
+                                         + ": no value meets both", c.text))
+
     def _phase_constraint_texts(self):
         spec = self.spec
         if spec.problem is not None:
@@ -326,6 +338,10 @@ class _Compiler:
                 model = build_model(mspec.use, mspec.options)
             except (KeyError, ValueError) as e:
                 self.issue(loc + ("use",), str(e).strip("'\""))
+                return None
+            except Exception as e:   # a model's builder is its author's code: any failure is the options'
+                self.issue(loc + ("options",), f"model '{mspec.use}' cannot be built with these options "
+                           f"({type(e).__name__}: {e})")
                 return None
             given = self.parameters(mspec.parameters, loc + ("parameters",))
             known = {s.name: s for s in model.parameters}

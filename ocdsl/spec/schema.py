@@ -177,6 +177,9 @@ class PseudospectralMethod(Strict):
 class SolverSpec(Strict):
     name: Literal["ipopt"] = "ipopt"
     options: dict[str, Union[str, int, float]] = Field(default_factory=dict, description="Ipopt options")
+    time_limit: float = Field(3600.0, gt=0, description="wall-clock seconds for the run's solves together "
+                              "(mesh iterations, starts); past it the run ends `time_limit` with the last "
+                              "iterate written. `ocdsl run --time-limit` overrides it")
 
     @field_validator("options")
     @classmethod

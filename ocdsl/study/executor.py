@@ -25,6 +25,7 @@ import socket
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from .spec import StudyError
@@ -117,24 +118,55 @@ def default_workers() -> int:
 OWNER_POLL_S = 1.0
 
 
-def _exit_with_owner(owner: int) -> None:
+def _exit_with_owner(owner: int, started: str | None = None) -> None:
     """Worker initializer: end this worker when the process that owns the pool is gone.
 
     A worker's parent is the fork server, not the study process, so a study killed with
     SIGKILL (no shutdown) left its idle workers, and with them the fork server, running
     for good (measured: a forkserver and two workers per killed study, still there an hour
-    later). A daemon thread polls the owner and exits the worker once it has disappeared."""
+    later). A daemon thread polls the owner and exits the worker once it is gone: no longer
+    there, a zombie (killed but not reaped by its parent: ``os.kill(pid, 0)`` still succeeds
+    on one, and the workers held the caller's pipes open), or its pid reused by a process
+    that started at another time (``started``, from /proc where there is one)."""
     def watch() -> None:
         while True:
             time.sleep(OWNER_POLL_S)
-            try:
-                os.kill(owner, 0)
-            except ProcessLookupError:
+            if not owner_alive(owner, started):
                 os._exit(0)
-            except PermissionError:   # the pid is alive (reused by another user's process)
-                pass
 
     threading.Thread(target=watch, name="ocdsl-owner-watch", daemon=True).start()
+
+
+def process_start(pid: int) -> str | None:
+    """The start time of ``pid`` (clock ticks after boot, /proc/PID/stat field 22), or None
+    where there is no /proc."""
+    fields = _proc_stat(pid)
+    return fields[19] if fields else None
+
+
+def _proc_stat(pid: int) -> list[str] | None:
+    """The fields of /proc/PID/stat after the command name (state first), or None."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return text[text.rindex(")") + 2:].split()
+
+
+def owner_alive(pid: int, started: str | None = None) -> bool:
+    """Whether ``pid`` is a live process (not a zombie; the same process when ``started``)."""
+    if Path("/proc/self/stat").exists():
+        fields = _proc_stat(pid)
+        if fields is None or fields[0] in ("Z", "X", "x"):
+            return False
+        return started is None or fields[19] == started
+    try:            # no /proc: a zombie cannot be told from a live process here
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:   # alive, another user's
+        pass
+    return True
 
 
 class Executor:
@@ -209,7 +241,8 @@ class Executor:
         # modules imported once in the fork server, inherited by every worker it forks
         ctx.set_forkserver_preload(self.PRELOAD)
         self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
-                                            initializer=_exit_with_owner, initargs=(os.getpid(),))
+                                            initializer=_exit_with_owner,
+                                            initargs=(os.getpid(), process_start(os.getpid())))
 
     # ---- tasks -----------------------------------------------------------------------
     @property

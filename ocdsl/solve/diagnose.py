@@ -1,0 +1,161 @@
+"""Why a solve cannot start or cannot succeed, in the problem file's terms.
+
+The rows of a pseudospectral NLP are named by where they come from: the dynamics of a state
+at a node of a phase, a path constraint at a node, a boundary constraint or link (with its
+text and line). :func:`nonfinite_at_start` names what is NaN or infinite at the initial
+guess before Ipopt starts; :func:`violated` ranks what a point (Ipopt's point of local
+infeasibility) leaves unmet; :func:`diverging` says when an objective ran away.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+
+def describe_row(tr, con) -> str:
+    """A constraint of the transcription's Pyomo model, in the problem file's words."""
+    for pb in tr.phases:
+        ph = pb.phase
+        block = pb.block
+        if con.parent_component() is getattr(block, "defect", None):
+            k, i, j = con.index()
+            return f"the dynamics of {ph.states[j].name} (phase {ph.name}, segment {k}, node {i})"
+        if con.parent_component() is getattr(block, "end", None):
+            k, j = con.index()
+            return f"the dynamics of {ph.states[j].name} (phase {ph.name}, end of segment {k})"
+        if con.parent_component() is getattr(block, "path", None) and ph.path:
+            n = con.index()
+            c = ph.path[n % len(ph.path)]
+            return f"path constraint `{c.text}`{_line(c)} (phase {ph.name}, node {n // len(ph.path)})"
+    if con.parent_component() is getattr(tr.model, "boundary", None):
+        i = con.index() - 1                     # a ConstraintList counts from 1
+        if 0 <= i < len(tr.boundary_general):
+            c = tr.boundary_general[i]
+            return f"`{c.text}`{_line(c)}"
+    return con.name
+
+
+def _line(c) -> str:
+    return f" (line {c.line})" if getattr(c, "line", None) else ""
+
+
+def nonfinite_at_start(tr, nlp) -> str | None:
+    """What is NaN or infinite at the NLP's starting point (the objective, or the first
+    rows by origin), or None when everything is finite."""
+    x0 = np.asarray(nlp.x0, float)
+    parts = []
+    with np.errstate(all="ignore"):
+        try:
+            f = float(nlp.objective(x0))
+        except (ArithmeticError, ValueError):
+            f = math.nan
+        try:
+            g = np.asarray(nlp.constraints(x0), float)
+        except (ArithmeticError, ValueError):
+            g = np.full(nlp.m, math.nan)
+    if not math.isfinite(f):
+        parts.append(f"the objective `{tr.problem.objective.text}` is {f}")
+    bad = np.flatnonzero(~np.isfinite(g))
+    seen: dict[str, int] = {}
+    for r in bad:
+        where = describe_row(tr, nlp.rows[r])
+        key = where.split(" (")[0]
+        if key not in seen:
+            seen[key] = 0
+            parts.append(f"{where} is {g[r]}")
+        seen[key] += 1
+        if len(seen) >= 5:
+            break
+    if not parts:
+        return None
+    more = f" ({len(bad)} constraint rows in all)" if len(bad) > len(seen) else ""
+    return ("the initial guess gives a value that is not a number: " + "; ".join(parts) + more +
+            ". Ipopt was not started: change the guess (guess:) or bound the variables so that every "
+            "expression is defined there (e.g. no division by a state that starts at 0)")
+
+
+def violated(tr, nlp, x, top: int = 5) -> list[tuple[str, float]]:
+    """The constraints ``x`` violates most, one entry per origin (a constraint's text, or
+    the dynamics of a state in a phase), largest violation first."""
+    with np.errstate(all="ignore"):
+        g = np.asarray(nlp.constraints(np.asarray(x, float)), float)
+    gl, gu = np.asarray(nlp.gl, float), np.asarray(nlp.gu, float)
+    excess = np.maximum(np.maximum(gl - g, g - gu), 0.0)
+    excess[~np.isfinite(excess)] = np.inf
+    worst: dict[str, tuple[str, float]] = {}
+    for r in np.argsort(-excess):
+        if excess[r] <= 1e-6 or len(worst) >= top:
+            break
+        where = describe_row(tr, nlp.rows[r])
+        key = where.split(" (phase")[0].split(" (segment")[0]
+        if key not in worst:
+            worst[key] = (where, float(excess[r]))
+    return list(worst.values())
+
+
+def infeasibility_message(tr, nlp, x) -> str:
+    rows = violated(tr, nlp, x)
+    if not rows:
+        return ""
+    listed = "; ".join(f"{where} off by {v:.3g}" for where, v in rows)
+    return (f" Constraints that Ipopt could not meet (largest violation at its point of local "
+            f"infeasibility): {listed}.")
+
+
+def diverging(history: list[tuple[int, float, float, float]]) -> str:
+    """A hint when the objective ran away (its size grew a thousandfold and was still
+    growing over the last fifth of the iterations, or passed 1e12): probably unbounded."""
+    if len(history) < 10:
+        return ""
+    first, last = abs(history[0][1]), abs(history[-1][1])
+    late = abs(history[int(0.8 * len(history))][1])
+    # still growing, or stuck where Ipopt's numbers run out (about 1e19 is its infinity)
+    if math.isfinite(last) and last > 1e3 * max(first, 1.0) and (last > 1.01 * late or last > 1e12):
+        return (f" The objective went from {history[0][1]:.6g} to {history[-1][1]:.6g}: the problem is "
+                "probably unbounded (bound the final time, the states or the controls, or check the "
+                "objective's sense).")
+    return ""
+
+
+def elastic(problem, meshes, guesses, options: dict | None = None) -> str:
+    """Which boundary equalities (boundary conditions, links) cannot be met: solve again with
+    each of them moved into the objective as its squared residual (dynamics, bounds, path
+    constraints and boundary inequalities kept), and name those the solution leaves unmet,
+    with the closest value the rest of the problem allows."""
+    import dataclasses
+
+    import pyomo.core as pyo
+    import sympy as sp
+
+    from ..symbolic.problem import Objective
+    from ..transcribe.pseudospectral import build
+    from . import ipopt
+
+    equalities = [c for c in problem.boundary if c.is_equality]
+    if not equalities:
+        return ""
+    # a smooth L1 norm of the residuals: it leaves few conditions unmet (least squares would
+    # spread the violation over all of them)
+    penalty = sum(sp.sqrt((c.expr - c.lower) ** 2 + 1e-10) for c in equalities)
+    relaxed = dataclasses.replace(problem, boundary=[c for c in problem.boundary if not c.is_equality],
+                                  objective=Objective("minimize", penalty, "total boundary violation"))
+    try:
+        tr = build(relaxed, meshes, guesses)
+        info = ipopt.solve(tr.model, options, transcription=tr)
+    except Exception as e:  # the diagnosis must never lose the run
+        return f" (The diagnosis re-solve failed: {type(e).__name__}: {e}.)"
+    if info.status not in ("optimal", "acceptable"):
+        return (" Even with every boundary condition and link relaxed the problem is infeasible: the "
+                "bounds, path constraints or boundary inequalities cannot be met together with the dynamics.")
+    values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
+    unmet = []
+    for c in equalities:
+        got = float(c.expr.xreplace({s: sp.Float(values[s]) for s in c.expr.free_symbols if s in values}))
+        if abs(got - c.lower) > 1e-4 * max(1.0, abs(c.lower)):
+            unmet.append(f"`{c.text}`{_line(c)} (the nearest feasible value is {sp.sstr(c.expr)} = {got:.6g})")
+    if not unmet:
+        return ""
+    return (" The boundary conditions cannot all be met: relaxed to their smallest total violation, "
+            "the problem leaves " + "; ".join(unmet) + " unmet.")

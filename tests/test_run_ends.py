@@ -1,0 +1,198 @@
+"""Every run ends and says why (issue 27): time limits, a guess that is not a number, an
+infeasible or unbounded problem, Ctrl-C, and study workers that outlive a killed client."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ocdsl.api import compile_file, run_file
+from ocdsl.spec.errors import SpecError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+BASE = """name: t
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics:
+    x: v
+    v: u
+problem:
+  time: {t0: 0, tf: 1}
+  constraints:
+    - -1 <= u <= 1
+    - x(t0) == 0
+    - v(t0) == 0
+    - x(tf) == 0.2
+    - v(tf) == 0
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 4, degree: 3}
+"""
+
+UNBOUNDED = """name: unbounded
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints:
+    - x(t0) == 0
+  objective: minimize x(tf)
+method: {transcription: LGR, segments: 4, degree: 3}
+"""
+
+
+def write(tmp_path, text, name="problem.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def ocdsl(*args, **kw):
+    env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
+    return subprocess.run([sys.executable, "-m", "ocdsl.cli", *args], capture_output=True, text=True,
+                          env=env, **kw)
+
+
+def test_ipopt_max_wall_time_ends_time_limit_not_unknown_status(tmp_path):
+    p = write(tmp_path, BASE + "solver: {options: {max_wall_time: 1.0e-9}}\n")
+    res = run_file(p, tmp_path / "run")
+    assert res.status == "time_limit" and "Unknown status" not in res.message.split("(Ipopt")[0]
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert saved["status"] == "time_limit" and (tmp_path / "run" / "trajectory.csv").exists()
+
+
+def test_the_run_time_limit_is_shared_by_its_solves_and_set_from_the_command_line(tmp_path):
+    """--time-limit overrides the file's solver: time_limit; a limit already spent ends the
+    next solve before it starts (a run of several starts here)."""
+    p = write(tmp_path, BASE.replace("degree: 3}", "degree: 3, starts: 3}") + "solver: {time_limit: 3600}\n")
+    assert compile_file(p).spec.solver.time_limit == 3600
+    out = ocdsl("run", str(p), "--out", str(tmp_path / "run"), "--time-limit", "1e-9")
+    assert out.returncode == 1, out.stderr
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert saved["status"] == "time_limit" and "time limit of 1e-09 s" in saved["message"]
+
+
+def test_nan_at_the_guess_is_named_before_ipopt_starts(tmp_path):
+    p = write(tmp_path, BASE.replace("    v: u\n", "    v: u + sqrt(x - 2)\n"))
+    res = run_file(p, None)
+    assert res.status == "error" and res.iterations == 0
+    assert "Ipopt was not started" in res.message
+    assert "the dynamics of v (phase main, segment 0, node 0) is nan" in res.message
+
+
+def test_an_infeasible_problem_names_the_conditions_that_cannot_be_met(tmp_path):
+    p = write(tmp_path, BASE.replace("x(tf) == 0.2", "x(tf) == 5"))
+    res = run_file(p, None)
+    assert res.status == "infeasible"
+    assert "cannot all be met" in res.message and "`x(tf) == 5` (line 14)" in res.message, res.message
+
+
+def test_contradictory_boundary_conditions_are_a_compile_error_naming_both(tmp_path):
+    p = write(tmp_path, BASE.replace("    - v(tf) == 0\n", "    - v(tf) == 0\n    - x(tf) == 0.3\n"))
+    with pytest.raises(SpecError) as e:
+        compile_file(p)
+    issue = e.value.issues[0]
+    assert issue.line == 16 and "contradicts `x(tf) == 0.2` (line 14)" in issue.message, str(e.value)
+
+
+def test_an_unbounded_problem_is_reported_as_probably_unbounded(tmp_path):
+    p = write(tmp_path, UNBOUNDED + "solver: {options: {max_iter: 100}}\n")
+    res = run_file(p, None)
+    assert res.status != "optimal" and "probably unbounded" in res.message, res.message
+
+
+def test_the_summary_of_a_failed_run_shows_no_objective_as_a_result(tmp_path):
+    p = write(tmp_path, BASE.replace("    v: u\n", "    v: u + sqrt(x - 2)\n"))
+    out = ocdsl("run", str(p), "--out", str(tmp_path / "run"))
+    assert out.returncode == 1
+    rows = [line.split() for line in out.stdout.splitlines()]
+    assert not any(r and r[0] == "objective" for r in rows), out.stdout
+
+
+def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_path):
+    """SIGINT while Ipopt iterates (an unbounded problem that would run for ever): the solve
+    stops at its next iteration, the run folder holds that iterate, status interrupted."""
+    p = write(tmp_path, UNBOUNDED + "solver: {options: {max_iter: 100000000}}\n")
+    env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
+    proc = subprocess.Popen([sys.executable, "-m", "ocdsl.cli", "run", str(p), "--out", str(tmp_path / "run"),
+                             "--verbose"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    seen = []
+    for line in proc.stdout:             # Ipopt's log: its table has started
+        seen.append(line)
+        if line.lstrip().startswith("iter") and "objective" in line:
+            break
+    proc.send_signal(signal.SIGINT)
+    rest, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 130, "".join(seen) + rest
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert saved["status"] == "interrupted" and saved["iterations"] > 0
+    assert (tmp_path / "run" / "trajectory.csv").exists()
+
+
+def _descendants(pid: int) -> set[int]:
+    children: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            ppid = int(stat[stat.rindex(")") + 2:].split()[1])
+            children.setdefault(ppid, []).append(int(d.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    from ocdsl.study.executor import owner_alive
+
+    return owner_alive(pid)
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_study_workers_die_with_a_killed_client_left_a_zombie(tmp_path):
+    """kill -9 of `ocdsl study`, never reaped (a zombie: os.kill(pid, 0) still succeeds):
+    its workers and fork server end, and the pipes they held close (reading them ends)."""
+    from ocdsl.study.executor import owner_alive
+
+    p = write(tmp_path, UNBOUNDED.replace("minimize x(tf)", "minimize x(tf) + k*integral(u**2)")
+              .replace("  dynamics: {x: u}", "  parameters: {k: 1.0}\n  dynamics: {x: u}")
+              + "solver: {options: {max_iter: 100000000}}\n"
+              + "study:\n  sweep:\n    grid:\n      k: [1, 2, 3, 4]\n")
+    env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
+    proc = subprocess.Popen([sys.executable, "-m", "ocdsl.cli", "study", str(p), "--out", str(tmp_path / "s"),
+                             "--workers", "2", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    workers: set[int] = set()
+    for _ in range(600):                  # the fork server and both workers are up
+        workers = _descendants(proc.pid)
+        if len(workers) >= 3:
+            break
+        time.sleep(0.5)
+    assert len(workers) >= 3, "the study's workers did not start"
+    os.kill(proc.pid, signal.SIGKILL)
+    for _ in range(600):                  # not reaped: a zombie
+        if not owner_alive(proc.pid):
+            break
+        time.sleep(0.1)
+    os.kill(proc.pid, 0)                  # what the old owner watch asked: it still succeeds
+    for _ in range(600):
+        if not any(_alive(w) for w in workers):
+            break
+        time.sleep(0.5)
+    left = [w for w in workers if _alive(w)]
+    assert not left, f"workers still alive: {left}"
+    assert proc.stdout.read() is not None and proc.stderr.read() is not None   # EOF, not a deadlock
+    proc.wait()
