@@ -150,7 +150,7 @@ def m_big(text, rng):
         return text.replace("states: [", f"states: [{many}, ", 1)
     if op == "study":
         return text + "\nstudy:\n  sweep:\n    grid:\n      k: {start: 0, stop: 1, num: 200000000}\n"
-    return text + f"\ndefinitions: {'[' * 39}{'1, ' * 19000}{']' * 39}\n"
+    return text + f"\ndefinitions: {'[' * 39}{'1, ' * 9500}{']' * 39}\n"
 
 
 MUTATIONS = [m_number, m_number, m_expression, m_expression, m_expression, m_name, m_yaml,

@@ -16,7 +16,7 @@ Path_ = tuple  # a location in the document: keys and list indices
 # once expanded to 1.3 GB, deep nesting ended in RecursionError)
 MAX_FILE_BYTES = 1_000_000      # problem files are a few kB
 MAX_DEPTH = 40                  # nested mappings/lists
-MAX_VALUES = 20_000             # values in the document after aliases (*name) are expanded
+MAX_VALUES = 10_000             # values in the document after aliases (*name) are expanded
 MAX_DIGITS = 300                # digits of an integer (floats end at about 1e308)
 # libyaml's parser where PyYAML has it: 8x faster than the pure-Python one on a large file
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
