@@ -191,6 +191,13 @@ def check(file):
         click.echo(f"{file}: ok (pareto study)")
         return
     f = _compile_or_exit(compile_file, file)
+    if "study" in f.located.data:      # the study block too (sweeps, samples, the point limit)
+        from .study.spec import StudyError, load_study
+
+        try:
+            _compile_or_exit(load_study, file)
+        except StudyError as e:
+            raise _SpecFailure(str(e)) from None
     if f.problem is not None:
         for ph in f.problem.phases:
             click.echo(f"{file}: phase '{ph.name}': {len(ph.states)} states, {len(ph.controls)} controls, "

@@ -281,3 +281,15 @@ def test_any_expression_compiles_or_is_one_clean_error(tmp_path, expr, slot):
     p = variant(tmp_path, slot, new)
     kind, _, message = fuzzing.classify(p.read_text(), tmp_path / "problem.yaml", limit=60.0)
     assert kind in fuzzing.GOOD_CLASSES, message
+
+
+def test_check_validates_the_study_block(tmp_path):
+    import subprocess
+    import sys
+
+    text = (CONFIGS / "study_moon_landing_sweep.yaml").read_text()
+    text = text[:text.index("study:")] + "study:\n  sweep:\n    grid:\n      T_max: {start: 0, stop: 1, num: 200000000}\n"
+    p = tmp_path / "study.yaml"
+    p.write_text(text)
+    out = subprocess.run([sys.executable, "-m", "ocdsl.cli", "check", str(p)], capture_output=True, text=True)
+    assert out.returncode == 2 and "more than the limit of 100,000" in out.stderr and "Traceback" not in out.stderr
