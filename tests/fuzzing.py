@@ -231,10 +231,12 @@ def cases(n: int, seed: int, names: tuple[str, ...] | None = None):
         yield f"{name}#{i}", mutate(text, rng)
 
 
-def run(n: int, seed: int, limit: float, workdir: Path, names=None, log=None) -> collections.Counter:
+def run(n: int, seed: int, limit: float, workdir: Path, names=None, log=None, skip: int = 0) -> collections.Counter:
     table: collections.Counter = collections.Counter()
     worst: list[tuple[float, str, str]] = []
     for k, (case, text) in enumerate(cases(n, seed, names)):
+        if k < skip:          # the same sequence, from case ``skip`` on (runs split across processes)
+            continue
         kind, seconds, message = classify(text, workdir / "problem.yaml", limit)
         table[kind] += 1
         worst.append((seconds, case, kind))
@@ -256,6 +258,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=27)
     ap.add_argument("--limit", type=float, default=5.0, help="seconds per case")
     ap.add_argument("--log", type=Path, default=None, help="folder to keep the failing cases in")
+    ap.add_argument("--skip", type=int, default=0, help="start at this case (split a run across processes)")
     args = ap.parse_args(argv)
     # a memory bomb ends as MemoryError in its case, not as the machine's OOM killer
     resource.setrlimit(resource.RLIMIT_AS, (4 << 30, resource.RLIM_INFINITY))
@@ -264,7 +267,7 @@ def main(argv=None) -> int:
     if args.log:
         args.log.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as d:
-        table = run(args.files, args.seed, args.limit, Path(d), log=args.log)
+        table = run(args.files, args.seed, args.limit, Path(d), log=args.log, skip=args.skip)
     bad = sum(v for k, v in table.items() if k not in GOOD_CLASSES)
     print(f"\n{bad} cases outside 'accepted' / 'error with line'")
     return 1 if bad else 0
