@@ -177,6 +177,8 @@ def test_a_file_over_the_size_limit_is_refused_before_it_is_read(tmp_path):
     ("states: [x, v]", "states: [x, v, " + ", ".join(f"s{i}" for i in range(1000)) + "]", "states:",
      "more than the limit"),
     ("  constraints:\n", "  constraints:\n" + "    - x(t0) <= 1\n" * 1001, "constraints:", "more than the limit"),
+    ("transcription: LGR,", "transcription: [LGR],", "method:", "a method name such as LGR"),
+    ("transcription: LGR,", "transcription: {a: 1},", "method:", "a method name such as LGR"),
 ])
 def test_expression_and_size_limits_are_clean_errors(tmp_path, old, new, where, message):
     p = variant(tmp_path, old, new)

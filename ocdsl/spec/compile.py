@@ -124,6 +124,8 @@ class _Compiler:
             self.issue(loc, e.message, e.text or None)
         except (ValueError, KeyError) as e:
             self.issue(loc, str(e).strip("'\""))
+        except RecursionError:     # SymPy on expressions nested inside others past its depth
+            self.issue(loc, "expressions nested too deeply (named expressions inside each other)")
         return None
 
     # -- top level ----------------------------------------------------------------
@@ -747,6 +749,8 @@ class _Compiler:
 
 def _validate_method(method: dict) -> Any:
     kind = method.get("transcription", "LGR")
+    if not isinstance(kind, str):
+        raise ValueError(f"transcription: a method name such as LGR, not {kind!r}")
     if kind in PSEUDOSPECTRAL:
         return PseudospectralMethod.model_validate(method)
     from ..methods import method_spec  # other back ends register their method specs
