@@ -367,9 +367,9 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
         status = "interrupted"
         msg = f"interrupted (Ctrl-C) at iteration {history[-1][0] if history else 0}; the last iterate is written"
     if status == "time_limit":
-        deadline = _DEADLINE.get()
-        limit = f"the run's time limit of {deadline[1]:g} s" if deadline else "Ipopt's max_wall_time"
-        msg = f"{limit} was reached; the last iterate is written (Ipopt: {msg})"
+        wall = opts.get("max_wall_time")
+        given = f" (this solve had {float(wall):.3g} s: the run's solver: time_limit, or max_wall_time)" if wall else ""
+        msg = f"a time limit was reached{given}; the last iterate is written (Ipopt: {msg})"
     if status in ("max_iter", "diverged", "time_limit", "error"):
         from .diagnose import diverging
 
