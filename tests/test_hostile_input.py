@@ -151,6 +151,7 @@ BOMB = ("definitions:\n  a: &a [x, x, x, x, x, x, x, x, x]\n"
     (GOOD.replace("segments: 4", "segments: " + "9" * 5000), 20, "more than 300 digits"),
     (GOOD.replace("name: t", "name: t\x00"), 1, "YAML syntax error"),
     (GOOD.replace("name: t", "name: &a [1, *a]"), 1, "contains it"),
+    (GOOD.replace("segments: 4", "segments: 0x" + "f" * 300), 20, "an integer beyond 1e300"),
 ])
 def test_yaml_limits_and_tags_are_one_error_with_a_line(text, line, message):
     with pytest.raises(SpecError) as e:

@@ -185,10 +185,14 @@ def _scalar(node: yaml.ScalarNode, issues: list, name: str, make) -> Any:
         issues.append(Issue(name, line, f"an integer of more than {MAX_DIGITS} digits"))
         return None
     try:
-        return make.construct_object(node)
+        value = make.construct_object(node)
     except (yaml.YAMLError, ValueError) as e:
         issues.append(Issue(name, line, f"cannot read the value '{node.value[:40]}' ({e})"))
         return None
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10 ** MAX_DIGITS:
+        issues.append(Issue(name, line, f"an integer beyond 1e{MAX_DIGITS} ('{node.value[:40]}')"))
+        return None     # e.g. 0xfff...: few digits, far beyond any float
+    return value
 
 
 def _merge(value_node: yaml.Node, issues: list, name: str, merged: dict, make) -> None:

@@ -65,7 +65,10 @@ def constant(value: Any) -> float:
     if isinstance(value, bool):
         raise ValueError(f"expected a number, got {value!r}")
     if isinstance(value, (int, float)):
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:
+            raise ValueError(f"number too large: {str(value)[:40]}...") from None
     if not isinstance(value, str):
         raise ValueError(f"expected a number or a constant expression, got {value!r}")
 
@@ -89,9 +92,11 @@ def constant(value: Any) -> float:
 
     try:
         tree = ast.parse(value.strip(), mode="eval")
-    except SyntaxError:
-        raise ValueError(f"not a constant expression: {value!r}") from None
-    return float(walk(tree))
+        return float(walk(tree))
+    except (SyntaxError, RecursionError, MemoryError):
+        raise ValueError(f"not a constant expression: {value[:60]!r}") from None
+    except (OverflowError, ZeroDivisionError) as e:
+        raise ValueError(f"{e} in {value[:60]!r}") from None
 
 
 # ---------------------------------------------------------------------------------------
