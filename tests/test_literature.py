@@ -170,8 +170,6 @@ def test_tumour_bang_off_reference():
     assert p < 7571.6712
 
 
-@pytest.mark.xfail(strict=True, reason="D3: a `phases:` file with one phase raises AttributeError in "
-                   "spec/compile.py describe() (report_literature.md)")
 def test_one_phase_under_phases_is_no_traceback(tmp_path):
     """Found while cutting the Delta III file down to one phase: `ocdsl check` must either
     accept a `phases:` block with a single phase or refuse it in one message, never crash."""

@@ -730,7 +730,7 @@ class _Compiler:
             f = ph.model
             dyn = {s.name: sp.latex(f.dynamics[s]) for s in f.states}
             bounds = {s.name: [_num(b[0]), _num(b[1])] for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
-            texts = self.spec.problem.constraints if not multi else self.spec.phases[ph.name].constraints
+            texts = self.spec.problem.constraints if self.spec.phases is None else self.spec.phases[ph.name].constraints
             desc["phases"][ph.name] = {
                 "states": [s.name for s in f.states], "controls": [c.name for c in f.controls],
                 "dynamics_latex": dyn,
