@@ -39,7 +39,7 @@ import sympy as sp
 from ocdsl.symbolic.flatness import FlatMap, derivative_symbol, flatten
 from ocdsl.symbolic.model import TIME, Model
 
-from .bspline import basis_matrix
+from .bspline import basis_matrix, clamped_knots
 
 __all__ = ["FlatBSplineOptions", "FlatPhase", "FlatNLP", "build_flat_bspline", "solve_flat",
            "PYOMO_FUNCTIONS"]
@@ -63,18 +63,34 @@ class FlatBSplineOptions:
 
     degree : spline degree p (order p + 1); the seed uses order 6, i.e. degree 5.
     n_ctrl : control points per function (seed: 15 = 10 pieces + 5).
-    n_col : collocation points for the residuals (seed: 15).
+    n_col : residual equations per residual (seed: 15): collocation points, or test functions
+        of the Galerkin residual.
     collocation : "uniform" (both ends included) or "interior" (uniform, ends excluded).
+    residual : "collocation" (the seed: each residual == 0 at the ``n_col`` points) or
+        "galerkin" (each residual's weighted mean against every one of ``n_col`` clamped
+        B-splines of the same degree is 0, integrated by Gauss-Legendre on every span).
+        Collocation leaves the residual free between the points, and the optimiser spends
+        that freedom (seed 2: more thrust than the engine has between points, worse as
+        points are added); a zero local mean leaves it only oscillations orthogonal to the
+        test splines, which buy the objective nothing to first order.
+    quadrature : Gauss-Legendre points per span of the Galerkin integrals (0: degree + 2).
     """
 
     degree: int = 5
     n_ctrl: int = 15
     n_col: int = 15
     collocation: str = "uniform"
+    residual: str = "collocation"
+    quadrature: int = 0
 
     def __post_init__(self) -> None:
         if self.collocation not in ("uniform", "interior"):
             raise ValueError(f"collocation must be 'uniform' or 'interior', not {self.collocation!r}")
+        if self.residual not in ("collocation", "galerkin"):
+            raise ValueError(f"residual must be 'collocation' or 'galerkin', not {self.residual!r}")
+        if self.residual == "galerkin" and self.n_col < self.degree + 1:
+            raise ValueError(f"a Galerkin residual needs n_col >= degree + 1 = {self.degree + 1} test "
+                             f"functions, not {self.n_col}")
         if self.n_ctrl < self.degree + 1:
             raise ValueError(f"n_ctrl = {self.n_ctrl} < degree + 1 = {self.degree + 1}")
         if self.n_col < 1:
@@ -84,6 +100,19 @@ class FlatBSplineOptions:
         if self.collocation == "uniform":
             return np.linspace(0.0, 1.0, self.n_col)
         return (np.arange(self.n_col) + 0.5) / self.n_col
+
+    def galerkin_rule(self) -> tuple[np.ndarray, np.ndarray]:
+        """(nodes, W): Gauss-Legendre nodes on every span of the trial and test knots, and
+        ``W[j, i] = w_j phi_i(x_j) / integral(phi_i)``, so that ``W.T @ r(nodes)`` are the
+        residual's weighted means against the ``n_col`` test B-splines."""
+        breaks = np.unique(np.concatenate([clamped_knots(self.degree, self.n_ctrl),
+                                           clamped_knots(self.degree, self.n_col)]))
+        x, w = np.polynomial.legendre.leggauss(self.quadrature or self.degree + 2)
+        a, b = breaks[:-1, None], breaks[1:, None]
+        nodes = (0.5 * (a + b) + 0.5 * (b - a) * x).ravel()
+        weights = (0.5 * (b - a) * w).ravel()
+        W = basis_matrix(self.degree, self.n_col, nodes) * weights[:, None]
+        return nodes, W / W.sum(axis=0)
 
 
 @dataclass
@@ -272,11 +301,7 @@ def build_flat_bspline(phases: Sequence[FlatPhase], links: Sequence = (),
         p = nlps[ph.name] = _PhaseNLP(m, ph)
         b, opt = p.block, ph.options
         taus = opt.points()
-        # residuals at collocation points
-        b.residual = pyo.ConstraintList()
-        for r in p.fm.residuals:
-            for tau in taus:
-                b.residual.add(p.at(r.expr, float(tau)) == 0)
+        _residual_equations(p, opt, taus)
         # boundary conditions through the flat map
         b.boundary = pyo.ConstraintList()
         for (name, where), value in ph.boundary.items():
@@ -312,6 +337,25 @@ def build_flat_bspline(phases: Sequence[FlatPhase], links: Sequence = (),
     else:
         raise ValueError(f"objective must be 'tf' or a callable, not {objective!r}")
     return FlatNLP(m, nlps, time.perf_counter() - t_start)
+
+
+def _residual_equations(p: _PhaseNLP, opt: FlatBSplineOptions, taus: np.ndarray) -> None:
+    """The residuals of the flat map, collocated at ``taus`` or in Galerkin form."""
+    b = p.block
+    b.residual = pyo.ConstraintList()
+    if opt.residual == "collocation":
+        for r in p.fm.residuals:
+            for tau in taus:
+                b.residual.add(p.at(r.expr, float(tau)) == 0)
+        return
+    nodes, W = opt.galerkin_rule()
+    # one named expression per quadrature node: shared by the p + 1 test functions over it
+    b.residual_node = pyo.Expression(range(len(p.fm.residuals)), range(len(nodes)))
+    for k, r in enumerate(p.fm.residuals):
+        for j, tau in enumerate(nodes):
+            b.residual_node[k, j] = p.at(r.expr, float(tau))
+        for i in range(W.shape[1]):
+            b.residual.add(sum(float(W[j, i]) * b.residual_node[k, j] for j in np.flatnonzero(W[:, i])) == 0)
 
 
 @dataclass

@@ -84,7 +84,7 @@ class _Mapped:
         problem, method = file.problem, file.method
         self.file, self.problem, self.method = file, problem, method
         self.opts = FlatBSplineOptions(method.degree, method.control_points, method.collocation_points,
-                                       method.collocation)
+                                       method.collocation, method.residual, method.quadrature)
         simple: dict[str, dict] = {ph.name: {} for ph in problem.phases}
         self.consumed: set[int] = set()
         self.duration_bounds: dict[str, list[float]] = {}
@@ -135,6 +135,47 @@ class _Mapped:
             bounds = {s.name: b for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
             self.phases.append(FlatPhase(ph.name, ph.model, simple[ph.name], (lo, hi), dur, None,
                                          bounds, guess, {}, self.opts, flatmap=fm))
+
+    def with_options(self, opts) -> "_Mapped":
+        """The same mapping (flat maps, guesses, times) with other spline options."""
+        import copy
+        from dataclasses import replace
+
+        other = copy.copy(self)
+        other.opts = opts
+        other.phases = [replace(ph, options=opts) for ph in self.phases]
+        return other
+
+    def warm_from(self, coarse: "_Mapped") -> None:
+        """Start this (built) mapping's NLP at the solution of ``coarse``'s: every function's
+        scaled spline refitted by least squares on a fine grid (exact when the knots are
+        nested), durations, integration constants, start times and free parameters copied."""
+        import pyomo.core as pyo
+
+        from .bspline import basis_matrix
+
+        n = 8 * (self.opts.n_ctrl - self.opts.degree) + 1
+        tau = np.linspace(0.0, 1.0, n)
+        A = basis_matrix(self.opts.degree, self.opts.n_ctrl, tau)
+        Ac = basis_matrix(coarse.opts.degree, coarse.opts.n_ctrl, tau)
+        for name, p in self.nlp.phases.items():
+            q = coarse.nlp.phases[name]
+            for j in range(len(p.functions)):
+                zc = np.array([pyo.value(q.block.z[j, i]) for i in range(coarse.opts.n_ctrl)])
+                z, *_ = np.linalg.lstsq(A, Ac @ zc, rcond=None)
+                for i in range(self.opts.n_ctrl):
+                    v = p.block.z[j, i]
+                    v.set_value(float(np.clip(z[i], v.lb if v.lb is not None else -INF,
+                                              v.ub if v.ub is not None else INF)))
+            p.block.s.set_value(pyo.value(q.block.s))
+            for k in p.block.k:
+                if not p.block.k[k].fixed:
+                    p.block.k[k].set_value(pyo.value(q.block.k[k]))
+        for k in self.nlp.model.t0:
+            if not self.nlp.model.t0[k].fixed:
+                self.nlp.model.t0[k].set_value(pyo.value(coarse.nlp.model.t0[k]))
+        for s, v in self.free.items():
+            v.set_value(pyo.value(coarse.free[s]))
 
     def build(self):
         """The Pyomo model: the flat back end's phases, then times, general boundary
@@ -285,10 +326,13 @@ def build_from_problem(file):
 
 
 def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
-    """``fn(file, timer, ...) -> Result`` of :func:`ocdsl.methods.register_runner`."""
-    import pyomo.core as pyo
+    """``fn(file, timer, ...) -> Result`` of :func:`ocdsl.methods.register_runner`.
 
-    from ..run import check_expectations
+    With the method's ``tolerance``, the result of the file's setting is verified
+    (:mod:`ocdsl.verify`) and, until a level passes or ``refinements`` are spent, the pieces
+    are doubled (with ``refine_residual``, warm start from the level before): see
+    :func:`_refine`. The Result is the last level that converged, with every level in
+    ``extra["refinement"]``."""
     from ..solve import ipopt
 
     ipopt.check_available()
@@ -309,61 +353,167 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
         info, records = _solve_starts(nlp, method, options, problem.objective.sense,
                                       method.seed if seed is None else seed, verbose, progress)
     with timer.measure("post"):
-        tau = np.linspace(0.0, 1.0, method.dense_points)
-        phases, dense = [], {}
-        for ph in problem.phases:
-            p = nlp.phases[ph.name]
-            num = p.numeric(tau)
-            t0 = float(pyo.value(mp.t0[ph.name]))
-            traj = PhaseTrajectory(ph.name, num["t"] + t0,
-                                   {s.name: num[s.name] for s in ph.states},
-                                   {c.name: num[c.name] for c in ph.controls},
-                                   extra={k: v for k, v in num.items() if k.startswith("residual_")})
-            dense[ph.name] = max([float(np.max(np.abs(v))) for v in traj.extra.values()] or [0.0])
-            phases.append(traj)
-        values: dict[sp.Symbol, float] = {}
-        for s in problem.boundary_values:
-            values[s] = float(pyo.value(mp.pyomo_of(s)))
-        tf = {}
-        for ph in problem.phases:
-            values[ph.t0_symbol] = float(pyo.value(mp.t0[ph.name]))
-            values[ph.tf_symbol] = tf[ph.name] = float(pyo.value(mp.pyomo_of(ph.tf_symbol)))
-        for s, v in mp.free.items():
-            values[s] = float(pyo.value(v))
-        for s, e in mp.integral_expr.items():
-            values[s] = float(pyo.value(e))
-        for name, v in file.parameters.items():
-            values.setdefault(sp.Symbol(name, real=True), float(v))
-        reduction = {}
-        for ph in problem.phases:
-            fm = mp.flatmaps[ph.name]
-            n_bc = sum(1 for c in problem.boundary if any(
-                problem.boundary_values.get(s) is not None and problem.boundary_values[s].phase == ph.name
-                for s in c.expr.free_symbols))
-            n_bc -= sum(1 for v in nlp.phases[ph.name].block.k.values() if v.fixed)
-            red = fm.reduction(method.control_points, method.collocation_points, n_bc,
-                               free_tf=ph.tf is None or ph.t0 is None)
-            reduction[ph.name] = {**red.as_dict(), "outputs": [y.name for y in fm.outputs],
-                                  "functions": [y.name for y in fm.functions],
-                                  "residuals": [str(r.expr) for r in fm.residuals]}
-        reduction["total"] = {k: sum(reduction[ph.name][k] for ph in problem.phases)
-                              for k in ("variables_flat", "constraints_flat", "variables_full",
-                                        "constraints_full")}
-        objective = info.objective
-        result = Result(
-            name=file.spec.name, status=info.status, message=info.message, objective=objective,
-            tf=tf["main"] if len(tf) == 1 and "main" in tf else tf,
-            iterations=info.iterations, nlp=info.nlp, method=method.model_dump(),
-            parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
-            phases=phases, problem=problem.description)
-        result.extra["flat_reduction"] = reduction
-        result.extra["flat_map"] = {ph.name: mp.flatmaps[ph.name].summary() for ph in problem.phases}
-        result.extra["max_residual_dense"] = dense
-        result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
+        result = _result(file, mp, nlp, info)
         result.extra["starts"] = records
-        result.expect = check_expectations(file, values, objective)
+    if method.tolerance is not None:
+        with timer.measure("refine"):
+            result = _refine(file, mp, result, options, verbose, sum(timer.breakdown().values()))
     result.wall_time_s = timer.breakdown()
     return result
+
+
+def _result(file, mp: "_Mapped", nlp, info) -> Result:
+    """The Result of a solved flat NLP: every state and control on ``dense_points`` per
+    phase (at least 8 per knot span, so that the cubic through the rows that the run folder
+    declares follows the spline), residuals, boundary values, expect checks."""
+    import pyomo.core as pyo
+
+    from ..run import check_expectations
+
+    problem, method, opts = file.problem, file.method, mp.opts
+    tau = np.linspace(0.0, 1.0, max(method.dense_points, 8 * (opts.n_ctrl - opts.degree) + 1))
+    phases, dense = [], {}
+    for ph in problem.phases:
+        p = nlp.phases[ph.name]
+        num = p.numeric(tau)
+        t0 = float(pyo.value(mp.t0[ph.name]))
+        traj = PhaseTrajectory(ph.name, num["t"] + t0,
+                               {s.name: num[s.name] for s in ph.states},
+                               {c.name: _unwrapped(ph, c, num[c.name]) for c in ph.controls},
+                               extra={k: v for k, v in num.items() if k.startswith("residual_")},
+                               control_interpolation={"kind": "cubic"})
+        dense[ph.name] = max([float(np.max(np.abs(v))) for v in traj.extra.values()] or [0.0])
+        phases.append(traj)
+    values: dict[sp.Symbol, float] = {}
+    for s in problem.boundary_values:
+        values[s] = float(pyo.value(mp.pyomo_of(s)))
+    tf = {}
+    for ph in problem.phases:
+        values[ph.t0_symbol] = float(pyo.value(mp.t0[ph.name]))
+        values[ph.tf_symbol] = tf[ph.name] = float(pyo.value(mp.pyomo_of(ph.tf_symbol)))
+    for s, v in mp.free.items():
+        values[s] = float(pyo.value(v))
+    for s, e in mp.integral_expr.items():
+        values[s] = float(pyo.value(e))
+    for name, v in file.parameters.items():
+        values.setdefault(sp.Symbol(name, real=True), float(v))
+    reduction = {}
+    for ph in problem.phases:
+        fm = mp.flatmaps[ph.name]
+        n_bc = sum(1 for c in problem.boundary if any(
+            problem.boundary_values.get(s) is not None and problem.boundary_values[s].phase == ph.name
+            for s in c.expr.free_symbols))
+        n_bc -= sum(1 for v in nlp.phases[ph.name].block.k.values() if v.fixed)
+        red = fm.reduction(opts.n_ctrl, opts.n_col, n_bc, free_tf=ph.tf is None or ph.t0 is None)
+        reduction[ph.name] = {**red.as_dict(), "outputs": [y.name for y in fm.outputs],
+                              "functions": [y.name for y in fm.functions],
+                              "residuals": [str(r.expr) for r in fm.residuals]}
+    reduction["total"] = {k: sum(reduction[ph.name][k] for ph in problem.phases)
+                          for k in ("variables_flat", "constraints_flat", "variables_full",
+                                    "constraints_full")}
+    objective = info.objective
+    result = Result(
+        name=file.spec.name, status=info.status, message=info.message, objective=objective,
+        tf=tf["main"] if len(tf) == 1 and "main" in tf else tf,
+        iterations=info.iterations, nlp=info.nlp,
+        method={**method.model_dump(), "control_points": opts.n_ctrl, "collocation_points": opts.n_col,
+                "residual": opts.residual},
+        parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
+        phases=phases, problem=problem.description)
+    result.extra["flat_reduction"] = reduction
+    result.extra["flat_map"] = {ph.name: mp.flatmaps[ph.name].summary() for ph in problem.phases}
+    result.extra["max_residual_dense"] = dense
+    result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
+    result.expect = check_expectations(file, values, objective)
+    return result
+
+
+def _unwrapped(ph, control, values: np.ndarray) -> np.ndarray:
+    """An angle from the flat map's atan2 jumps by 2 pi where it crosses the branch cut;
+    the exported control is made continuous (the cubic through the rows must not cross the
+    jump), on the branch whose first value lies inside the control's bounds."""
+    values = np.asarray(values, float)
+    if len(values) < 2 or not np.all(np.isfinite(values)) or np.max(np.abs(np.diff(values))) < np.pi:
+        return values
+    out = np.unwrap(values)
+    lo, hi = ph.control_bounds.get(control, (-INF, INF))
+    for k in (0, -1, 1, -2, 2):
+        shifted = out + 2 * np.pi * k
+        if np.all(shifted >= lo - 1e-12) and np.all(shifted <= hi + 1e-12):
+            return shifted
+    return out
+
+
+def _level(result, opts, verification: dict, wall_s: float) -> dict:
+    """One row of ``extra["refinement"]``: the setting, NLP size, t_f, objective, dense
+    residual, the verification's verdict and its largest miss."""
+    failed = [c for c in verification.get("checks", []) if not c["passed"]]
+    worst = max(verification.get("checks", []), key=lambda c: c["value"] / c["limit"] if c["limit"] else 0,
+                default=None)
+    dyn = [c["value"] for c in verification.get("checks", []) if c["name"] == "dynamics from x(t0)"]
+    return {"control_points": opts.n_ctrl, "collocation_points": opts.n_col, "residual": opts.residual,
+            "status": result.status, "variables": result.nlp.get("variables"),
+            "constraints": result.nlp.get("constraints"), "tf": result.tf, "objective": result.objective,
+            "max_residual_dense": max(result.extra["max_residual_dense"].values(), default=0.0),
+            "reintegration_miss": max(dyn, default=None),
+            "verification": verification.get("status"), "failed_checks": len(failed),
+            "worst_check": None if worst is None else
+            {k: worst[k] for k in ("name", "phase", "value", "limit", "where") if k in worst},
+            "verification_summary": verification.get("summary"), "wall_time_s": round(wall_s, 3)}
+
+
+def _refine(file, mp: "_Mapped", first: Result, options: dict, verbose: bool,
+            first_wall_s: float) -> Result:
+    """Verify at the method's tolerance; while a level fails, double the knot spans of
+    every function (and the residual equations with them) and solve again from the level
+    before. Stops at the first verified level, after ``refinements`` doublings, or when a
+    level's solve does not converge (the last converged level is returned)."""
+    from ..solve import ipopt
+    from ..verify import CONVERGED, VerifySettings, attach_verification
+
+    method = file.method
+    tol = float(method.tolerance)
+    settings = VerifySettings(tolerance=tol, rtol=min(1e-10, 1e-5 * tol))
+    start = _time.perf_counter()
+    attach_verification(file.problem, first, settings)
+    levels = [_level(first, mp.opts, first.verification, first_wall_s)]
+    best = first
+    current = mp
+    for _ in range(method.refinements):
+        if best.verification.get("status") == "verified":
+            break
+        t = _time.perf_counter()
+        nxt = current.with_options(_next_level(current.opts, method.refine_residual))
+        nlp = nxt.build()
+        nxt.warm_from(current)
+        info = ipopt.solve(nlp.model, options, verbose=verbose)
+        res = _result(file, nxt, nlp, info)
+        attach_verification(file.problem, res, settings)
+        levels.append(_level(res, nxt.opts, res.verification, _time.perf_counter() - t))
+        if res.status not in CONVERGED:
+            break
+        best, current = res, nxt
+    best.extra["starts"] = first.extra.get("starts", [])
+    best.extra["refinement"] = {"tolerance": tol, "levels": levels,
+                                "wall_time_s": round(_time.perf_counter() - start, 3)}
+    best.message = (f"{best.message}; refined to {current.opts.n_ctrl} control points / "
+                    f"{current.opts.n_col} {current.opts.residual} equations in {len(levels) - 1} step(s), "
+                    f"verification {best.verification.get('status')} at {tol:g}")
+    return best
+
+
+def _next_level(opts, residual: str):
+    """The same setting with ``residual`` if the level had another one (the seed's
+    collocation, then its Galerkin form at the same size); else twice the knot spans, the
+    residual equations growing by as many as the control points."""
+    from dataclasses import replace
+
+    if opts.residual != residual:
+        return replace(opts, residual=residual, n_col=max(opts.n_col, opts.degree + 1))
+    pieces = 2 * (opts.n_ctrl - opts.degree)
+    n_ctrl = pieces + opts.degree
+    return replace(opts, n_ctrl=n_ctrl, n_col=max(opts.n_col + n_ctrl - opts.n_ctrl, opts.degree + 1),
+                   residual=residual)
 
 
 def _solve_starts(nlp, method, options, sense: str, seed: int, verbose: bool, progress: bool):

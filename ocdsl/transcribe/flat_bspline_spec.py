@@ -39,6 +39,20 @@ class FlatBSplineMethod(BaseModel):
     flat_outputs: Union[list[str], dict[str, list[str]], None] = Field(
         None, description="flat outputs (state names): one list for every phase, or per phase; "
                           "omitted: searched automatically")
+    residual: Literal["collocation", "galerkin"] = Field(
+        "galerkin", description="galerkin: each residual's weighted mean against every one of "
+        "collocation_points test B-splines == 0 (it cannot be spent between points); collocation: each "
+        "residual == 0 at the collocation points (the seed's method; the residual between them is free, "
+        "and grows as points are added)")
+    quadrature: int = Field(0, ge=0, le=50, description="Gauss-Legendre points per span of the Galerkin "
+                            "integrals (0: degree + 2)")
+    tolerance: Union[float, None] = Field(
+        None, gt=0, lt=1, description="verify the result at this tolerance (ocdsl/verify) and, while it "
+        "fails, double the knot spans and solve again from the previous level")
+    refinements: int = Field(5, ge=0, le=12, description="doublings at most (with tolerance)")
+    refine_residual: Literal["collocation", "galerkin"] = Field(
+        "galerkin", description="the residual of the refined levels; a first level with another residual "
+        "is first solved again with this one at the same size")
     dense_points: int = Field(201, ge=2, le=100000,
                               description="points per phase of the reconstructed trajectory")
     starts: int = Field(1, ge=1, le=1000, description="solves from the guess and from perturbed copies of "
@@ -51,6 +65,9 @@ class FlatBSplineMethod(BaseModel):
     def _check(self):
         if self.control_points < self.degree + 1:
             raise ValueError(f"control_points = {self.control_points} must be at least degree + 1 = "
+                             f"{self.degree + 1}")
+        if self.residual == "galerkin" and self.collocation_points < self.degree + 1:
+            raise ValueError(f"residual: galerkin needs collocation_points (test functions) >= degree + 1 = "
                              f"{self.degree + 1}")
         if isinstance(self.flat_outputs, list) and not self.flat_outputs:
             raise ValueError("flat_outputs: give at least one state (or omit it for the search)")
