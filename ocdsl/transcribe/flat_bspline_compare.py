@@ -22,7 +22,9 @@ def _row(result, wall: float, tf_key: str | None) -> dict[str, Any]:
             "nonzeros": result.nlp.get("nonzeros"), "iterations": result.iterations,
             "wall_s": wall, "solve_s": result.wall_time_s.get("solve"),
             "flat_reduction": result.extra.get("flat_reduction", {}).get("total"),
-            "expect": {c["name"]: (c["value"], c["passed"]) for c in result.expect}}
+            "expect": {c["name"]: (c["value"], c["passed"]) for c in result.expect},
+            "verification": (result.verification or {}).get("status"),
+            "refinement": result.extra.get("refinement", {}).get("levels", [])}
 
 
 def compare(path: str | Path, parameters: dict[str, float] | None = None,

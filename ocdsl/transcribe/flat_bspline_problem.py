@@ -456,6 +456,7 @@ def _level(result, opts, verification: dict, wall_s: float) -> dict:
             "constraints": result.nlp.get("constraints"), "tf": result.tf, "objective": result.objective,
             "max_residual_dense": max(result.extra["max_residual_dense"].values(), default=0.0),
             "reintegration_miss": max(dyn, default=None),
+            "reduction": result.extra["flat_reduction"]["total"],
             "verification": verification.get("status"), "failed_checks": len(failed),
             "worst_check": None if worst is None else
             {k: worst[k] for k in ("name", "phase", "value", "limit", "where") if k in worst},
