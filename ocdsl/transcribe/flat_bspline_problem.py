@@ -42,6 +42,10 @@ INF = float("inf")
 
 #: Ipopt options of the flat back end (under the file's own ``solver: options``).
 FLAT_SOLVER_DEFAULTS = {"mu_strategy": "monotone", "tol": 1e-9}
+#: Ipopt options of a refined level, which starts at the previous level's solution: a small
+#: barrier parameter and bound push keep it there (seed 2, 45 -> 85 control points: 18
+#: iterations; with the default mu_init = 0.1 Ipopt left the start and ended infeasible)
+REFINED_LEVEL_OPTIONS = {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9}
 
 
 class FlatProblemError(ValueError):
@@ -487,7 +491,7 @@ def _refine(file, mp: "_Mapped", first: Result, options: dict, verbose: bool,
         nxt = current.with_options(_next_level(current.opts, method.refine_residual))
         nlp = nxt.build()
         nxt.warm_from(current)
-        info = ipopt.solve(nlp.model, options, verbose=verbose)
+        info = ipopt.solve(nlp.model, {**REFINED_LEVEL_OPTIONS, **options}, verbose=verbose)
         res = _result(file, nxt, nlp, info)
         attach_verification(file.problem, res, settings)
         levels.append(_level(res, nxt.opts, res.verification, _time.perf_counter() - t))
