@@ -154,4 +154,7 @@ def test_unwrapped_angle_is_continuous_inside_its_bounds():
     ph = SimpleNamespace(control_bounds={beta: (0.0, 2 * np.pi)})
     assert np.allclose(_unwrapped(ph, beta, wrapped), a)
     ph = SimpleNamespace(control_bounds={})
-    assert np.max(np.abs(np.diff(_unwrapped(ph, beta, wrapped)))) < 0.1
+    assert np.allclose(_unwrapped(ph, beta, wrapped), a)
+    # starting on the negative side of the cut (seed 2, strategy 1: -3.14 then 3.1 .. 2.1)
+    b = np.concatenate([[-3.14], np.linspace(3.1, 2.1, 20)])
+    assert np.allclose(_unwrapped(ph, beta, b), np.concatenate([[-3.14 + 2 * np.pi], b[1:]]))

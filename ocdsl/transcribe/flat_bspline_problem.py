@@ -435,17 +435,18 @@ def _result(file, mp: "_Mapped", nlp, info) -> Result:
 def _unwrapped(ph, control, values: np.ndarray) -> np.ndarray:
     """An angle from the flat map's atan2 jumps by 2 pi where it crosses the branch cut;
     the exported control is made continuous (the cubic through the rows must not cross the
-    jump), on the branch whose first value lies inside the control's bounds."""
+    jump), shifted by a multiple of 2 pi into the control's bounds, or, unbounded, so that
+    most of it lies in [-pi, pi] (atan2's range)."""
     values = np.asarray(values, float)
     if len(values) < 2 or not np.all(np.isfinite(values)) or np.max(np.abs(np.diff(values))) < np.pi:
         return values
     out = np.unwrap(values)
     lo, hi = ph.control_bounds.get(control, (-INF, INF))
-    for k in (0, -1, 1, -2, 2):
-        shifted = out + 2 * np.pi * k
+    shifts = [out + 2 * np.pi * k for k in (0, -1, 1, -2, 2)]
+    for shifted in shifts if math.isfinite(lo) or math.isfinite(hi) else ():
         if np.all(shifted >= lo - 1e-12) and np.all(shifted <= hi + 1e-12):
             return shifted
-    return out
+    return min(shifts, key=lambda a: int(np.sum(np.abs(a) > np.pi)))
 
 
 def _level(result, opts, verification: dict, wall_s: float) -> dict:
