@@ -42,10 +42,6 @@ INF = float("inf")
 
 #: Ipopt options of the flat back end (under the file's own ``solver: options``).
 FLAT_SOLVER_DEFAULTS = {"mu_strategy": "monotone", "tol": 1e-9}
-#: Ipopt options of a refined level, which starts at the previous level's solution: a small
-#: barrier parameter and bound push keep it there (seed 2, 45 -> 85 control points: 18
-#: iterations; with the default mu_init = 0.1 Ipopt left the start and ended infeasible)
-REFINED_LEVEL_OPTIONS = {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9}
 
 
 class FlatProblemError(ValueError):
@@ -335,7 +331,7 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
     With the method's ``tolerance``, the result of the file's setting is verified
     (:mod:`ocdsl.verify`) and, until a level passes or ``refinements`` are spent, the pieces
     are doubled (with ``refine_residual``, warm start from the level before): see
-    :func:`_refine`. The Result is the last level that converged, with every level in
+    :func:`ocdsl.transcribe.flat_bspline_refine.refine`. The Result is the last level that converged, with every level in
     ``extra["refinement"]``."""
     from ..solve import ipopt
 
@@ -357,16 +353,18 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
         info, records = _solve_starts(nlp, method, options, problem.objective.sense,
                                       method.seed if seed is None else seed, verbose, progress)
     with timer.measure("post"):
-        result = _result(file, mp, nlp, info)
+        result = solved_result(file, mp, nlp, info)
         result.extra["starts"] = records
     if method.tolerance is not None:
+        from .flat_bspline_refine import refine
+
         with timer.measure("refine"):
-            result = _refine(file, mp, result, options, verbose, sum(timer.breakdown().values()))
+            result = refine(file, mp, result, options, verbose, sum(timer.breakdown().values()))
     result.wall_time_s = timer.breakdown()
     return result
 
 
-def _result(file, mp: "_Mapped", nlp, info) -> Result:
+def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
     """The Result of a solved flat NLP: every state and control on ``dense_points`` per
     phase (at least 8 per knot span, so that the cubic through the rows that the run folder
     declares follows the spline), residuals, boundary values, expect checks."""
@@ -447,79 +445,6 @@ def _unwrapped(ph, control, values: np.ndarray) -> np.ndarray:
         if np.all(shifted >= lo - 1e-12) and np.all(shifted <= hi + 1e-12):
             return shifted
     return min(shifts, key=lambda a: int(np.sum(np.abs(a) > np.pi)))
-
-
-def _level(result, opts, verification: dict, wall_s: float) -> dict:
-    """One row of ``extra["refinement"]``: the setting, NLP size, t_f, objective, dense
-    residual, the verification's verdict and its largest miss."""
-    failed = [c for c in verification.get("checks", []) if not c["passed"]]
-    worst = max(verification.get("checks", []), key=lambda c: c["value"] / c["limit"] if c["limit"] else 0,
-                default=None)
-    dyn = [c["value"] for c in verification.get("checks", []) if c["name"] == "dynamics from x(t0)"]
-    return {"control_points": opts.n_ctrl, "collocation_points": opts.n_col, "residual": opts.residual,
-            "status": result.status, "variables": result.nlp.get("variables"),
-            "constraints": result.nlp.get("constraints"), "tf": result.tf, "objective": result.objective,
-            "max_residual_dense": max(result.extra["max_residual_dense"].values(), default=0.0),
-            "reintegration_miss": max(dyn, default=None),
-            "reduction": result.extra["flat_reduction"]["total"],
-            "verification": verification.get("status"), "failed_checks": len(failed),
-            "worst_check": None if worst is None else
-            {k: worst[k] for k in ("name", "phase", "value", "limit", "where") if k in worst},
-            "verification_summary": verification.get("summary"), "wall_time_s": round(wall_s, 3)}
-
-
-def _refine(file, mp: "_Mapped", first: Result, options: dict, verbose: bool,
-            first_wall_s: float) -> Result:
-    """Verify at the method's tolerance; while a level fails, double the knot spans of
-    every function (and the residual equations with them) and solve again from the level
-    before. Stops at the first verified level, after ``refinements`` doublings, or when a
-    level's solve does not converge (the last converged level is returned)."""
-    from ..solve import ipopt
-    from ..verify import CONVERGED, VerifySettings, attach_verification
-
-    method = file.method
-    tol = float(method.tolerance)
-    settings = VerifySettings(tolerance=tol, rtol=min(1e-10, 1e-5 * tol))
-    start = _time.perf_counter()
-    attach_verification(file.problem, first, settings)
-    levels = [_level(first, mp.opts, first.verification, first_wall_s)]
-    best = first
-    current = mp
-    for _ in range(method.refinements):
-        if best.verification.get("status") == "verified":
-            break
-        t = _time.perf_counter()
-        nxt = current.with_options(_next_level(current.opts, method.refine_residual))
-        nlp = nxt.build()
-        nxt.warm_from(current)
-        info = ipopt.solve(nlp.model, {**REFINED_LEVEL_OPTIONS, **options}, verbose=verbose)
-        res = _result(file, nxt, nlp, info)
-        attach_verification(file.problem, res, settings)
-        levels.append(_level(res, nxt.opts, res.verification, _time.perf_counter() - t))
-        if res.status not in CONVERGED:
-            break
-        best, current = res, nxt
-    best.extra["starts"] = first.extra.get("starts", [])
-    best.extra["refinement"] = {"tolerance": tol, "levels": levels,
-                                "wall_time_s": round(_time.perf_counter() - start, 3)}
-    best.message = (f"{best.message}; refined to {current.opts.n_ctrl} control points / "
-                    f"{current.opts.n_col} {current.opts.residual} equations in {len(levels) - 1} step(s), "
-                    f"verification {best.verification.get('status')} at {tol:g}")
-    return best
-
-
-def _next_level(opts, residual: str):
-    """The same setting with ``residual`` if the level had another one (the seed's
-    collocation, then its Galerkin form at the same size); else twice the knot spans, the
-    residual equations growing by as many as the control points."""
-    from dataclasses import replace
-
-    if opts.residual != residual:
-        return replace(opts, residual=residual, n_col=max(opts.n_col, opts.degree + 1))
-    pieces = 2 * (opts.n_ctrl - opts.degree)
-    n_ctrl = pieces + opts.degree
-    return replace(opts, n_ctrl=n_ctrl, n_col=max(opts.n_col + n_ctrl - opts.n_ctrl, opts.degree + 1),
-                   residual=residual)
 
 
 def _solve_starts(nlp, method, options, sense: str, seed: int, verbose: bool, progress: bool):
