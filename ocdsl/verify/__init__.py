@@ -120,6 +120,9 @@ HINTS = {
                             "with a non-smooth integrand); use LG, write the integral as a state, or refine",
     "objective": "the objective recomputed from the re-integrated trajectory differs from the "
                  "solver's: refine the mesh",
+    "free final time": "the objective still changes with the final time, which is free and "
+                       "constrained by nothing active: the solver stopped short of the optimum "
+                       "(often at the guess of tf); refine the mesh or start from another tf",
 }
 
 
@@ -161,6 +164,7 @@ class _PhaseRun:
     glob_end: np.ndarray
     local_end: np.ndarray
     uf: Any
+    end_rate: np.ndarray | None = None     # d/dt of [states; integrals] at t_f (local pass)
 
 
 def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[list[dict], list[str]]:
@@ -245,7 +249,8 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
                                for k, c in enumerate(funcs.path)])
         v, where = worst(err, [c.text or str(c.expr) for c in funcs.path], grid)
         checks.append(row("path constraints", pname, v, tol, where, f"{len(grid)} points"))
-    return _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf)
+    end_rate = funcs.augmented_point(float(t[-1]), local.Y[-1], uf(float(t[-1])))
+    return _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf, end_rate)
 
 
 def _control_bounds_check(ph, traj, names_u, ubounds, tol, checks) -> None:
@@ -296,6 +301,61 @@ def _path_scales(funcs, t, X, U, scale_x, ubounds, G) -> np.ndarray:
         Up[:, j] += h
         sens += np.abs(funcs.g(t, X, Up) - g0) / h * su
     return np.maximum.reduce([np.nanmax(sens, axis=0), np.ptp(G, axis=0), np.full(G.shape[1], 1e-12)])
+
+
+def _d_dtf(expr: sp.Expr, ph, run: _PhaseRun, problem, point) -> float:
+    """d expr / d t_f of phase ``ph`` with everything else held: through x(t_f) (its rate
+    f(x(t_f), u(t_f))), the phase's integrals (their integrands at t_f) and t_f itself."""
+    subs = {k: sp.Float(v) for k, v in point.items()}
+    n = len(ph.states)
+    total = 0.0
+    for s in expr.free_symbols:
+        if s == ph.tf_symbol:
+            rate = 1.0
+        elif s in ph.integrals:
+            rate = float(run.end_rate[n + list(ph.integrals).index(s)])
+        elif s in problem.boundary_values and problem.boundary_values[s].phase == ph.name \
+                and problem.boundary_values[s].which == "tf" and problem.boundary_values[s].var in ph.states:
+            rate = float(run.end_rate[list(ph.states).index(problem.boundary_values[s].var)])
+        else:
+            continue
+        total += float(sp.diff(expr, s).xreplace(subs)) * rate
+    return total
+
+
+def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
+    """First-order optimality in a free final time, where it needs no multiplier: when t_f
+    is strictly inside its bounds and no active constraint moves with it, the objective
+    must be stationary in t_f (d J / d t_f = 0: ending a little earlier or later is feasible
+    and, were the derivative not zero, better). A solution stopped at the guess of t_f
+    (tumour, LG 12 x 4: 3.2e-3 late, the end of the dose on a segment boundary) is
+    feasible, flies exactly, and is caught only here."""
+    obj = problem.objective
+    j_scale = max(sensitivity_scale(obj.expr, point, scales), 1e-12)
+    for ph in problem.phases:
+        run = runs[ph.name]
+        if ph.tf is not None or run.end_rate is None or not np.all(np.isfinite(run.end_rate)):
+            continue
+        T, duration = float(run.t[-1]), max(float(run.t[-1] - run.t[0]), 1e-12)
+        lo, hi = ph.tf_bounds
+        if min(T - lo, hi - T) <= tol * duration:
+            continue                              # at a bound: its multiplier is unknown
+        moving = False
+        for c in problem.boundary:
+            v = evaluate(c.expr, point)
+            sc = sensitivity_scale(c.expr, point, scales)
+            active = c.lower == c.upper or min(abs(v - c.lower), abs(c.upper - v)) <= tol * sc
+            if active and abs(_d_dtf(c.expr, ph, run, problem, point)) * duration > tol * sc:
+                moving = True
+                break
+        if moving:
+            continue
+        g = _d_dtf(obj.expr, ph, run, problem, point)
+        if g == 0.0 and not (obj.expr.free_symbols & ({ph.tf_symbol} | set(ph.integrals))):
+            continue                              # the objective does not depend on this t_f
+        checks.append(row("free final time", ph.name, abs(g) * duration / j_scale, tol,
+                          f"dJ/dtf = {g:.6g} at tf = {T:.10g}",
+                          "objective stationary in tf (no active constraint moves with it)"))
 
 
 def _points(problem, result, runs, params, which: str):
@@ -359,6 +419,8 @@ def _boundary_checks(problem, result, runs, params, tol, checks, open_loop: bool
             value, where, limit = items[k]
             checks.append(row(f"{kind}", None, value, limit, where, f"{len(items)} conditions, {label}",
                               trajectory=which))
+        if which == "local":
+            _free_final_time_checks(problem, runs, point, scales, tol, checks)
         obj = problem.objective
         if result.objective is not None and math.isfinite(float(result.objective)):
             J = evaluate(obj.expr, point)
