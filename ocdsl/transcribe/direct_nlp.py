@@ -70,9 +70,68 @@ def _derivatives(exprs, syms):
     return jac, jexprs, hess, hexprs
 
 
-def _numpy_function(args, exprs):
-    """One NumPy function of ``args`` returning the list of ``exprs`` (None for no exprs)."""
-    return sp.lambdify(list(args), list(exprs), modules="numpy", cse=True, docstring_limit=0) if exprs else None
+def _source(args, exprs) -> str | None:
+    """NumPy source of ``f(*args)`` returning the list of ``exprs`` after common-subexpression
+    elimination (what ``sympy.lambdify(..., cse=True)`` makes, as text that can be cached)."""
+    if not exprs:
+        return None
+    from sympy.printing.numpy import NumPyPrinter
+
+    reps, red = sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
+    pr = NumPyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
+    lines = [f"def f({', '.join(str(a) for a in args)}):"]
+    lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
+    lines.append("    return [" + ", ".join(pr.doprint(e) for e in red) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def _function(source: str | None):
+    if source is None:
+        return None
+    ns = {"numpy": np}
+    exec(compile(source, "<ocdsl.transcribe.direct_nlp>", "exec"), ns)
+    return ns["f"]
+
+
+_GENERATOR: list[str] = []
+
+
+def _generator_id() -> str:
+    """What the generated code depends on besides the expressions: ocdsl's and SymPy's
+    versions and this module's own source (an edited generator never meets old entries)."""
+    if not _GENERATOR:
+        from pathlib import Path
+
+        from .. import __version__
+        from ..cache import fingerprint
+
+        _GENERATOR.append(fingerprint(__version__, sp.__version__, Path(__file__).read_text()))
+    return _GENERATOR[0]
+
+
+def _generated(exprs, dvars, extra=()) -> dict:
+    """``exprs`` with their nonzero first and lower-triangle second derivatives in ``dvars``
+    (further arguments ``extra``): {"n_out", "jac", "hess", "values", "first", "second"},
+    the last three NumPy sources of functions of ``dvars + extra``. Taken from the disk
+    cache (ocdsl/cache.py, kind ``nlp``) when it holds them: the key is the expressions
+    themselves, with the arguments renamed by position, so a study's points and a second
+    run of a file skip SymPy's differentiation."""
+    from .. import cache
+
+    args = list(dvars) + list(extra)
+    stand = [sp.Symbol(f"_a{i}", **a.assumptions0) for i, a in enumerate(args)]
+    norm = [sp.sympify(e).xreplace(dict(zip(args, stand))) for e in exprs]
+    free = set().union(*(e.free_symbols for e in norm)) - set(stand) if norm else set()
+    if free:
+        raise Unsupported(f"the expressions use {', '.join(sorted(str(s) for s in free))}")
+    key = cache.fingerprint(_generator_id(), str(len(dvars)), sp.srepr(stand), sp.srepr(norm))
+    entry = cache.read_entry("nlp", key)
+    if not (isinstance(entry, dict) and entry.get("n_out") == len(norm)):
+        jac, jexprs, hess, hexprs = _derivatives(norm, stand[:len(dvars)])
+        entry = {"n_out": len(norm), "jac": jac, "hess": hess, "values": _source(stand, norm),
+                 "first": _source(stand, jexprs), "second": _source(stand, hexprs)}
+        cache.write_entry("nlp", key, entry)
+    return entry
 
 
 @dataclass
@@ -90,10 +149,9 @@ class _Family:
 
     @classmethod
     def compile(cls, exprs: list, wsyms: list, S: sp.Symbol) -> "_Family":
-        jac, jexprs, hess, hexprs = _derivatives(exprs, wsyms)
-        args = list(wsyms) + [S]
-        return cls(len(exprs), np.array(jac, int).reshape(-1, 2), np.array(hess, int).reshape(-1, 3),
-                   _numpy_function(args, exprs), _numpy_function(args, jexprs), _numpy_function(args, hexprs))
+        g = _generated(exprs, wsyms, [S])
+        return cls(g["n_out"], np.array(g["jac"], int).reshape(-1, 2), np.array(g["hess"], int).reshape(-1, 3),
+                   _function(g["values"]), _function(g["first"]), _function(g["second"]))
 
     @staticmethod
     def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
@@ -588,11 +646,10 @@ def _compile(tr):
             if d != 0:
                 ip, q = integral_of[s]
                 icoef.append((out, ip, q, float(d)))
-    jac, jexprs, hess, hexprs = _derivatives(exprs, ysyms)
-    args = ysyms + isyms
+    gen = _generated(exprs, ysyms, isyms)
     symbols = [("y", y) for y in y_of_sym] + [("I", integral_of[s]) for s in isyms]
-    scal = _Scalars(len(exprs), symbols, jac, hess, icoef, _numpy_function(args, exprs),
-                    _numpy_function(args, jexprs), _numpy_function(args, hexprs))
+    scal = _Scalars(len(exprs), symbols, [tuple(j) for j in gen["jac"]], [tuple(h) for h in gen["hess"]], icoef,
+                    _function(gen["values"]), _function(gen["first"]), _function(gen["second"]))
     # every variable the model has must be an entry (unused ones too: PyNumero drops them,
     # Ipopt keeps them at their start)
     for v in model.component_data_objects(pyo.Var):
