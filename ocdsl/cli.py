@@ -62,7 +62,9 @@ def main() -> None:
               "(never files ocdsl did not write)")
 @click.option("--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
               help="wall-clock limit of the solves (default: the file's solver: time_limit, 3600 s)")
-def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time_limit):
+@click.option("--no-cache", "no_cache", is_flag=True, help="neither read nor write ocdsl's disk cache of "
+              "generated code ($OCDSL_CACHE, default ~/.cache/ocdsl; see docs/architecture.md)")
+def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time_limit, no_cache):
     """Solve FILE and write a run folder (result.json, trajectory.csv, ...).
 
     --out must be a new folder, an empty one or an earlier ocdsl run folder (it is
@@ -70,6 +72,7 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
     from .api import run_file
     from .solve.ipopt import interruptible
 
+    _cache_off(no_cache)
     out = Path(out) if out else Path("runs") / Path(file).stem
     if _has_block(file, "pareto"):
         sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet, force))
@@ -85,6 +88,16 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
     if not quiet:
         _summary(result, out)
     sys.exit(0 if result.ok else 1)
+
+
+def _cache_off(no_cache: bool) -> None:
+    """--no-cache: through the environment, so that local study workers inherit it."""
+    if no_cache:
+        import os
+
+        from .cache import ENV_OFF
+
+        os.environ[ENV_OFF] = "1"
 
 
 def _has_block(file: str, key: str) -> bool:
@@ -246,9 +259,13 @@ def schema():
 @click.option("--force", is_flag=True, help="replace an earlier ocdsl study or run folder at --out "
               "(never files ocdsl did not write)")
 @click.option("--quiet", "-q", is_flag=True)
-def study(file, out, workers, serial, scheduler, resume, force, quiet):
+@click.option("--no-cache", "no_cache", is_flag=True, help="neither read nor write ocdsl's disk cache of "
+              "generated code ($OCDSL_CACHE, default ~/.cache/ocdsl; see docs/architecture.md)")
+def study(file, out, workers, serial, scheduler, resume, force, quiet, no_cache):
     """Run the study: block of FILE (sweep, starts, Monte Carlo) into folder OUT."""
     from .study.run import run_study
+
+    _cache_off(no_cache)
 
     try:
         res = _compile_or_exit(run_study, file, out, workers=workers, serial=serial, scheduler=scheduler,

@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import os
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -46,10 +44,10 @@ class _Printer(PythonCodePrinter):
 
 
 def _cache_dir() -> Path:
-    root = Path(os.environ.get("OCDSL_CACHE", Path.home() / ".cache" / "ocdsl"))
-    d = root / "simulate"
-    d.mkdir(parents=True, exist_ok=True)
-    return d
+    # always written, even with OCDSL_NO_CACHE: Numba compiles and caches from a module file
+    from ocdsl.cache import folder
+
+    return folder("simulate")
 
 
 def rhs_source(model: Model) -> str:
@@ -108,10 +106,9 @@ def load_module(source: str) -> ModuleType:
         return _MODULES[key]
     path = _cache_dir() / f"ocdsl_sim_{key}.py"
     if not path.exists() or path.read_text() != source:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(source)
-        os.replace(tmp, path)
+        from ocdsl.cache import write_atomic
+
+        write_atomic(path, source)
     name = f"ocdsl_sim_{key}"
     spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
