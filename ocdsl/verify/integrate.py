@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 STIFF = 200.0          # |lambda| * piece length above which a piece is integrated by Radau
 
@@ -62,6 +61,8 @@ def _stiff(funcs, uf, t, X, scale) -> float:
 
 
 def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
+    from scipy.integrate import solve_ivp   # imported by the verification, not by importing ocdsl.verify
+
     u_of = uf.piece(0.5 * (a + b))
 
     def fun(tt, y):
