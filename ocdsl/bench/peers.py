@@ -60,27 +60,40 @@ def prepare(problem_file: Path, work: Path, segments: int | None = None) -> tupl
 
 
 def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | None = None) -> dict:
+    """``runs`` rounds of three whole processes, alternating their order: ``ocdsl run`` on a
+    cold disk cache (emptied before each run), ``ocdsl run`` on a warm one (filled by one
+    unmeasured run first; ocdsl/cache.py) and the CasADi script."""
     yml, script, log_o, log_c = prepare(problem_file, work, segments)
-    env = dict(os.environ)
-    o_runs, c_runs = [], []
+    cold, warm = work / "cache_cold", work / "cache_warm"
+    base = {k: v for k, v in os.environ.items() if k != "OCDSL_NO_CACHE"}
+    runs_of: dict[str, list] = {"cold": [], "warm": [], "casadi": []}
+
+    def ocdsl_run(cache_dir: Path) -> dict:
+        out = work / "run"
+        shutil.rmtree(out, ignore_errors=True)
+        r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work,
+                 {**base, "OCDSL_CACHE": str(cache_dir)})
+        r["result"] = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else {}
+        r["ipopt"] = ipopt_log.parse(log_o)
+        return r
+
+    ocdsl_run(warm)                                   # fills the warm cache, not measured
     for i in range(runs):
-        for who in (("o", "c") if i % 2 == 0 else ("c", "o")):
-            if who == "o":
-                out = work / "run"
-                shutil.rmtree(out, ignore_errors=True)
-                r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work, env)
-                res = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else {}
-                r["result"] = res
-                r["ipopt"] = ipopt_log.parse(log_o)
-                o_runs.append(r)
+        for who in (("cold", "casadi", "warm") if i % 2 == 0 else ("warm", "casadi", "cold")):
+            if who == "cold":
+                shutil.rmtree(cold, ignore_errors=True)
+                runs_of["cold"].append(ocdsl_run(cold))
+            elif who == "warm":
+                runs_of["warm"].append(ocdsl_run(warm))
             else:
-                r = _run([sys.executable, str(script)], work, env)
+                r = _run([sys.executable, str(script)], work, base)
                 line = next((ln for ln in r["stdout"].splitlines() if ln.startswith("CASADI_RESULT ")), None)
                 r["result"] = json.loads(line.split(" ", 1)[1]) if line else {}
                 r["ipopt"] = ipopt_log.parse(log_c)
-                c_runs.append(r)
+                runs_of["casadi"].append(r)
     return {"name": problem_file.stem if segments is None else f"{problem_file.stem} K={segments}",
-            "ocdsl": summarize(o_runs, "ocdsl"), "casadi": summarize(c_runs, "casadi")}
+            "ocdsl": summarize(runs_of["cold"], "ocdsl"), "ocdsl_warm": summarize(runs_of["warm"], "ocdsl"),
+            "casadi": summarize(runs_of["casadi"], "casadi")}
 
 
 def _med(values):
@@ -96,7 +109,7 @@ def summarize(runs: list[dict], who: str) -> dict:
     ip = [(r["ipopt"].get("ipopt_wo_fe_s") or 0) + (r["ipopt"].get("ipopt_fe_s") or 0) for r in runs]
     if who == "ocdsl":
         st = [r["result"].get("wall_time_s", {}) for r in runs]
-        for k in ("parse", "symbolic", "build", "post"):
+        for k in ("parse", "symbolic", "build", "post", "verify"):
             s[k] = _med([w.get(k) for w in st])
         s["handover"] = _med([w.get("solve", 0) - i for w, i in zip(st, ip)])
         s["lazy_imports"] = _med([w.get("total", 0) - sum(v for k, v in w.items() if k != "total") for w in st])
@@ -105,7 +118,7 @@ def summarize(runs: list[dict], who: str) -> dict:
         s["objective"] = runs[-1]["result"].get("objective")
     else:
         res = [r["result"] for r in runs]
-        s["parse"] = s["symbolic"] = s["post"] = s["lazy_imports"] = 0.0
+        s["parse"] = s["symbolic"] = s["post"] = s["verify"] = s["lazy_imports"] = 0.0
         s["build"] = _med([x.get("build") for x in res])
         s["handover"] = _med([x.get("handover", 0) + x.get("solve", 0) - i for x, i in zip(res, ip)])
         s["startup"] = _med([r["wall"] - sum(x.get(k, 0) for k in ("import", "build", "handover", "solve"))
@@ -122,25 +135,27 @@ def _f(v, nd=3):
 
 def table(cases: list[dict]) -> str:
     head = ("| problem | tool | vars | cons | iter | Ipopt w/o f-eval | Ipopt CPU w/o f-eval | f-eval | start-up+imports | parse | "
-            "symbolic | build | hand-over | post | peak MB | wall (median) | CPU | outside Ipopt | "
+            "symbolic | build | hand-over | post | verify | peak MB | wall (median) | CPU | outside Ipopt | "
             "Ipopt CPU/iter | ratio wall | ratio CPU | ratio Ipopt CPU/iter | objective |")
     lines = [head, "|" + "---|" * head.count("|")[:-1] if False else "|" + "---|" * (head.count("|") - 1)]
     for c in cases:
-        o, k = c["ocdsl"], c["casadi"]
-        for who, s in (("ocdsl", o), ("CasADi", k)):
-            ratio_w = f"{o['wall'] / k['wall']:.2f}" if who == "ocdsl" and k["wall"] else ""
-            ratio_c = f"{o['cpu'] / k['cpu']:.2f}" if who == "ocdsl" and k["cpu"] else ""
+        k = c["casadi"]
+        tools = [("ocdsl cold", c["ocdsl"])] + ([("ocdsl warm", c["ocdsl_warm"])] if c.get("ocdsl_warm") else [])
+        for who, s in tools + [("CasADi", k)]:
+            o = s
+            ratio_w = f"{o['wall'] / k['wall']:.2f}" if who != "CasADi" and k["wall"] else ""
+            ratio_c = f"{o['cpu'] / k['cpu']:.2f}" if who != "CasADi" and k["cpu"] else ""
             obj = "-" if s["objective"] is None else f"{s['objective']:.10g}"
             per_it = {w: (x["ipopt_wo_fe_cpu_s"] / x["iterations"] if x.get("ipopt_wo_fe_cpu_s") and x.get("iterations")
                           else None) for w, x in (("o", o), ("k", k))}
-            ratio_it = (f"{per_it['o'] / per_it['k']:.2f}" if who == "ocdsl" and per_it["o"] and per_it["k"] else "")
-            me = per_it["o" if who == "ocdsl" else "k"]
+            ratio_it = (f"{per_it['o'] / per_it['k']:.2f}" if who != "CasADi" and per_it["o"] and per_it["k"] else "")
+            me = per_it["o" if who != "CasADi" else "k"]
             share = f"{100 * s['outside'] / s['wall']:.0f} %" if s.get("outside") is not None and s["wall"] else "-"
             lines.append(
                 f"| {c['name']} | {who} | {_f(s['variables'], 0)} | {_f(s['constraints'], 0)} | "
                 f"{_f(s['iterations'], 0)} | {_f(s['ipopt_wo_fe_s'])} | {_f(s['ipopt_wo_fe_cpu_s'])} | {_f(s['ipopt_fe_s'])} | "
                 f"{_f((s['startup'] or 0) + (s['lazy_imports'] or 0))} | {_f(s['parse'])} | {_f(s['symbolic'])} | "
-                f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s['rss_mb'], 0)} | "
+                f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s.get('verify'))} | {_f(s['rss_mb'], 0)} | "
                 f"{_f(s['wall'])} | {_f(s['cpu'])} | {share} | {_f(me, 4)} | {ratio_w} | {ratio_c} | {ratio_it} | "
                 f"{obj} ({s['status']}) |")
     return "\n".join(lines)
@@ -262,7 +277,8 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             "(the NLP set-up of the route the solve took, `result.json` nlp.evaluation: the direct NumPy "
             "route's SymPy compile and index assembly, or PyNumero's NL writer + ASL; cyipopt set-up); "
             "post includes costates, certificate and expect "
-            "checks. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
+            "checks; verify = the independent verification (ocdsl/verify). ocdsl cold: its disk cache of generated "
+            "NLP code (ocdsl/cache.py) emptied before each run; warm: filled by one unmeasured run first. CasADi: hand-over = `nlpsol` creation plus solver call minus Ipopt's own total. "
             "Ipopt CPU = user + sys seconds from Ipopt's timing statistics (the wall columns "
             "mostly measure the machine's other load); Ipopt CPU/iter = that without function evaluations "
             "over iterations; outside Ipopt = share of the process wall not in Ipopt (with or without "
