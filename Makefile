@@ -19,12 +19,19 @@ test:
 bench: setup
 	$(PY) -m ocdsl.bench
 
+# published benchmarks beyond the examples, at their own (uniform) meshes: those present
+PEERS_LIT := $(wildcard configs/lit_brachistochrone_wall.yaml configs/lit_catenary.yaml \
+  configs/lit_free_flying_robot.yaml configs/lit_hypersensitive_linear.yaml configs/lit_linear_tangent.yaml \
+  configs/lit_orbit_raising.yaml configs/lit_goddard_three_phase.yaml configs/lit_bryson_denham_touch.yaml)
+
 bench-peers: setup
 	$(PY) -m pip install -q casadi
 	$(PY) -c "from ocdsl.bench.cli import bench; bench()" configs/double_integrator.yaml \
 	  configs/minimal_double_integrator.yaml configs/brachistochrone.yaml configs/bryson_denham.yaml \
-	  configs/moon_landing.yaml configs/goddard.yaml configs/seed0_rendezvous.yaml \
+	  configs/moon_landing.yaml configs/goddard.yaml configs/two_phase_double_integrator.yaml \
+	  configs/seed0_rendezvous.yaml $(PEERS_LIT) \
 	  --scaling configs/brachistochrone.yaml --series-solve 100
+	$(PY) -m ocdsl.bench.derivatives configs > reports/bench/derivatives.md
 
 # 10,000 mutated configs/ files through the compile entry (tests/fuzzing.py): exit 1 on any
 # exception other than a SpecError with a line, or a case over 5 s of CPU

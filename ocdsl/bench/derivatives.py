@@ -99,7 +99,12 @@ def main(argv: list[str] | None = None) -> str:
         rows.append(measure(*dynamics_family(configs / "seed0_rendezvous.yaml", k)))
         print(f"  {rows[-1]['model']}: {rows[-1]['generate']:.3f} s", file=sys.stderr)
     text, p = table(rows)
-    out = (f"{machine()} (shared with other agents), {time.strftime('%Y-%m-%d %H:%M')}\n\n" + text + "\n\n"
+    doc = " ".join(__doc__.split("\n\n")[1].split())
+    out = ("# Derivative generation time against model size\n\n"
+           f"{machine()} (2 cores shared with other agents), {time.strftime('%Y-%m-%d %H:%M')}. "
+           f"Made by `python -m ocdsl.bench.derivatives` (`make bench-peers`). {doc}\n\n"
+           "compile = `exec` of the three sources: what a run on a warm cache (ocdsl/cache.py) "
+           "pays instead of generate, besides reading the JSON entry.\n\n" + text + "\n\n"
            + (f"Fitted exponent, generate CPU ~ nodes^p over rows of >= 100 nodes: p = {p:.2f}\n" if p else ""))
     return out
 
