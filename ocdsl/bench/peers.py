@@ -109,7 +109,7 @@ def summarize(runs: list[dict], who: str) -> dict:
     ip = [(r["ipopt"].get("ipopt_wo_fe_s") or 0) + (r["ipopt"].get("ipopt_fe_s") or 0) for r in runs]
     if who == "ocdsl":
         st = [r["result"].get("wall_time_s", {}) for r in runs]
-        for k in ("parse", "symbolic", "build", "post", "verify"):
+        for k in ("parse", "symbolic", "build", "solve", "post", "verify"):
             s[k] = _med([w.get(k) for w in st])
         s["handover"] = _med([w.get("solve", 0) - i for w, i in zip(st, ip)])
         s["lazy_imports"] = _med([w.get("total", 0) - sum(v for k, v in w.items() if k != "total") for w in st])
@@ -118,7 +118,7 @@ def summarize(runs: list[dict], who: str) -> dict:
         s["objective"] = runs[-1]["result"].get("objective")
     else:
         res = [r["result"] for r in runs]
-        s["parse"] = s["symbolic"] = s["post"] = s["verify"] = s["lazy_imports"] = 0.0
+        s["parse"] = s["symbolic"] = s["post"] = s["verify"] = s["solve"] = s["lazy_imports"] = 0.0
         s["build"] = _med([x.get("build") for x in res])
         s["handover"] = _med([x.get("handover", 0) + x.get("solve", 0) - i for x, i in zip(res, ip)])
         s["startup"] = _med([r["wall"] - sum(x.get(k, 0) for k in ("import", "build", "handover", "solve"))
@@ -135,7 +135,7 @@ def _f(v, nd=3):
 
 def table(cases: list[dict]) -> str:
     head = ("| problem | tool | vars | cons | iter | Ipopt w/o f-eval | Ipopt CPU w/o f-eval | f-eval | start-up+imports | parse | "
-            "symbolic | build | hand-over | post | verify | peak MB | wall (median) | CPU | outside Ipopt | "
+            "symbolic | build | hand-over | post | verify / solve stage | peak MB | wall (median) | CPU | outside Ipopt | "
             "Ipopt CPU/iter | ratio wall | ratio CPU | ratio Ipopt CPU/iter | objective |")
     lines = [head, "|" + "---|" * head.count("|")[:-1] if False else "|" + "---|" * (head.count("|") - 1)]
     for c in cases:
@@ -155,7 +155,7 @@ def table(cases: list[dict]) -> str:
                 f"| {c['name']} | {who} | {_f(s['variables'], 0)} | {_f(s['constraints'], 0)} | "
                 f"{_f(s['iterations'], 0)} | {_f(s['ipopt_wo_fe_s'])} | {_f(s['ipopt_wo_fe_cpu_s'])} | {_f(s['ipopt_fe_s'])} | "
                 f"{_f((s['startup'] or 0) + (s['lazy_imports'] or 0))} | {_f(s['parse'])} | {_f(s['symbolic'])} | "
-                f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s.get('verify'))} | {_f(s['rss_mb'], 0)} | "
+                f"{_f(s['build'])} | {_f(s['handover'])} | {_f(s['post'])} | {_f(s.get('verify'))} / {_f(s.get('solve'))} | {_f(s['rss_mb'], 0)} | "
                 f"{_f(s['wall'])} | {_f(s['cpu'])} | {share} | {_f(me, 4)} | {ratio_w} | {ratio_c} | {ratio_it} | "
                 f"{obj} ({s['status']}) |")
     return "\n".join(lines)
