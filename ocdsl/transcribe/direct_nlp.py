@@ -71,17 +71,21 @@ def _derivatives(exprs, syms):
 
 
 def _source(args, exprs) -> str | None:
-    """NumPy source of ``f(*args)`` returning the list of ``exprs`` after common-subexpression
-    elimination (what ``sympy.lambdify(..., cse=True)`` makes, as text that can be cached)."""
+    """NumPy source of ``f(*args, _out)`` writing ``exprs`` into the rows of ``_out`` after
+    common-subexpression elimination (``sympy.lambdify(..., cse=True)``'s code, as text that
+    can be cached). Rows are assigned in place: a constant or a node array fills its row by
+    broadcasting, without a per-entry ``broadcast_to`` and ``stack`` (which took half of a
+    Hessian evaluation's time on seed 0)."""
     if not exprs:
         return None
     from sympy.printing.numpy import NumPyPrinter
 
     reps, red = sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
     pr = NumPyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
-    lines = [f"def f({', '.join(str(a) for a in args)}):"]
+    lines = [f"def f({', '.join(str(a) for a in args)}, _out):"]
     lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
-    lines.append("    return [" + ", ".join(pr.doprint(e) for e in red) + "]")
+    lines += [f"    _out[{i}] = {pr.doprint(e)}" for i, e in enumerate(red)]
+    lines.append("    return _out")
     return "\n".join(lines) + "\n"
 
 
@@ -157,8 +161,7 @@ class _Family:
     def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
         if fn is None or n_rows == 0:
             return np.zeros((0, nodes))
-        out = fn(*cols)
-        return np.stack([np.broadcast_to(np.asarray(v, float), (nodes,)) for v in out])
+        return fn(*cols, np.empty((n_rows, nodes)))
 
     def values(self, cols, nodes):
         return self._stack(self._values, self.n_out, cols, nodes)
@@ -192,7 +195,10 @@ class _Scalars:
 
     def evaluate(self, z, which):
         fn = {"values": self._values, "first": self._first, "second": self._second}[which]
-        return np.array([float(v) for v in fn(*z)], float) if fn is not None else np.zeros(0)
+        if fn is None:
+            return np.zeros(0)
+        n = {"values": self.n_out, "first": len(self.jac), "second": len(self.hess)}[which]
+        return fn(*z, np.empty(n))
 
 
 class DirectNLP:
