@@ -133,6 +133,8 @@ def batched_local_pass(funcs, uf, grid, t_rows, X_rows, per_interval, rtol, scal
             F = np.concatenate([F, funcs.q(tt, Y[:, :n], U)], axis=1)
         return (F * h[:, None]).ravel()
 
+    from scipy.integrate import solve_ivp   # as in _piece: imported by the verification only
+
     tight = max(rtol / np.sqrt(P * width), 1e-13)
     y0 = np.concatenate([X_rows[:-1], np.zeros((P, nq))], axis=1).ravel()
     sol = solve_ivp(rhs, (0.0, 1.0), y0, method="DOP853", t_eval=frac, rtol=tight,
