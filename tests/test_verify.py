@@ -272,3 +272,11 @@ def test_closed_loop_runs_are_verified_by_their_own_step(tmp_path, step, integra
     assert names == {"dynamics per piece", "control bounds"}       # no open-loop replay
     if verdict == "failed":
         assert "simulate.step" in v["summary"] and not res.ok
+
+
+def test_a_verification_past_its_time_budget_is_an_error_not_a_pass(di_problem):
+    """A trajectory that keeps the integrator busy (e.g. a mass through zero) ends in
+    `error` at the budget instead of hanging the run."""
+    v = verify_result(di_problem, di_result(), VerifySettings(time_limit=0.0))
+    assert v["status"] == "error" and "time budget" in v["summary"]
+    assert verify_result(di_problem, di_result())["status"] == "verified"

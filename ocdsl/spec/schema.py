@@ -215,6 +215,8 @@ class VerifySpec(Strict):
                              "re-integration, the constraints met by it and the recomputed objective")
     mode: Literal["enforce", "warn"] = Field("enforce", description="`warn`: a failed verification "
                                              "is reported but does not fail the run")
+    time_limit: float = Field(600.0, gt=0, le=86400, description="wall seconds for the verification "
+                              "of one result; past it the verdict is `error` (not a pass)")
 
 
 class ReportSpec(Strict):

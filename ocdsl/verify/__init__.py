@@ -35,7 +35,7 @@ import sympy as sp
 from .checks import (evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
                      state_scale, worst)
 from .functions import PhaseFunctions
-from .integrate import IntegrationFailure, reintegrate
+from .integrate import IntegrationFailure, reintegrate, time_budget
 from .interpolate import (_Tabulated, bounds_of, breakpoints, control_interpolant, control_rows,
                           declared_interpolation)
 
@@ -52,6 +52,7 @@ class VerifySettings:
     rtol: float = 1e-10            # the integrator's (well below tolerance)
     per_interval: int = 3          # dense points between consecutive rows
     open_loop: bool = True         # also fly the control from x(t0); off for closed-loop runs
+    time_limit: float = 600.0      # wall seconds for the whole verification of one result
 
     @classmethod
     def of(cls, spec) -> "VerifySettings":
@@ -59,7 +60,8 @@ class VerifySettings:
         if spec is None:
             return cls()
         return cls(tolerance=float(spec.tolerance), mode=str(spec.mode),
-                   rtol=min(1e-10, float(spec.tolerance) * 1e-5))
+                   rtol=min(1e-10, float(spec.tolerance) * 1e-5),
+                   time_limit=float(spec.time_limit))
 
     def closed_loop(self) -> "VerifySettings":
         """The same, for a closed-loop run: its control came from feedback on the simulated
@@ -87,7 +89,8 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
                 "summary": f"the solver ended '{result.status}': nothing to verify"}
     start = time.perf_counter()
     try:
-        checks, notes = _verify(problem, result, settings, tables if tables is not None else {})
+        with time_budget(settings.time_limit):
+            checks, notes = _verify(problem, result, settings, tables if tables is not None else {})
     except IntegrationFailure as e:
         return {**head, "status": "error", "checks": [], "wall_time_s": time.perf_counter() - start,
                 "summary": f"could not verify: {e}"}

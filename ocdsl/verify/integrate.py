@@ -18,6 +18,10 @@ each quantity's scale; a stiff piece (|eigenvalue of df/dx| x piece length above
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,7 +30,27 @@ STIFF = 200.0          # |lambda| * piece length above which a piece is integrat
 
 
 class IntegrationFailure(RuntimeError):
-    """Neither integrator got through a piece."""
+    """Neither integrator got through a piece, or the time budget ran out."""
+
+
+# the wall-clock moment after which every right-hand side call gives up (a trajectory that
+# leaves the model's domain, e.g. a mass through zero, can keep an integrator busy forever)
+_DEADLINE: contextvars.ContextVar[float] = contextvars.ContextVar("verify_deadline", default=math.inf)
+
+
+@contextlib.contextmanager
+def time_budget(seconds: float):
+    token = _DEADLINE.set(time.monotonic() + seconds)
+    try:
+        yield
+    finally:
+        _DEADLINE.reset(token)
+
+
+def _check_deadline(tt: float) -> None:
+    if time.monotonic() > _DEADLINE.get():
+        raise IntegrationFailure(f"the re-integration ran out of its time budget at t = {tt:.6g} "
+                                 "(the trajectory may leave the model's domain; `verify: {time_limit}`)")
 
 
 @dataclass
@@ -66,6 +90,7 @@ def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
     u_of = uf.piece(0.5 * (a + b))
 
     def fun(tt, y):
+        _check_deadline(tt)
         return funcs.augmented_point(tt, y, u_of(tt))
 
     sol = solve_ivp(fun, (a, b), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol)
@@ -125,6 +150,7 @@ def batched_local_pass(funcs, uf, grid, t_rows, X_rows, per_interval, rtol, scal
     below_end = 1.0 - 1e-9          # each piece keeps its own control up to its end
 
     def rhs(sv, y):
+        _check_deadline(float(a[0] + sv * h[0]))
         Y = y.reshape(P, width)
         tt = a + min(sv, below_end) * h
         U = uf.at(tt)
