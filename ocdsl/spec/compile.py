@@ -109,6 +109,8 @@ class _Compiler:
         self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
         self.free: dict[sp.Symbol, FreeParameter] = {}
         self.integral_count = 0
+        self.tables: dict = {}
+        self.table_calls: dict = {}
 
     # -- error helpers ------------------------------------------------------------
     def issue(self, loc: tuple, message: str, text: str | None = None) -> None:
@@ -132,6 +134,7 @@ class _Compiler:
     def compile(self) -> LoadedFile:
         spec = self.spec
         method = self.validated_method(spec.method)
+        self.tables = self.build_tables()
         problem = None
         if spec.problem is not None or spec.phases is not None:
             problem = self.build_problem()
@@ -155,6 +158,29 @@ class _Compiler:
             raise SpecError(self.issues)
         return LoadedFile(self.path, self.located, spec, problem, method, expect,
                           getattr(self, "constants_in_force", {}), model, controller)
+
+    def build_tables(self) -> dict:
+        """The file's ``tables:``, each a function for expressions; a call is shown as
+        ``NAME(args)`` in the report (``self.table_calls``), not as its spline expansion."""
+        from .tables import TableError, build_table
+
+        out, self.table_calls = {}, {}
+        for name, tspec in self.spec.tables.items():
+            if not NAME_RE.match(name) or name in RESERVED:
+                self.issue(("tables", name), f"'{name}' cannot name a table (reserved or not an identifier)")
+                continue
+            try:
+                table = build_table(name, tspec, self.path.parent)
+            except TableError as e:
+                self.issue(("tables", name) + ((e.key,) if e.key else ()), str(e))
+                continue
+
+            def call(*args, _table=table):
+                value = _table(*args)
+                self.table_calls[value] = sp.Function(_table.name)(*args)
+                return value
+            out[name] = call
+        return out
 
     def validated_method(self, data: dict):
         """The method block, validated by its back end's spec; errors at their own lines."""
@@ -393,7 +419,10 @@ class _Compiler:
             names.setdefault(name, sym(name))
         vectors = self.vector_groups(m.vectors, names, loc)
         expressions: dict[sp.Symbol, sp.Expr] = {}
-        scope = Scope(names)
+        scope = Scope(names, functions=self.tables)
+        clash = sorted(set(names) & set(self.tables))
+        for name in clash:
+            self.issue(("tables", name), f"'{name}' names both a table and a declared name of the model")
         for name, text in m.expressions.items():
             if not NAME_RE.match(name) or name in names or name in RESERVED:
                 self.issue(loc + ("expressions", name), f"'{name}' cannot name an expression (reserved, declared or not an identifier)")
@@ -598,7 +627,8 @@ class _Compiler:
             target.integrals[s] = target.substitute(integrand)
             return s
 
-        return Scope(names, boundary, integral, {k: {"t0": v["t0"], "tf": v["tf"]} for k, v in phase_names.items()})
+        return Scope(names, boundary, integral, {k: {"t0": v["t0"], "tf": v["tf"]} for k, v in phase_names.items()},
+                     self.tables)
 
     def expression(self, text, ph, phases) -> sp.Expr:
         e = parse_expression(text, self.scope(ph, phases))
@@ -728,13 +758,14 @@ class _Compiler:
                                 "parameters": {}, "units": {}, "positions": [], "links": list(self.spec.links)}
         for ph in phases:
             f = ph.model
-            dyn = {s.name: sp.latex(f.dynamics[s]) for s in f.states}
+            shown = lambda e: sp.latex(e.xreplace(self.table_calls))  # noqa: E731  tables by name
+            dyn = {s.name: shown(f.dynamics[s]) for s in f.states}
             bounds = {s.name: [_num(b[0]), _num(b[1])] for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
             texts = self.spec.problem.constraints if self.spec.phases is None else self.spec.phases[ph.name].constraints
             desc["phases"][ph.name] = {
                 "states": [s.name for s in f.states], "controls": [c.name for c in f.controls],
                 "dynamics_latex": dyn,
-                "expressions_latex": {s.name: sp.latex(e) for s, e in f.expressions.items()},
+                "expressions_latex": {s.name: shown(e) for s, e in f.expressions.items()},
                 "bounds": bounds, "constraints": list(texts),
                 "t0": ph.t0 if ph.t0 is not None else "free", "tf": ph.tf if ph.tf is not None else "free"}
             desc["units"].update(f.units)

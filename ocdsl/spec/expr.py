@@ -50,6 +50,7 @@ class Scope:
     boundary: Callable[[str | None, str, str], sp.Symbol] | None = None
     integral: Callable[[sp.Expr], sp.Symbol] | None = None
     phases: dict[str, dict[str, sp.Basic]] = field(default_factory=dict)  # for phase.x(tf), phase.tf
+    functions: dict[str, Callable[..., sp.Expr]] = field(default_factory=dict)  # tables: name -> f(*args)
 
 
 def parse_expression(text: str | int | float, scope: Scope, vector: bool = False) -> sp.Expr:
@@ -225,7 +226,8 @@ class _Builder:
             return self.scope.names[node.id]
         if node.id in CONSTANTS:
             return CONSTANTS[node.id]
-        if node.id in FUNCTIONS or node.id in VECTOR_FUNCTIONS or node.id == "integral":
+        if node.id in FUNCTIONS or node.id in VECTOR_FUNCTIONS or node.id == "integral" \
+                or node.id in self.scope.functions:
             raise self.fail(f"'{node.id}' is a function and needs arguments")
         raise self.fail(f"unknown name '{node.id}'{did_you_mean(node.id, self.scope.names)}")
 
@@ -362,9 +364,17 @@ class _Builder:
             if any(is_vector(a) for a in args):
                 raise self.fail(f"{name} takes numbers, not vectors (use norm(...) or a component)")
             return f(*args)
+        if name in self.scope.functions:
+            args = [self.build(a) for a in node.args]
+            if any(is_vector(a) for a in args):
+                raise self.fail(f"table {name} takes numbers, not vectors (use a component such as r[0])")
+            try:
+                return self.scope.functions[name](*args)
+            except ValueError as e:
+                raise self.fail(str(e)) from None
         if name in self.scope.names:
             return self._boundary(None, name, node)
-        raise self.fail(f"unknown function '{name}'{did_you_mean(name, FUNCTIONS)}")
+        raise self.fail(f"unknown function '{name}'{did_you_mean(name, list(FUNCTIONS) + list(self.scope.functions))}")
 
     def _Attribute(self, node: ast.Attribute) -> sp.Expr:
         # phase.tf, phase.t0 or a phase's parameter, in links

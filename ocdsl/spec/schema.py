@@ -224,6 +224,23 @@ class ReportSpec(Strict):
     enabled: bool = False
 
 
+class TableSpec(Strict):
+    """An interpolation table (docs/problem-language.md, "Tables"): a C2 cubic spline of one
+    argument or a bicubic spline of two, from inline numbers or a CSV file beside the problem
+    file; called in expressions like a function, e.g. ``CD0(M)`` or ``thrust(M, h)``."""
+
+    x: Union[list[float], str] = Field(..., description="grid of the first argument (increasing), "
+                                       "or its column name in `csv`")
+    y: Union[list[float], str, None] = Field(None, description="grid of the second argument (2-D "
+                                             "tables), or its column name in `csv`")
+    values: Union[list[float], list[list[float]], str] = Field(..., description="1-D: one value per "
+                                                               "x; 2-D: one row per x, one column per y; or the column name in `csv`")
+    csv: str | None = Field(None, description="a CSV file (path relative to the problem file) with a "
+                            "header row; x, y and values name its columns (2-D: one row per grid point)")
+    spline: Literal["not-a-knot", "natural"] = Field("not-a-knot", description="end conditions of the "
+                                                     "cubic spline")
+
+
 class ProblemFile(Strict):
     """A whole problem file: one study."""
 
@@ -237,6 +254,8 @@ class ProblemFile(Strict):
     links: list[str] = Field(default_factory=list, description="relations between phases")
     objective: str | None = Field(None, description="objective of a multi-phase problem")
     parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict, description="problem-level parameters (free or constant)")
+    tables: dict[str, TableSpec] = Field(default_factory=dict, description="interpolation tables, "
+                                         "called in expressions as NAME(arg) or NAME(arg1, arg2)")
     method: dict[str, Any] = Field(default_factory=lambda: {"transcription": "LGR"})
     solver: SolverSpec = Field(default_factory=SolverSpec)
     report: ReportSpec = Field(default_factory=ReportSpec)
