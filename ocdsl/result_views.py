@@ -92,8 +92,10 @@ class ResultViews:
     # ---- values between the rows ---------------------------------------------------------
     def sample(self, t, phase: str | None = None) -> dict[str, np.ndarray]:
         """States and controls at the times ``t`` (a number or an array) of ``phase`` (default:
-        the first), by the run's documented control interpolation (ocdsl/sampling.py);
-        controls are clipped to their bounds.
+        the first). Controls follow the run's documented interpolation, clipped to their bounds,
+        exactly as the verification reads them (:mod:`ocdsl.verify.interpolate`); states are
+        each segment's polynomial through its rows (``lagrange-segments``: a pseudospectral
+        state is that polynomial), else a cubic spline through the rows.
 
         >>> import numpy as np
         >>> from ocdsl.result import Result, PhaseTrajectory
@@ -102,11 +104,21 @@ class ResultViews:
         >>> Result("demo", "optimal", phases=[ph]).sample([0.5, 1.5])["u"]
         array([1., 3.])
         """
-        from .sampling import interpolation_of, sample_phase
+        from .verify.interpolate import control_interpolant, declared_interpolation
 
         traj = self.phase(phase)
-        info = (self.problem.get("phases") or {}).get(traj.name, {})
-        return sample_phase(traj, t, interpolation_of(traj, self.method), info.get("bounds"))
+        tt = np.atleast_1d(np.asarray(t, float))
+        bounds = ((self.problem.get("phases") or {}).get(traj.name, {}).get("bounds")) or {}
+        spec = declared_interpolation(traj, self.method)
+        out: dict[str, np.ndarray] = {"t": tt}
+        out.update(_states_at(traj, tt, spec))
+        names = list(traj.controls)
+        if names:
+            lim = [tuple(math.inf * (-1 if i == 0 else 1) if b is None else float(b)
+                         for i, b in enumerate(bounds.get(n) or (None, None))) for n in names]
+            values = control_interpolant(traj, names, lim, spec).at(tt)
+            out.update({n: values[:, j] for j, n in enumerate(names)})
+        return out
 
     # ---- pandas and plots -------------------------------------------------------------
     def to_pandas(self, phase: str | None = None):
@@ -174,3 +186,34 @@ def expect_error_text(check: dict[str, Any]) -> str:
         return f"relative error {check['relative_error']:.2e}, rtol {check['rtol']:.1e}"
     limit = f", atol {check['atol']:.1e}" if check.get("atol") is not None else ""
     return f"error {check['error']:.2e}{limit}"
+
+
+def _states_at(traj, tt: np.ndarray, spec: dict) -> dict[str, np.ndarray]:
+    """States between the rows (Result.sample): per segment the polynomial through that
+    segment's rows, both ends included; else a cubic spline through all rows."""
+    from .verify.interpolate import SegmentPolynomials, _Tabulated
+
+    names = list(traj.states)
+    if not names:
+        return {}
+    rows = np.asarray(traj.time, float)
+    X = np.column_stack([np.asarray(traj.states[n], float) for n in names])
+    free = [(-math.inf, math.inf)] * len(names)
+    keep = np.isfinite(rows) & np.isfinite(X).all(axis=1)
+    rows, X = rows[keep], X[keep]
+    if spec.get("kind") != "lagrange-segments":
+        rows, first = np.unique(rows, return_index=True)
+        values = _Tabulated(rows, X[first], free, "cubic").at(tt)
+    else:
+        breaks = np.asarray(spec["breakpoints"], float)
+        tol = 1e-12 * max(1.0, abs(breaks[-1] - breaks[0]))
+        seg = np.clip(np.searchsorted(breaks, tt, side="left") - 1, 0, len(breaks) - 2)
+        values = np.full((len(tt), len(names)), np.nan)
+        for k in np.unique(seg):
+            a, b = breaks[k], breaks[k + 1]
+            inside = (rows >= a - tol) & (rows <= b + tol)
+            r, first = np.unique(rows[inside], return_index=True)
+            sel = seg == k
+            if len(r):
+                values[sel] = SegmentPolynomials(r, X[inside][first], free, [r[0], r[-1]]).at(tt[sel])
+    return {n: values[:, j] for j, n in enumerate(names)}

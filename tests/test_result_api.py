@@ -24,12 +24,24 @@ def test_sample_lagrange_segments_uses_collocated_rows_of_each_segment():
     res = Result("demo", "optimal", phases=[_two_segment_phase()],
                  method={"meshes": {"main": {"breakpoints": [0.0, 0.5, 1.0]}}})
     out = res.sample([0.25, 0.75, 1.25, 1.75])
-    # segment 1: line through (0.5, 1), (1, 2); segment 2: parabola through (1, 2), (1.5, 5), (2, 7)
+    # the verification's contract (ocdsl/verify/interpolate.py): a row on an interior boundary
+    # ends the segment before it. Segment 1: line through (0.5, 1), (1, 2); segment 2: line
+    # through (1.5, 5), (2, 7) (the row at t = 1 is not also the start of segment 2)
     assert out["u"][:2] == pytest.approx([0.5, 1.5])
-    p = np.polyfit([1.0, 1.5, 2.0], [2.0, 5.0, 7.0], 2)
-    assert out["u"][2:] == pytest.approx(np.polyval(p, [1.25, 1.75]))
+    assert out["u"][2:] == pytest.approx([4.0, 6.0])
     # the state is the polynomial through each segment's rows: x = t^2 exactly
     assert out["x"] == pytest.approx(np.array([0.25, 0.75, 1.25, 1.75]) ** 2)
+
+
+def test_sample_controls_are_the_verifications_interpolant():
+    from ocdsl.verify.interpolate import control_interpolant, declared_interpolation
+
+    res = Result("demo", "optimal", phases=[_two_segment_phase()],
+                 method={"meshes": {"main": {"breakpoints": [0.0, 0.5, 1.0]}}})
+    tt = np.linspace(0.0, 2.0, 17)
+    traj = res.phase()
+    ref = control_interpolant(traj, ["u"], [(-np.inf, np.inf)], declared_interpolation(traj, res.method)).at(tt)
+    assert res.sample(tt)["u"] == pytest.approx(ref[:, 0])
 
 
 def test_sample_clips_controls_to_their_bounds_and_follows_recorded_kind():
