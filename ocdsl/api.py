@@ -53,9 +53,9 @@ def compile_file(path: str | Path, parameters: dict[str, float] | None = None,
     timer = timer or Timer()
     with timer.measure("parse"):
         located = load_yaml(path) if text is None else load_yaml_text(text, str(path))
-        spec = spec_compile.validate(located)
+        spec, issues = spec_compile.validate_all(located)
     with timer.measure("symbolic"):
-        return spec_compile._Compiler(Path(path), located, spec, dict(parameters or {})).compile()
+        return spec_compile.compile_spec(Path(path), located, spec, issues, dict(parameters or {}))
 
 
 class Loaded:

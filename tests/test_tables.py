@@ -141,3 +141,18 @@ def test_2d_csv_must_be_a_full_grid(tmp_path):
         load(_write(tmp_path, body, CSV))
     (tmp_path / "grid.csv").write_text("a,b,f\n0,0,1\n0,1,2\n1,0,3\n1,1,5\n")
     load(_write(tmp_path, body, CSV))
+
+
+@pytest.mark.slow
+@pytest.mark.ipopt
+def test_min_time_to_climb_reaches_the_published_time(tmp_path):
+    """configs/min_time_to_climb.yaml: Bryson's climb with tabulated thrust (bicubic),
+    aerodynamics and atmosphere (CSV), 321.0 s in dymos' tests (to 2e-2)."""
+    from conftest import ROOT
+    from ocdsl.api import run_file
+
+    res = run_file(ROOT / "configs" / "min_time_to_climb.yaml", tmp_path / "run")
+    assert res.status == "optimal"
+    assert res.verification["status"] == "verified", res.verification.get("summary")
+    assert all(c["passed"] for c in res.expect)
+    assert res.tf == pytest.approx(321.0, rel=2e-2)

@@ -48,15 +48,82 @@ class LoadedFile:
 def load(path: str | Path, parameters: dict[str, float] | None = None) -> LoadedFile:
     """Read, validate and compile ``path``; ``parameters`` override constants by name."""
     located = load_yaml(path)
-    spec = validate(located)
-    return _Compiler(Path(path), located, spec, parameters or {}).compile()
+    spec, issues = validate_all(located)
+    return compile_spec(Path(path), located, spec, issues, parameters or {})
 
 
 def validate(located: Located) -> ProblemFile:
     try:
         return ProblemFile.model_validate(located.data)
     except pydantic.ValidationError as e:
-        raise SpecError([_issue_from_pydantic(located, err) for err in e.errors()]) from None
+        raise SpecError(_schema_issues(located, e.errors())) from None
+
+
+def _schema_issues(located: Located, errors: list) -> list[Issue]:
+    """One issue per location: a value that is none of a union's types (text or a number)
+    fails each of them, which is one mistake."""
+    out, seen = [], set()
+    for err in errors:
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS))
+        if loc in seen:
+            continue
+        seen.add(loc)
+        out.append(_issue_from_pydantic(located, err))
+    return out
+
+
+def validate_all(located: Located) -> tuple[ProblemFile | None, list[Issue]]:
+    """The schema's issues, and a spec of what is left once the entries they name are set
+    aside, so that compiling it reports the file's other mistakes in the same pass (a
+    misspelt key and a bad expression elsewhere come together, not one per run). None when
+    nothing valid is left (e.g. a required key is missing)."""
+    import copy
+
+    try:
+        return ProblemFile.model_validate(located.data), []
+    except pydantic.ValidationError as e:
+        errors = e.errors()
+    issues = _schema_issues(located, errors)
+    data = copy.deepcopy(located.data)
+    for _ in range(3):          # setting a value aside may expose a check of its parent
+        for err in errors:
+            _set_aside(data, tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS)))
+        try:
+            return ProblemFile.model_validate(data), issues
+        except pydantic.ValidationError as e:
+            errors = e.errors()
+            if any(err["type"] == "missing" or not err["loc"] for err in errors):
+                break
+    return None, issues
+
+
+def _set_aside(data, loc: tuple) -> None:
+    parent = data
+    for p in loc[:-1]:
+        if isinstance(parent, dict) and p in parent:
+            parent = parent[p]
+        elif isinstance(parent, list) and isinstance(p, int) and p < len(parent):
+            parent = parent[p]
+        else:
+            return
+    if isinstance(parent, dict) and loc and loc[-1] in parent:
+        del parent[loc[-1]]
+
+
+def compile_spec(path: Path, located: Located, spec: ProblemFile | None, issues: list[Issue],
+                 parameters: dict[str, float]) -> LoadedFile:
+    """Compile a validated spec; raises one SpecError with the schema's ``issues`` and every
+    issue the compiler finds (none twice)."""
+    if spec is None:
+        raise SpecError(issues)
+    try:
+        loaded = _Compiler(path, located, spec, dict(parameters)).compile()
+    except SpecError as e:
+        found = list(issues) + [i for i in e.issues if i not in issues]
+        raise SpecError(sorted(found, key=lambda i: i.line or 0)) from None
+    if issues:
+        raise SpecError(issues)
+    return loaded
 
 
 def _issue_from_pydantic(located: Located, err: dict) -> Issue:
@@ -71,6 +138,9 @@ def _issue_from_pydantic(located: Located, err: dict) -> Issue:
             msg += did_you_mean(loc[-1], _known_keys(loc[:-1]))
     elif err["type"] == "missing":
         msg = f"missing required key '{loc[-1]}'"
+    if loc and isinstance(loc[-1], str) and ("(" in loc[-1]) != (")" in loc[-1]):
+        # YAML split `{a: f(x, y)}` at the comma: the tail became a key
+        msg += "; inside { } a comma ends the value: quote an expression with commas, e.g. {a: 'f(x, y)'}"
     where = ".".join(str(p) for p in loc) or "top level"
     return located.issue(loc, f"{where}: {msg}", _source_line(located, loc))
 
@@ -173,6 +243,7 @@ class _Compiler:
                 table = build_table(name, tspec, self.path.parent)
             except TableError as e:
                 self.issue(("tables", name) + ((e.key,) if e.key else ()), str(e))
+                out[name] = _broken_table(name)
                 continue
 
             def call(*args, _table=table):
@@ -208,6 +279,7 @@ class _Compiler:
 
     def build_problem(self) -> Problem:
         spec = self.spec
+        before = len(self.issues)     # the method's issues do not stop the problem's checks
         self.used_overrides: set[str] = set()
         self.constants_in_force: dict[str, float] = {}
         top_params = self.parameters(spec.parameters, ("parameters",))
@@ -229,7 +301,7 @@ class _Compiler:
                 phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params,
                                          ph.parameters))
         phases = [p for p in phases if p is not None]
-        if self.issues:
+        if len(self.issues) > before:
             raise SpecError(self.issues)
         boundary: list[Constraint] = []
         for ph, (phase_spec_loc, texts) in zip(phases, self._phase_constraint_texts()):
@@ -776,6 +848,12 @@ class _Compiler:
             desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
         desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(obj.expr)}
         return desc
+
+
+def _broken_table(name: str):
+    def call(*_):
+        raise ExprError(f"table '{name}' has an error (reported at its line)")
+    return call
 
 
 def _validate_method(method: dict) -> Any:

@@ -1,0 +1,63 @@
+"""A file's independent mistakes come in one pass (issue 28): a misspelt key, a bad method
+setting and a bad expression elsewhere are reported together, in line order, each once."""
+import textwrap
+
+import pytest
+
+from ocdsl.spec.compile import load
+from ocdsl.spec.errors import SpecError
+
+
+def _errors(tmp_path, text: str) -> list:
+    p = tmp_path / "p.yaml"
+    p.write_text(textwrap.dedent(text))
+    with pytest.raises(SpecError) as e:
+        load(p)
+    return e.value.issues
+
+
+def test_schema_method_and_expression_mistakes_in_one_pass(tmp_path):
+    issues = _errors(tmp_path, """\
+        name: three mistakes
+        model:
+          states: [x, v]
+          controls: [u]
+          dynamics: {x: v, v: u}
+        problem:
+          time: {t0: 0, tf: free}
+          constraint: [x(t0) == 1]
+          objective: minimize tff
+        method: {transcription: LGR, segmnts: 4}
+        """)
+    msgs = [(i.line, i.message) for i in issues]
+    assert [line for line, _ in msgs] == [8, 9, 10]
+    assert "unknown key 'constraint' (did you mean 'constraints'?)" in msgs[0][1]
+    assert "unknown name 'tff' (did you mean 'tf'?)" in msgs[1][1]
+    assert "unknown key 'segmnts'" in msgs[2][1]
+
+
+def test_a_value_of_no_union_type_is_one_issue_with_the_comma_hint(tmp_path):
+    issues = _errors(tmp_path, """\
+        name: comma
+        model:
+          states: [x]
+          controls: [u]
+          expressions: {a: atan2(x, u)}
+          dynamics: {x: a}
+        problem:
+          time: {t0: 0, tf: 1}
+          constraints: [x(t0) == 1]
+          objective: minimize x(tf)
+        """)
+    schema = [i for i in issues if "model.expressions" in i.message]
+    assert len(schema) == 1 and "quote an expression with commas" in schema[0].message
+
+
+def test_a_missing_required_key_still_reports_alone(tmp_path):
+    issues = _errors(tmp_path, """\
+        name: no objective
+        model: {states: [x], dynamics: {x: 1}}
+        problem:
+          time: {t0: 0, tf: 1}
+        """)
+    assert len(issues) == 1 and "missing required key 'objective'" in issues[0].message
