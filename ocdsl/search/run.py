@@ -212,13 +212,13 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         t0 = time.perf_counter()
         d1 = pp.details(x_best)
         polished = {"tf": d1["tf"], "max_error_over_zeta": float(d1["ratio"].max()), "fitness": d1["fitness"]}
-        x_best, cinfo, ctable = continue_tf(pp, x_best, spec.polish, spec.continuation)
+        x_best, cinfo, ctable = continue_tf(pp, x_best, spec.polish, spec.continuation, progress=progress)
         continuation = {"polished": polished, **cinfo}
         timings["continuation"] = time.perf_counter() - t0
     refined = None
     if spec.refine.method == "slsqp":
         t0 = time.perf_counter()
-        x_best, refined = refine_tf(pp, x_best, spec.refine)
+        x_best, refined = refine_tf(pp, x_best, spec.refine, progress=progress)
         timings["refine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     det = pp.details(x_best)
@@ -295,7 +295,8 @@ def _inside(det: dict) -> bool:
     return bool(np.all(det["ratio"] <= 1.0)) and det["status"] >= 0 and det["status"] != 2
 
 
-def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings) -> tuple[np.ndarray, dict, dict]:
+def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings,
+                progress: bool = False) -> tuple[np.ndarray, dict, dict]:
     """Lower tf from ``x`` (inside the zeta box) while the polish keeps it inside.
 
     Integers stay fixed; see :class:`ocdsl.spec.parametric.ContinuationSpec`. Returns the
@@ -323,7 +324,11 @@ def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings)
     step = settings.step * tf
     rows = {k: [] for k in ("attempt", "tf_tried", "accepted", "max_error_over_zeta", "evaluations", "tf")}
     evals = 0
+    from ..progress import Stage
+
+    bar = Stage("continuation in tf", settings.max_steps, enabled=progress, at_most=True)
     for k in range(1, settings.max_steps + 1):
+        bar.update(k - 1, f"tf {tf:.6g}")
         if step < settings.min_step * tf:
             reason = f"step below {settings.min_step:g} tf"
             break
@@ -350,6 +355,7 @@ def continue_tf(pp: ParametricProblem, x: np.ndarray, polish_settings, settings)
         rows["tf"].append(tf)
     else:
         reason = f"max_steps {settings.max_steps}"
+    bar.close(f"tf {tf0:.6g} -> {tf:.6g} ({reason})")
     summary = {"continuation": reason, "restored_with_free_tf": restored, "tf_start": tf0, "tf_end": tf, "attempts": len(rows["attempt"]),
                "accepted": int(sum(rows["accepted"])), "evaluations": evals}
     return x, summary, {k: np.asarray(v, float) for k, v in rows.items()}
@@ -376,7 +382,7 @@ def refine_box(pp: ParametricProblem, box_scale: float) -> tuple[np.ndarray, np.
     return wide_lo, wide_hi
 
 
-def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarray, dict]:
+def refine_tf(pp: ParametricProblem, x: np.ndarray, settings, progress: bool = False) -> tuple[np.ndarray, dict]:
     """Minimise tf subject to every |error|/zeta <= ``settings.target_ratio`` from ``x``.
 
     See :class:`ocdsl.spec.parametric.RefineSpec`. The integers stay fixed; tf and the
@@ -450,11 +456,21 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
     tf0 = float(x[itf])
     best: list = [tf0, x.copy()]
     runs, last_best = 0, tf0
+    from ..progress import Stage
+
+    bar = Stage("refinement (SLSQP)", settings.max_iterations * (settings.restarts + 1), enabled=progress,
+                at_most=True)
+    steps = [0]
+
+    def step(_u):
+        steps[0] += 1
+        bar.update(steps[0], f"best tf {best[0]:.6g}  evaluations {n_evals[0]}")
+
     try:
         while True:
             runs += 1
             sol = minimize(lambda u: lo[itf] + u[j_tf] * width[j_tf], u0, jac=lambda u: grad, bounds=box,
-                           constraints=constraints, method="SLSQP",
+                           constraints=constraints, method="SLSQP", callback=step,
                            options={"maxiter": settings.max_iterations, "ftol": 1e-10})
             message = str(sol.message)
             xn = point(np.clip(sol.x, [b[0] for b in box], [b[1] for b in box]))
@@ -469,7 +485,9 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings) -> tuple[np.ndarra
             last_best = best[0]
             u0 = (best[1][idx] - lo[idx]) / width
     except Exception as e:  # keep the previous point on any failure
+        bar.close(f"failed: {e}")
         return x, {"refine": f"failed: {e}", "evaluations": n_evals[0], "tf_start": tf0, "tf_end": tf0}
+    bar.close(f"tf {tf0:.6g} -> {best[0]:.6g}")
     dn = pp.details(xn)
     if not _inside(dn) or xn[itf] > best[0]:
         final = f"final iterate tf {xn[itf]:.6g}, max |e|/zeta {dn['ratio'].max():.3g}"
@@ -556,25 +574,24 @@ def polish(pp: ParametricProblem, x: np.ndarray, settings, stop_ratio: float | N
 
 
 class _Display:
-    """Live progress (rich): iteration, best fitness, tf, integers, max |e|/zeta, evals/s."""
+    """Progress of the swarm (ocdsl/progress.py): iteration of the budget, elapsed, ETA,
+    best fitness, tf, integers, max |e|/zeta, evaluations per second."""
 
     def __init__(self, pp: ParametricProblem, settings: PSOSettings, int_names: list[str]):
         self.pp, self.s, self.int_names = pp, settings, int_names
         self.last_best = None
         self.info = ""
-        self.live = None
+        self.bar = None
 
     def start(self):
-        try:
-            from rich.live import Live
-            self.live = Live("", refresh_per_second=4, transient=False)
-            self.live.start()
-        except Exception:  # pragma: no cover - no terminal
-            self.live = None
+        from ..progress import Stage
+
+        total = self.s.iterations * max(1, getattr(self.s, "restarts", 1))
+        self.bar = Stage("swarm (PSO)", total, at_most=True)
 
     def stop(self):
-        if self.live is not None:
-            self.live.stop()
+        if self.bar is not None:
+            self.bar.close(self.info)
 
     def update(self, info: dict) -> bool:
         if self.last_best is None or info["best_f"] < self.last_best:
@@ -583,10 +600,7 @@ class _Display:
             ints = " ".join(f"{n}={int(round(d['variables'][n]))}" for n in self.int_names)
             self.info = (f"best J {info['best_f']:.6g}  tf {d['tf']:.5f}  {ints}  "
                          f"max|e|/zeta {d['ratio'].max() if len(d['ratio']) else 0:.3g}")
-        if self.live is not None:
-            from rich.table import Table
-            t = Table.grid(padding=(0, 2))
-            t.add_row(f"PSO iteration {info['iteration']}/{self.s.iterations}", self.info,
-                      f"{info['evals_per_s']:.0f} evals/s")
-            self.live.update(t)
+        if self.bar is not None:
+            self.done = getattr(self, "done", 0) + 1
+            self.bar.update(self.done, f"{self.info}  {info['evals_per_s']:.0f} evals/s")
         return False

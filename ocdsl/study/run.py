@@ -367,34 +367,20 @@ def _jsonable(obj: Any) -> Any:
 # progress display
 # --------------------------------------------------------------------------------------
 class _Progress:
+    """Points done of the total, elapsed, ETA, counts and the best point (ocdsl/progress.py:
+    one live line on a terminal, plain lines in a log)."""
+
     def __init__(self, title: str, total: int, quiet: bool):
-        self.quiet = quiet
-        if quiet:
-            return
-        from rich.console import Console
-        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                                   TimeElapsedColumn, TimeRemainingColumn)
-        self.console = Console(stderr=True)
-        self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
-                            MofNCompleteColumn(),
-                            TextColumn("[green]done {task.fields[ok]}[/] [red]failed "
-                                       "{task.fields[failed]}[/] [cyan]running "
-                                       "{task.fields[running]}[/]  best {task.fields[best]}"),
-                            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                            console=self.console, transient=False)
-        self.task = self.bar.add_task(title, total=total, ok=0, failed=0, running=0, best="-")
-        self.bar.start()
+        from ..progress import Stage
+
+        self.bar = Stage(title, total, enabled=not quiet)
 
     def update(self, counts: dict[str, int], running: int, best: dict | None) -> None:
-        if self.quiet:
-            return
         b = "-" if best is None else f"{best['objective']:.6g} ({best['id']})"
-        self.bar.update(self.task, completed=counts["done"], ok=counts["ok"],
-                        failed=counts["failed"], running=running, best=b)
+        self.bar.update(counts["done"], f"ok {counts['ok']}  failed {counts['failed']}  running {running}  best {b}")
 
     def stop(self) -> None:
-        if not self.quiet:
-            self.bar.stop()
+        self.bar.close()
 
 
 def _final_table(res: StudyResult, quiet: bool) -> None:

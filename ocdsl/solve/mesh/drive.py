@@ -101,6 +101,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
     reg_weight = spec.regularise
     located: dict = {}   # per phase: the features located on the previous mesh (limit_junction_controls)
+    from ...progress import Stage
+
+    stage = Stage("mesh refinement", spec.max_iterations, enabled=progress, at_most=True, interval=0.0)
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
@@ -164,7 +167,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             tables["time_s"].append(round(elapsed, 4))
         where = (f"{worst.phase}[{worst.segment}] t in [{worst.t_start:.6g}, {worst.t_end:.6g}] ({worst.state})"
                  if worst else "-")
-        _say(progress, f"mesh {it:2d}: {sum(m.segments for m in meshes.values()):3d} segments, "
+        stage.update(it, f"mesh {it:2d}: {sum(m.segments for m in meshes.values()):3d} segments, "
                        f"{info.nlp.get('variables', 0):5d} variables, Ipopt {info.status} in {info.iterations:4d} it, "
                        f"J = {info.objective if info.objective is not None else float('nan'):.10g}, "
                        f"max error {max_err:.2e} at {where}, {elapsed:.2f} s")
@@ -282,4 +285,5 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.tables["mesh_history"] = {k: np.asarray(v) for k, v in tables.items()}
     result.tables["mesh_error"] = {k: np.asarray(v) for k, v in err_tab.items()}
     result.wall_time_s = timer.breakdown()
+    stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result
