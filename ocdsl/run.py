@@ -99,6 +99,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         with timer.measure("build"):
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=s) for ph in problem.phases}
             tr = build(problem, meshes, guesses)
+            scaled = _scale(file, tr)
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[{i + 1}/{starts}]" if starts > 1 else "")
             info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar,
@@ -117,8 +118,20 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
+        if scaled:
+            result.extra["scaling"] = scaled
     result.wall_time_s = timer.breakdown()
     return result
+
+
+def _scale(file: LoadedFile, tr) -> dict | None:
+    """``scaling: {mode: auto}``: the typical magnitudes put on the model (solve/scaling.py)."""
+    spec = file.spec.scaling
+    if spec.mode != "auto":
+        return None
+    from .solve.scaling import apply
+
+    return apply(tr, spec)
 
 
 def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:

@@ -329,6 +329,8 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
             on_iteration(it, obj, inf_pr, inf_du)
         return not _INTERRUPTED.is_set()       # False: Ipopt stops, keeping this iterate
 
+    if getattr(model, "scaling_factor", None) is not None:
+        opts = {**opts, "nlp_scaling_method": "user-scaling"}     # ocdsl/solve/scaling.py
     t = time.perf_counter()
     code = None
     try:
@@ -436,6 +438,15 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
     for k, v in opts.items():
         problem.add_option(k, v)
+    model = transcription.model if transcription is not None else None
+    sf = getattr(model, "scaling_factor", None)
+    if sf is not None:     # the model's scaling suffix, in this NLP's variable and row order
+        import numpy as np
+        import pyomo.core as pyo
+
+        obj = next(model.component_data_objects(pyo.Objective, active=True))
+        problem.set_problem_scaling(float(sf.get(obj, 1.0)), np.array([sf.get(v, 1.0) for v in nlp.variables]),
+                                    np.array([sf.get(c, 1.0) for c in nlp.rows]))
     kwargs = {} if multipliers is None else _start_multipliers(multipliers, nlp.rows, nlp.variables,
                                                                  nlp.xl, nlp.xu)
     try:
@@ -467,13 +478,15 @@ def _solve_pynumero_with_multipliers(model, opts: dict[str, Any], verbose: bool,
     ``PyomoCyIpoptSolver.solve``: PyomoNLP -> CyIpoptNLP -> options -> solve -> load the
     primals, duals and bound multipliers into the model), except that cyipopt's ``solve``
     gets ``lagrange``, ``zl`` and ``zu`` besides ``x0``. Returns (Ipopt's status message,
-    the PyomoNLP). Models with grey-box blocks or scaling suffixes are not handled here."""
+    the PyomoNLP). Models with grey-box blocks are not handled here."""
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
     nlp = pynumero_nlp(model)
     problem = CyIpoptNLP(nlp, intermediate_callback=callback)
-    if any(f is not None for f in problem.scaling_factors()):
-        raise ValueError("warm start with multipliers does not handle scaling_factor suffixes")
+    factors = problem.scaling_factors()
+    if any(f is not None for f in factors):       # ocdsl/solve/scaling.py
+        obj, xs, gs = factors
+        problem.set_problem_scaling(1.0 if obj is None else obj, xs, gs)
     for k, v in opts.items():
         problem.add_option(k, v)
     start = _start_multipliers(multipliers, nlp.get_pyomo_constraints(), nlp.get_pyomo_variables(),

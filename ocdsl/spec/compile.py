@@ -72,6 +72,38 @@ def _schema_issues(located: Located, errors: list) -> list[Issue]:
     return out
 
 
+SPLICED = ("constraints", "links")
+
+
+def splice_lists(located: Located) -> None:
+    """A list item of ``constraints:`` or ``links:`` that is itself a list (``- *bounds``, an
+    anchored list of shared constraints) is spliced in its place; lines follow the items."""
+    def walk(node, path):
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key in SPLICED and isinstance(value, list) and any(isinstance(v, list) for v in value):
+                    node[key] = splice(value, path + (key,))
+                else:
+                    walk(value, path + (key,))
+
+    def splice(items, path):
+        out, lines = [], {}
+        for i, item in enumerate(items):
+            parts = [(item, path + (i,))] if not isinstance(item, list) else \
+                [(v, path + (i, k)) for k, v in enumerate(item)]
+            for value, old in parts:
+                line = located.lines.get(old)
+                if line is not None:
+                    lines[path + (len(out),)] = line
+                out.append(value)
+        for key in [k for k in located.lines if k[:len(path)] == path and len(k) > len(path)]:
+            del located.lines[key]
+        located.lines.update(lines)
+        return out
+
+    walk(located.data, ())
+
+
 def validate_all(located: Located) -> tuple[ProblemFile | None, list[Issue]]:
     """The schema's issues, and a spec of what is left once the entries they name are set
     aside, so that compiling it reports the file's other mistakes in the same pass (a
@@ -79,6 +111,7 @@ def validate_all(located: Located) -> tuple[ProblemFile | None, list[Issue]]:
     nothing valid is left (e.g. a required key is missing)."""
     import copy
 
+    splice_lists(located)
     try:
         return ProblemFile.model_validate(located.data), []
     except pydantic.ValidationError as e:

@@ -241,6 +241,27 @@ class TableSpec(Strict):
                                                      "cubic spline")
 
 
+class ScalingSpec(Strict):
+    """Scaling of the NLP's variables, constraints and objective (ocdsl/solve/scaling.py,
+    docs/problem-language.md "Scaling")."""
+
+    mode: Literal["auto", "none"] = Field("none", description="`auto`: every variable, defect, "
+                                          "constraint and the objective scaled by a typical magnitude "
+                                          "(Ipopt user-scaling); `none`: Ipopt's own gradient-based scaling")
+    variables: dict[str, float] = Field(default_factory=dict, description="typical magnitudes that "
+                                        "override the automatic ones: {x: 6.4e6} or {phase.x: ...}")
+    time: float | None = Field(None, gt=0, description="typical magnitude of free phase times")
+    objective: float | None = Field(None, gt=0, description="typical magnitude of the objective")
+
+    @field_validator("variables")
+    @classmethod
+    def _positive(cls, v):
+        bad = [k for k, x in v.items() if not (x > 0 and x < float("inf"))]
+        if bad:
+            raise ValueError(f"a typical magnitude is a positive finite number: {bad[0]}")
+        return v
+
+
 class ProblemFile(Strict):
     """A whole problem file: one study."""
 
@@ -258,6 +279,7 @@ class ProblemFile(Strict):
                                          "called in expressions as NAME(arg) or NAME(arg1, arg2)")
     method: dict[str, Any] = Field(default_factory=lambda: {"transcription": "LGR"})
     solver: SolverSpec = Field(default_factory=SolverSpec)
+    scaling: ScalingSpec = Field(default_factory=ScalingSpec)
     report: ReportSpec = Field(default_factory=ReportSpec)
     expect: dict[str, ExpectItem] = Field(default_factory=dict)
     verify: VerifySpec = Field(default_factory=VerifySpec)

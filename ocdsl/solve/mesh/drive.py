@@ -61,6 +61,12 @@ def initial_meshes(file) -> dict:
     return {ph.name: Mesh.uniform(method.transcription, segments, degree) for ph in file.problem.phases}
 
 
+def _scale(file, tr) -> None:
+    from ...run import _scale as scale
+
+    scale(file, tr)
+
+
 def _say(progress: bool, text: str) -> None:
     if progress:
         print(text, file=sys.stderr, flush=True)
@@ -110,6 +116,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
                        for ph in problem.phases}
             tr = build(problem, meshes, guesses)
+            _scale(file, tr)
             reg = regularise(tr, chatter, reg_weight) if spec.regularise else None
             if spec.junction_control == "limit":
                 limit_junction_controls(tr, located, spec.corner_tolerance)
