@@ -61,3 +61,34 @@ def test_a_missing_required_key_still_reports_alone(tmp_path):
           time: {t0: 0, tf: 1}
         """)
     assert len(issues) == 1 and "missing required key 'objective'" in issues[0].message
+
+
+def test_an_anchored_list_of_constraints_is_spliced_and_errors_keep_its_lines(tmp_path):
+    text = """\
+        name: shared bounds
+        definitions:
+          bounds: &bounds
+            - -1 <= u <= 1
+            - v <= 2
+        model:
+          states: [x, v]
+          controls: [u]
+          dynamics: {x: v, v: u}
+        problem:
+          time: {t0: 0, tf: free}
+          constraints:
+            - *bounds
+            - x(t0) == -1
+            - v(t0) == 0
+            - x(tf) == 0
+            - v(tf) == 0
+            - 0.1 <= tf <= 5
+          objective: minimize tf
+        """
+    p = tmp_path / "p.yaml"
+    p.write_text(textwrap.dedent(text))
+    ph = load(p).problem.phases[0]
+    assert {s.name: b for s, b in ph.control_bounds.items()} == {"u": (-1.0, 1.0)}
+    assert {s.name: b for s, b in ph.state_bounds.items()}["v"][1] == 2.0
+    issues = _errors(tmp_path, text.replace("- v <= 2", "- w <= 2"))
+    assert [(i.line, "unknown name 'w'" in i.message) for i in issues] == [(5, True)]

@@ -44,8 +44,9 @@ def apply(tr, spec) -> dict[str, Any]:
     var_scale: dict[int, float] = {}
 
     def set_var(v, s):
-        sf[v] = 1.0 / s
         var_scale[id(v)] = s
+        if not v.fixed:          # a fixed variable is not in the NLP
+            sf[v] = 1.0 / s
 
     for pb in tr.phases:
         ph, b = pb.phase, pb.block

@@ -62,10 +62,12 @@ def validate(located: Located) -> ProblemFile:
 def _schema_issues(located: Located, errors: list) -> list[Issue]:
     """One issue per location: a value that is none of a union's types (text or a number)
     fails each of them, which is one mistake."""
+    locs = [tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS)) for err in errors]
     out, seen = [], set()
-    for err in errors:
-        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS))
-        if loc in seen:
+    for err, loc in zip(errors, locs):
+        # one per location, the most specific: `segments: [0, x, 1]` is not an integer
+        # either, but the item that is not a number is the mistake
+        if loc in seen or any(len(o) > len(loc) and o[:len(loc)] == loc for o in locs):
             continue
         seen.add(loc)
         out.append(_issue_from_pydantic(located, err))
@@ -291,8 +293,8 @@ class _Compiler:
         try:
             return _validate_method(data)
         except pydantic.ValidationError as e:
-            for err in e.errors():
-                self.issues.append(_issue_from_pydantic(self.located, dict(err, loc=("method",) + tuple(err["loc"]))))
+            self.issues += _schema_issues(self.located, [dict(err, loc=("method",) + tuple(err["loc"]))
+                                                         for err in e.errors()])
         except (ValueError, KeyError) as e:
             self.issue(("method", "transcription") if "transcription" in data else ("method",), str(e).strip("'\""))
         return None
@@ -740,7 +742,9 @@ class _Compiler:
         return ph.substitute(e) if ph is not None else self.substitute_top(e)
 
     def substitute_top(self, e: sp.Expr) -> sp.Expr:
-        return e.xreplace({k: sp.Float(v) for k, v in getattr(self, "top_constants", {}).items()})
+        from ..symbolic.numbers import substitute_numbers
+
+        return substitute_numbers(e, {k: sp.Float(v) for k, v in getattr(self, "top_constants", {}).items()})
 
     def objective(self, text: str, ph, phases) -> Objective:
         m = re.match(r"^\s*(minimize|maximize)\s+(.+)$", str(text), re.S)

@@ -16,13 +16,14 @@ from typing import Callable
 import sympy as sp
 
 from ..hints import did_you_mean
+from ..symbolic.numbers import exp_of
 from .errors import ExprError
 
 FUNCTIONS: dict[str, tuple[Callable, int]] = {
     "sin": (sp.sin, 1), "cos": (sp.cos, 1), "tan": (sp.tan, 1),
     "asin": (sp.asin, 1), "acos": (sp.acos, 1), "atan": (sp.atan, 1), "atan2": (sp.atan2, 2),
     "sinh": (sp.sinh, 1), "cosh": (sp.cosh, 1), "tanh": (sp.tanh, 1),
-    "exp": (sp.exp, 1), "log": (sp.log, 1), "sqrt": (sp.sqrt, 1), "abs": (sp.Abs, 1),
+    "exp": (lambda a: exp_of(a), 1), "log": (sp.log, 1), "sqrt": (sp.sqrt, 1), "abs": (sp.Abs, 1),
 }
 # functions of vectors (declared vector groups, vector expressions or [a, b, c] literals)
 VECTOR_FUNCTIONS = {"norm": 1, "dot": 2, "cross": 2}

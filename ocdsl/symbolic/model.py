@@ -88,8 +88,10 @@ class Model:
         """
         f = sp.Matrix([self.expand(self.dynamics[s]) for s in self.states])
         if parameter_values:
-            f = f.xreplace({k: sp.Float(v) if not isinstance(v, sp.Basic) else v
-                            for k, v in parameter_values.items()})
+            from .numbers import substitute_numbers
+
+            f = substitute_numbers(f, {k: sp.Float(v) if not isinstance(v, sp.Basic) else v
+                                       for k, v in parameter_values.items()})
         return f
 
     def default_parameters(self) -> dict[sp.Symbol, float]:

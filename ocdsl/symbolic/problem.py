@@ -84,7 +84,9 @@ class Phase:
 
     def substitute(self, expr: sp.Expr) -> sp.Expr:
         """Named expressions expanded and constants substituted, as in :meth:`rhs`."""
-        return self.model.expand(expr).xreplace({k: sp.Float(v) for k, v in self.constants.items()})
+        from .numbers import substitute_numbers
+
+        return substitute_numbers(self.model.expand(expr), {k: sp.Float(v) for k, v in self.constants.items()})
 
     def bounds_of(self, s: sp.Symbol) -> tuple[float, float]:
         return self.state_bounds.get(s) or self.control_bounds.get(s) or (-INF, INF)
