@@ -12,7 +12,8 @@ import math
 
 import sympy as sp
 
-LARGE = 200.0      # exp(200) = 7e86: far from overflow, and products with exp(-200) stay normal
+LARGE = 600.0      # exp(600) = 3.8e260: a factor still far from overflow (exp(709.8)); Goddard's
+                   # exp(500 - 500 r) stays a plain exp (and on the NumPy NLP route)
 
 
 class safe_exp(sp.Function):
