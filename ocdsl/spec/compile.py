@@ -62,7 +62,7 @@ def validate(located: Located) -> ProblemFile:
 def _schema_issues(located: Located, errors: list) -> list[Issue]:
     """One issue per location: a value that is none of a union's types (text or a number)
     fails each of them, which is one mistake."""
-    locs = [tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS)) for err in errors]
+    locs = [_document_loc(err["loc"]) for err in errors]
     out, seen = [], set()
     for err, loc in zip(errors, locs):
         # one per location, the most specific: `segments: [0, x, 1]` is not an integer
@@ -122,7 +122,7 @@ def validate_all(located: Located) -> tuple[ProblemFile | None, list[Issue]]:
     data = copy.deepcopy(located.data)
     for _ in range(3):          # setting a value aside may expose a check of its parent
         for err in errors:
-            _set_aside(data, tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS)))
+            _set_aside(data, _document_loc(err["loc"]))
         try:
             return ProblemFile.model_validate(data), issues
         except pydantic.ValidationError as e:
@@ -162,7 +162,7 @@ def compile_spec(path: Path, located: Located, spec: ProblemFile | None, issues:
 
 
 def _issue_from_pydantic(located: Located, err: dict) -> Issue:
-    loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p in _UNION_TAGS))
+    loc = _document_loc(err["loc"])
     msg = err["msg"].removeprefix("Value error, ")
     if err["type"] == "extra_forbidden":
         parent = located.data
@@ -180,6 +180,13 @@ def _issue_from_pydantic(located: Located, err: dict) -> Issue:
     return located.issue(loc, f"{where}: {msg}", _source_line(located, loc))
 
 
+def _document_loc(loc) -> tuple:
+    """A pydantic error location as a path in the document: without the names pydantic gives
+    the members of a union (``float``, ``function-after[_check(), ParameterSpec]``, ...)."""
+    return tuple(p for p in loc if not (isinstance(p, str) and (p in _UNION_TAGS or p.startswith(_TAG_PREFIXES))))
+
+
+_TAG_PREFIXES = ("function-", "list[", "dict[", "union[", "literal[", "tuple[")
 _UNION_TAGS = {"float", "int", "str", "ParameterSpec", "list[float]", "list[int]",
                "function-after[_segments(), union[int,list[float]]]", "literal['free']"}
 
