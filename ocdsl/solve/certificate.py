@@ -128,9 +128,11 @@ def symbolic_conditions(model: Model, lagrange: sp.Expr | float = 0,
     f = model.rhs()
     H = model.expand(L) + sum((lams[x] * f[i] for i, x in enumerate(model.states)), sp.Integer(0))
     if parameter_values is not None:
+        from ..symbolic.numbers import substitute_numbers   # exp(885 - r/H) kept whole
+
         subs = _param_subs(model, parameter_values)
-        H = H.xreplace(subs)
-        H_disp = H_disp.xreplace(subs)
+        H = substitute_numbers(H, subs)
+        H_disp = substitute_numbers(H_disp, subs)
     return SymbolicConditions(
         hamiltonian=H_disp,
         hamiltonian_expanded=H,
@@ -155,9 +157,11 @@ class _Numeric:
         subs = _param_subs(model, parameter_values)
         self.model = model
         x, u = list(model.states), list(model.controls)
-        f = model.rhs().xreplace(subs)
-        L = sp.Matrix([model.expand(sp.sympify(lagrange)).xreplace(subs)])
-        G = sp.Matrix([model.expand(sp.sympify(g)).xreplace(subs) for g in path])
+        from ..symbolic.numbers import substitute_numbers   # exp(885 - r/H) kept whole
+
+        f = substitute_numbers(model.rhs(), subs)
+        L = sp.Matrix([substitute_numbers(model.expand(sp.sympify(lagrange)), subs)])
+        G = sp.Matrix([substitute_numbers(model.expand(sp.sympify(g)), subs) for g in path])
         left = (f.free_symbols | L.free_symbols | G.free_symbols) - set(x) - set(u) - {TIME}
         if left:
             raise ValueError(f"certificate: no value for {sorted(s.name for s in left)}")
