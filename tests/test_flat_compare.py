@@ -30,7 +30,9 @@ def _check(c, tf_key=None):
     assert (paper["control_points"], paper["residual"], paper["verification"]) == (15, "collocation", "failed")
     for ph in (ph for ph in p["result"].phases if "beta" in ph.controls):
         fb, pb = f["result"].phase(ph.name).controls["beta"][-1], ph.controls["beta"][-1]
-        assert abs(math.degrees(fb - pb)) < 0.05, (ph.name, math.degrees(fb), math.degrees(pb))
+        # the same angle on either export's branch (LGR's strategy-1 beta ends at -238 deg)
+        d = (fb - pb + math.pi) % (2 * math.pi) - math.pi
+        assert abs(math.degrees(d)) < 0.05, (ph.name, math.degrees(fb), math.degrees(pb))
     assert f["variables"] < p["variables"] and f["constraints"] < p["constraints"]
     assert all(ok for _, ok in f["expect"].values()), f["expect"]
 
