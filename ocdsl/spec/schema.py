@@ -133,6 +133,15 @@ class MeshSpec(Strict):
         "multipliers", description="how each new mesh's solve starts from the previous mesh's solution: "
         "'multipliers' = states, controls and all NLP multipliers mapped through the costates "
         "(ocdsl/solve/warm_start.py), 'primal' = states and controls only")
+    move_switches: bool = Field(True, description="move a breakpoint that holds a bang-bang switch to where "
+                                "the discrete optimum is stationary in it (envelope derivative, secant; "
+                                "docs/mesh.md)")
+    symbolic: bool = Field(True, description="the symbolic steps of refinement (the boundary control of a "
+                           "bounded state, used to locate state-constrained arcs); false turns them off")
+    symbolic_time: float = Field(10.0, gt=0, description="seconds each symbolic step may take; above it the "
+                                 "step is skipped and the run says so")
+    symbolic_memory: float = Field(1000.0, gt=0, description="megabytes each symbolic step may add; above it "
+                                   "the step is skipped and the run says so")
     junction_control: Literal["limit", "free"] = Field(
         "limit", description="'limit': at a phase junction, a control collocated at the phase's end point "
         "(LGR: tau = +1 of a phase that another follows; LGR-start: tau = -1 of a phase that follows "

@@ -63,7 +63,7 @@ def _fit_degree(samples, xscale, uscale, lowest: int, highest: int, limit: float
     return None
 
 
-def coarsen(pb, errors, spec, features) -> Any:
+def coarsen(pb, errors, spec, features, budget=None) -> Any:
     """A smaller mesh of one phase that should still meet the tolerance, or the same mesh.
 
     Liu, Hager & Rao (2015) reduce the mesh where the error is far below the tolerance; here
@@ -112,14 +112,14 @@ def coarsen(pb, errors, spec, features) -> Any:
             if new_bps[q - 1] < f < new_bps[q + 1]:
                 new_bps[q] = f
     merged = Mesh(mesh.scheme_name, np.array(new_bps), tuple(int(g[2]) for g in groups))
-    arcs = _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest)
+    arcs = _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest, budget)
     nx, nu = len(pb.phase.states), len(pb.phase.controls)
     if arcs is not None and nlp_size(arcs, nx, nu) < nlp_size(merged, nx, nu):
         return arcs
     return merged
 
 
-def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float):
+def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=None):
     """States on the sample points ``pts`` (normalised time in [a, b]) of the trajectory that
     starts from the collocated state at a and follows a state bound's boundary control
     (``boundary_controls``), when it stays within ``threshold`` (relative, as the error
@@ -135,7 +135,7 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float):
     ts = np.clip(t0 + (tf - t0) * np.concatenate([lay.s_state[inside], pts]), min(ta, tb), max(ta, tb))
     t_eval = np.unique(ts)
     nu = len(ph.controls)
-    for _q, i, ub in boundary_controls(ph, []).values():
+    for _q, i, ub in boundary_controls(ph, [], budget=budget).values():
         lo, hi = ph.bounds_of(ph.controls[i])
 
         def control(x, t, i=i, ub=ub):
@@ -164,7 +164,7 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float):
     return None
 
 
-def _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest):
+def _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest, budget=None):
     """The arc mesh, or None: one segment per arc between located features (switches,
     junctions), of the smallest degree whose polynomial fits the states over the arc within
     ``limit`` (as ``coarsen``), leaving out the segments next to the features, where the
@@ -204,7 +204,7 @@ def _arc_mesh(pb, spec, features, samples, xs, us, limit, lowest):
             m = away
         n = _fit_degree([(s_all[m], x_all[m], u_all[m])], xs, us, lowest, spec.max_degree, limit, shift)
         if n is None or n > spec.min_degree:
-            y = _boundary_arc(pb, a, b, s_all[m], xs, math.sqrt(spec.tolerance))
+            y = _boundary_arc(pb, a, b, s_all[m], xs, math.sqrt(spec.tolerance), budget)
             if y is not None:
                 nb = _fit_degree([(s_all[m], y, u_all[m])], xs, us, lowest, spec.max_degree, limit, shift)
                 n = nb if nb is not None and (n is None or nb < n) else n

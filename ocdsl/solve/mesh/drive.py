@@ -10,12 +10,15 @@ import numpy as np
 
 from ...result import PhaseTrajectory, Result
 from .coarsen import coarsen, nlp_size
-from .estimate import estimate_errors
+from .estimate import estimate_errors, phase_end
 from .junction import limit_junction_controls
-from .locate import locate_features, misplaced
+from .locate import locate_features, locate_switches, misplaced
 from .refine import MeshStalled, refine, same_mesh
 from .regularise import chattering_segments, merge_intervals, regularise
 from .segments import control_polys, seg_polys, solution_arrays
+from .switches import move_switches
+from .terminal import TerminalError, terminal_error
+from .budget import Budget
 
 GOOD = ("optimal", "acceptable")
 
@@ -107,6 +110,12 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
     reg_weight = spec.regularise
     located: dict = {}   # per phase: the features located on the previous mesh (limit_junction_controls)
+    budget = Budget.of(spec)   # the symbolic steps' time and memory bounds (budget.py)
+    if not spec.symbolic:
+        budget.notes.append("symbolic steps off (mesh: {symbolic: false}): no boundary controls, "
+                            "state-constrained arcs located from the control polynomials only")
+    switch_memory: dict = {}   # per phase: previous (breakpoint, dJ*/ds) of each pinned switch (switches.py)
+    noted = 0            # budget notes already printed
     from ...progress import Stage
 
     stage = Stage("mesh refinement", spec.max_iterations, enabled=progress, at_most=True, interval=0.0)
@@ -115,11 +124,20 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         with timer.measure("build"):
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
                        for ph in problem.phases}
-            tr = build(problem, meshes, guesses)
-            _scale(file, tr)
-            reg = regularise(tr, chatter, reg_weight) if spec.regularise else None
-            if spec.junction_control == "limit":
-                limit_junction_controls(tr, located, spec.corner_tolerance)
+            built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
+
+            def rebuild(ms, guesses=guesses, built_with=built_with):
+                """The model on meshes ``ms``, built as this iteration's (switches.py)."""
+                t = build(problem, ms, guesses)
+                _scale(file, t)
+                if spec.regularise:
+                    regularise(t, built_with[0], reg_weight)
+                if spec.junction_control == "limit":
+                    limit_junction_controls(t, built_with[1], spec.corner_tolerance)
+                return t
+
+            tr = rebuild(meshes)
+            reg = getattr(tr.model, "mesh_regularisation", None)
             ws.prepare(tr.model)
             mult = ws.apply(snapshot, tr) if snapshot is not None else None
         with timer.measure("solve"):
@@ -137,14 +155,17 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                                      smooth_above=spec.tolerance if spec.smooth_control else None)
                       if info.status in GOOD else []
                       for pb in tr.phases}
+            term = (terminal_error(problem, {pb.phase.name: phase_end(pb, params) for pb in tr.phases}, params)
+                    if info.status in GOOD else TerminalError(math.inf, ""))
         allerr = [e for es in errors.values() for e in es]
         worst = max(allerr, key=lambda e: e.error) if allerr else None
-        max_err = worst.error if worst else math.inf
-        elapsed = time.perf_counter() - t_iter
+        local_err = worst.error if worst else math.inf
+        # the terminal conditions at the returned t_f, flown from x(t0), count like a segment's error
+        max_err = max(local_err, term.error)
         rec = {"iteration": it, "status": info.status, "objective": info.objective,
-               "ipopt_iterations": info.iterations, "nlp": dict(info.nlp), "time_s": round(elapsed, 4),
+               "ipopt_iterations": info.iterations, "nlp": dict(info.nlp), "time_s": None,
                "warm_start": "multipliers" if mult is not None else ("primal" if it > 1 else "none"),
-               "max_error": max_err,
+               "max_error": max_err, "terminal_error": term.error, "terminal_where": term.where,
                "where": ({"phase": worst.phase, "segment": worst.segment, "t": [worst.t_start, worst.t_end],
                           "state": worst.state} if worst else None),
                "meshes": {k: m.describe() for k, m in meshes.items()}}
@@ -155,6 +176,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             for pb in tr.phases:
                 chatter[pb.phase.name] = merge_intervals(chatter.get(pb.phase.name, []), chattering_segments(pb))
         history.append(rec)
+        rows = len(tables["iteration"])
         for ph in problem.phases:
             m = meshes[ph.name]
             es = errors[ph.name]
@@ -168,80 +190,121 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             tables["nlp_constraints"].append(info.nlp.get("constraints", 0))
             tables["ipopt_iterations"].append(info.iterations)
             tables["objective"].append(info.objective if info.objective is not None else math.nan)
-            tables["max_error"].append(w.error if w else math.nan)
+            tables["max_error"].append(max(w.error, term.error) if w else math.nan)
             tables["max_error_segment"].append(w.segment if w else -1)
             tables["max_error_t"].append(0.5 * (w.t_start + w.t_end) if w else math.nan)
-            tables["time_s"].append(round(elapsed, 4))
-        where = (f"{worst.phase}[{worst.segment}] t in [{worst.t_start:.6g}, {worst.t_end:.6g}] ({worst.state})"
-                 if worst else "-")
-        stage.update(it, f"mesh {it:2d}: {sum(m.segments for m in meshes.values()):3d} segments, "
-                       f"{info.nlp.get('variables', 0):5d} variables, Ipopt {info.status} in {info.iterations:4d} it, "
-                       f"J = {info.objective if info.objective is not None else float('nan'):.10g}, "
-                       f"max error {max_err:.2e} at {where}, {elapsed:.2f} s")
-        last = (max_err, it, tr, info, dict(meshes), errors)
-        if info.status not in GOOD:
-            status = info.status
-            message = (f"mesh iteration {it}: Ipopt ended with '{info.status}' ({info.message}); "
-                       "mesh refinement stopped")
-            break
-        if best is None or max_err < best[0]:
-            best = last
-        with timer.measure("mesh"):
-            features = {}
-            for pb in tr.phases:
-                try:
-                    features[pb.phase.name] = locate_features(tr, pb, errors[pb.phase.name], params, spec,
-                                                              control_polys(pb),
-                                                              memory=junction_memory.setdefault(pb.phase.name, {}))
-                except Exception as exc:  # locating is an aid; the estimate still decides
-                    _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
-                    features[pb.phase.name] = []
-        off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
-        located = features
-        rec["features"] = features
-        rec["features_off_breakpoints"] = off
-        if max_err <= spec.tolerance and not any(off.values()):
-            converged.append(last)
-            rec["converged"] = True
-            smaller = None
-            if spec.coarsen and it < spec.max_iterations:
-                with timer.measure("mesh"):
-                    cand = {pb.phase.name: coarsen(pb, errors[pb.phase.name], spec, features[pb.phase.name])
-                            for pb in tr.phases}
-                size = lambda ms: sum(nlp_size(ms[pb.phase.name], len(pb.phase.states),  # noqa: E731
-                                                len(pb.phase.controls)) for pb in tr.phases)
-                if size(cand) < size(meshes):
-                    smaller = cand
-            if smaller is None:
+            tables["time_s"].append(math.nan)
+        if term.error > local_err:
+            where = f"terminal condition {term.where} (flown from x(t0))"
+        else:
+            where = (f"{worst.phase}[{worst.segment}] t in [{worst.t_start:.6g}, {worst.t_end:.6g}] ({worst.state})"
+                     if worst else "-")
+        line = (f"mesh {it:2d}: {sum(m.segments for m in meshes.values()):3d} segments, "
+                f"{info.nlp.get('variables', 0):5d} variables, Ipopt {info.status} in {info.iterations:4d} it, "
+                f"J = {info.objective if info.objective is not None else float('nan'):.10g}, "
+                f"max error {max_err:.2e} at {where}")
+        try:
+            last = (max_err, it, tr, info, dict(meshes), errors)
+            if info.status not in GOOD:
+                status = info.status
+                message = (f"mesh iteration {it}: Ipopt ended with '{info.status}' ({info.message}); "
+                           "mesh refinement stopped")
                 break
-            coarsening = True
+            if best is None or max_err < best[0]:
+                best = last
+            with timer.measure("mesh"):
+                features = {}
+                for pb in tr.phases:
+                    try:
+                        features[pb.phase.name] = locate_features(tr, pb, errors[pb.phase.name], params, spec,
+                                                                  control_polys(pb),
+                                                                  memory=junction_memory.setdefault(pb.phase.name, {}),
+                                                                  budget=budget)
+                    except Exception as exc:  # locating is an aid; the estimate still decides
+                        _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
+                        features[pb.phase.name] = []
+                if spec.move_switches:
+                    try:
+                        pinned = {pb.phase.name: locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
+                                  for pb in tr.phases}
+                        here = ws.take(tr) if spec.warm_start == "multipliers" else None
+
+                        def resolve(ms, here=here, rebuild=rebuild):
+                            """Objective of a warm-started solve on meshes ``ms`` (switches.py)."""
+                            t = rebuild(ms)
+                            ws.prepare(t.model)
+                            mu = ws.apply(here, t) if here is not None else None
+                            res = ipopt.solve(t.model, options, multipliers=mu, transcription=t)
+                            return res.objective if res.status in GOOD else None
+
+                        features = move_switches(tr, rebuild, resolve, features, pinned, spec, switch_memory,
+                                                 info.objective if info.objective is not None else 0.0)
+                    except Exception as exc:  # an aid, as the locators
+                        _say(progress, f"mesh {it}: moving switches failed: {exc}")
+            off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
+            located = features
+            rec["features"] = features
+            rec["features_off_breakpoints"] = off
+            if max_err <= spec.tolerance and not any(off.values()):
+                converged.append(last)
+                rec["converged"] = True
+                smaller = None
+                if spec.coarsen and it < spec.max_iterations:
+                    with timer.measure("mesh"):
+                        cand = {pb.phase.name: coarsen(pb, errors[pb.phase.name], spec, features[pb.phase.name],
+                                                       budget)
+                                for pb in tr.phases}
+                    size = lambda ms: sum(nlp_size(ms[pb.phase.name], len(pb.phase.states),  # noqa: E731
+                                                    len(pb.phase.controls)) for pb in tr.phases)
+                    if size(cand) < size(meshes):
+                        smaller = cand
+                if smaller is None:
+                    break
+                coarsening = True
+                previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+                snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
+                meshes = smaller
+                continue
+            if coarsening:
+                # the coarsened mesh missed the tolerance: refine it like any other mesh (the
+                # smallest converged mesh so far is kept for the end)
+                rec["coarsening_rejected"] = True
+                coarsening = False
+            if it == spec.max_iterations:
+                break
             previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
             snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
-            meshes = smaller
-            continue
-        if coarsening:
-            # the coarsened mesh missed the tolerance: refine it like any other mesh (the
-            # smallest converged mesh so far is kept for the end)
-            rec["coarsening_rejected"] = True
-            coarsening = False
-        if it == spec.max_iterations:
-            break
-        previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
-        snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
-        try:
-            new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec,
-                                                features=features[pb.phase.name]) for pb in tr.phases}
-        except MeshStalled as exc:
-            stalled = f"mesh iteration {it}: refinement stalled: {exc}"
-            rec["stalled"] = str(exc)
-            break
-        if all(same_mesh(new_meshes[k], meshes[k]) for k in meshes):
-            # refine() changes every phase that misses the tolerance; this is a last guard
-            stalled = (f"mesh iteration {it}: refinement returned the same mesh while the tolerance "
-                       f"{spec.tolerance:.1e} is unmet (largest error {max_err:.3e})")
-            rec["stalled"] = stalled
-            break
-        meshes = new_meshes
+            try:
+                # terminal conditions missed while every segment meets the tolerance: the segment
+                # errors add up (or are amplified) over the phase, so the segments are held to
+                # the tolerance scaled by local / terminal error
+                spec_r = spec if term.error <= spec.tolerance else spec.model_copy(
+                    update={"tolerance": spec.tolerance * min(1.0, local_err / term.error)})
+                with timer.measure("mesh"):
+                    new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec_r,
+                                                        features=features[pb.phase.name]) for pb in tr.phases}
+            except MeshStalled as exc:
+                stalled = f"mesh iteration {it}: refinement stalled: {exc}"
+                rec["stalled"] = str(exc)
+                break
+            if all(same_mesh(new_meshes[k], meshes[k]) for k in meshes):
+                # refine() changes every phase that misses the tolerance; this is a last guard
+                stalled = (f"mesh iteration {it}: refinement returned the same mesh while the tolerance "
+                           f"{spec.tolerance:.1e} is unmet (largest error {max_err:.3e})")
+                rec["stalled"] = stalled
+                break
+            meshes = new_meshes
+        finally:
+            # the iteration's time covers its build, solve, estimate, location and refinement
+            elapsed = round(time.perf_counter() - t_iter, 4)
+            rec["time_s"] = elapsed
+            for r in range(rows, len(tables["time_s"])):
+                tables["time_s"][r] = elapsed
+            stage.update(it, f"{line}, {elapsed:.2f} s")
+            for note in budget.notes[noted:]:
+                _say(progress, f"mesh {it}: {note}")
+            rec["symbolic_notes"] = budget.notes[noted:]
+            noted = len(budget.notes)
     if status is None:
         if converged:
             chosen = min(converged, key=lambda c: (c[3].nlp.get("variables", 0), c[0]))
@@ -262,9 +325,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         above = [e for es in errors_c.values() for e in es if e.error > spec.tolerance]
         worst = max(above, key=lambda e: e.error) if above else None
         off_c = history[it_c - 1].get("features_off_breakpoints", {})
+        term_c = history[it_c - 1].get("terminal_error", 0.0)
         where = (f"in phase '{worst.phase}' segment {worst.segment} (t in [{worst.t_start:.6g}, "
                  f"{worst.t_end:.6g}], state {worst.state}); {len(above)} segment(s) above tolerance"
-                 if worst else f"within tolerance but located switches/corners {off_c} are off the breakpoints")
+                 if worst else
+                 f"at the terminal condition {history[it_c - 1].get('terminal_where')} flown from x(t0) "
+                 f"({term_c:.3e})" if term_c > spec.tolerance else
+                 f"within tolerance but located switches/corners {off_c} are off the breakpoints")
         message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
                    f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
                    f"largest estimated error {max_err:.3e} {where}. "
@@ -273,7 +340,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
-    result.message = message
+    result.message = message + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
     result.iterations = sum(h["ipopt_iterations"] for h in history)
     err_tab = {k: [] for k in ("phase", "segment", "t_start", "t_end", "degree", "error",
                                "discrepancy", "violation", "nonsmooth")}
@@ -285,6 +352,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 err_tab[key].append(names.index(v) if key == "phase" else float(v))
     result.extra["mesh_history"] = history
     result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
+                            "symbolic_notes": list(dict.fromkeys(budget.notes)),
                             "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),
                             "max_error": max_err,
                             "error_map": {ph: [[e.t_start, e.t_end, e.error] for e in es]

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .segments import activity, phase_functions, seg_polys, solution_arrays, zigzag
+from .segments import activity, phase_functions_all, seg_polys, solution_arrays, zigzag
 
 
 @dataclass
@@ -16,13 +16,14 @@ class SegmentError:
     t_start: float
     t_end: float
     degree: int
-    error: float                 # max(relative state discrepancy, relative violation)
+    error: float                 # max(relative state discrepancy, violation, integral error)
     discrepancy: float
     violation: float
-    state: str                   # state with the largest discrepancy
+    state: str                   # state (or integral) with the largest discrepancy
     nonsmooth: bool
     switches: list[tuple[float, float]] = field(default_factory=list)   # brackets in s
     smoothed: bool = False       # the error is the one with the smoothed control (see estimate_errors)
+    integral: float = 0.0        # largest relative error of an integral's quadrature (see estimate_errors)
 
 
 def _smoothed_control(lay, k, U, ulo, uhi, t0, tf):
@@ -58,10 +59,14 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
     ph, lay = pb.phase, pb.layout
     free_syms = sorted(params, key=str)
     pvals = [params[s] for s in free_syms]
-    f, g = phase_functions(ph, free_syms)
+    f, g, qf = phase_functions_all(ph, free_syms)
     X, U, t0, tf = solution_arrays(pb)
     nx, nu = X.shape[1], U.shape[1]
     scale = 1.0 + np.max(np.abs(X), axis=0)
+    quad_k = segment_quadratures(pb, params)          # (K, nq): the NLP's quadrature per segment
+    nq = quad_k.shape[1]
+    scale_q = 1.0 + np.max(np.abs(np.cumsum(quad_k, axis=0)), axis=0) if nq else np.zeros(0)
+    names_q = [f"integral({e})" for e in ph.integrals.values()]
     ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
     uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
     xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
@@ -80,16 +85,27 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
             return np.clip(us(tau)[0], ulo, uhi)
 
         def rhs(t, x):
-            return np.asarray(f(*x, *uclip(t), t, *pvals), float).reshape(-1)
+            u = uclip(t)
+            dx = np.asarray(f(*x[:nx], *u, t, *pvals), float).reshape(-1)
+            if not nq:
+                return dx
+            return np.concatenate([dx, np.asarray(qf(*x[:nx], *u, t, *pvals), float).reshape(-1)])
 
         tau_f = np.asarray(legendre_gauss_lobatto(sc.degree + extra_points)[0])
         t_f = np.clip(ta + (tau_f + 1.0) * h / 2.0, min(ta, tb), max(ta, tb))
         x_poly = xs(tau_f)
         x_start = x_poly[0]
+        q_err = np.zeros(nq)
         if h > 0:
-            sol = solve_ivp(rhs, (ta, tb), x_start, method="DOP853", t_eval=t_f, rtol=rtol,
-                            atol=rtol * scale)
-            x_int = sol.y.T if sol.success and sol.y.shape[1] == len(t_f) else np.full_like(x_poly, np.nan)
+            # the integrals ride along from 0: their increment over the segment against the
+            # NLP's quadrature of it (a control that zigzags between the nodes can make the
+            # quadrature of sqrt(1 + u^2) or |u| far from its integral: hanging chain, L1 costs)
+            sol = solve_ivp(rhs, (ta, tb), np.concatenate([x_start, np.zeros(nq)]), method="DOP853",
+                            t_eval=t_f, rtol=rtol, atol=rtol * np.concatenate([scale, scale_q]))
+            ok = sol.success and sol.y.shape[1] == len(t_f)
+            x_int = sol.y[:nx].T if ok else np.full_like(x_poly, np.nan)
+            if nq:
+                q_err = np.abs(sol.y[nx:, -1] - quad_k[k]) / scale_q if ok else np.full(nq, np.inf)
         else:
             x_int = x_poly
         rel = np.abs(x_int - x_poly) / scale
@@ -112,6 +128,9 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
                 if np.isfinite(rel2).all() and float(np.max(rel2)) < disc:
                     x_int, rel, disc, smoothed = sol2.y.T, rel2, float(np.max(rel2)), True
         which = ph.states[int(np.nanargmax(np.nanmax(rel, axis=0)))].name if np.isfinite(rel).any() else ""
+        integral_err = float(np.max(q_err)) if nq else 0.0
+        if nq and not (integral_err <= disc):
+            which = names_q[int(np.argmax(np.where(np.isfinite(q_err), q_err, np.inf)))]
         # violations of state bounds and path constraints by the integrated trajectory
         viol = 0.0
         with np.errstate(invalid="ignore"):
@@ -164,7 +183,95 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
         if not switches and len(s_nodes) and prev_s is not None and act:
             pass
         switches = sorted(set(switches))
-        err = max(disc, viol)
+        err = max(disc, viol, integral_err)
         out.append(SegmentError(ph.name, k, ta, tb, sc.degree, err, disc, viol, which,
-                                bool(switches), switches, smoothed))
+                                bool(switches), switches, smoothed, integral_err))
     return out
+
+
+def segment_quadratures(pb, params: dict) -> np.ndarray:
+    """(segments, integrals): each segment's share of every integral of the phase as the NLP
+    computes it, sum_i w_i h/2 L(x_i, u_i, t_i) over its collocation points."""
+    ph, lay = pb.phase, pb.layout
+    mesh = lay.mesh
+    if not ph.integrals:
+        return np.zeros((mesh.segments, 0))
+    free_syms = sorted(params, key=str)
+    pvals = [params[s] for s in free_syms]
+    _, _, qf = phase_functions_all(ph, free_syms)
+    X, U, t0, tf = solution_arrays(pb)
+    out = np.zeros((mesh.segments, len(ph.integrals)))
+    for k in range(mesh.segments):
+        w = np.asarray(mesh.scheme(k).weights, float)
+        h = (tf - t0) * (mesh.breakpoints[k + 1] - mesh.breakpoints[k])
+        cn, sn = lay.colloc[k], lay.colloc_state[k]
+        tk = t0 + (tf - t0) * lay.s_colloc[cn]
+        vals = np.array([np.asarray(qf(*X[sn[i]], *U[cn[i]], tk[i], *pvals), float).reshape(-1)
+                         for i in range(len(cn))])
+        out[k] = w @ vals * h / 2.0
+    return out
+
+
+@dataclass
+class PhaseEnd:
+    """A phase flown from its initial state with the collocated (clipped) controls, segment
+    after segment: its states and integrals at t0 and tf, and their scales."""
+
+    t0: float
+    tf: float
+    x0: np.ndarray
+    x_end: np.ndarray
+    q_end: np.ndarray
+    x_scale: np.ndarray
+    q_scale: np.ndarray
+    u0: np.ndarray
+    u_end: np.ndarray
+
+
+def phase_end(pb, params: dict, rtol: float = 1e-12) -> PhaseEnd:
+    """The phase re-integrated from x(t0) over all its segments (see ``PhaseEnd``): what the
+    terminal conditions and the integrals really are at the returned t_f."""
+    from scipy.integrate import solve_ivp
+
+    from ...verify.checks import state_scale
+
+    ph, lay = pb.phase, pb.layout
+    mesh = lay.mesh
+    free_syms = sorted(params, key=str)
+    pvals = [params[s] for s in free_syms]
+    f, _, qf = phase_functions_all(ph, free_syms)
+    X, U, t0, tf = solution_arrays(pb)
+    nx = X.shape[1]
+    nq = len(ph.integrals)
+    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
+    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
+    quad_k = segment_quadratures(pb, params)
+    x_scale = state_scale(X)
+    q_scale = np.maximum(np.sum(np.abs(quad_k), axis=0), 1e-12) if nq else np.zeros(0)
+    y = np.concatenate([X[0], np.zeros(nq)])
+    atol = rtol * np.concatenate([1.0 + np.max(np.abs(X), axis=0), 1.0 + q_scale])
+    u0 = u_end = np.zeros(len(ph.controls))
+    for k in range(mesh.segments):
+        ta, tb = t0 + (tf - t0) * mesh.breakpoints[k], t0 + (tf - t0) * mesh.breakpoints[k + 1]
+        _, us = seg_polys(lay, k, X, U)
+        h = tb - ta
+        if k == 0:
+            u0 = np.clip(us(-1.0)[0], ulo, uhi)
+        if k == mesh.segments - 1:
+            u_end = np.clip(us(1.0)[0], ulo, uhi)
+        if not h > 0:
+            continue
+
+        def rhs(t, z, us=us, ta=ta, h=h):
+            u = np.clip(us(2.0 * (t - ta) / h - 1.0)[0], ulo, uhi)
+            dx = np.asarray(f(*z[:nx], *u, t, *pvals), float).reshape(-1)
+            if not nq:
+                return dx
+            return np.concatenate([dx, np.asarray(qf(*z[:nx], *u, t, *pvals), float).reshape(-1)])
+
+        sol = solve_ivp(rhs, (ta, tb), y, method="DOP853", rtol=rtol, atol=atol)
+        if not sol.success:
+            y = np.full_like(y, np.nan)
+            break
+        y = sol.y[:, -1]
+    return PhaseEnd(t0, tf, X[0], y[:nx], y[nx:], x_scale, q_scale, u0, u_end)

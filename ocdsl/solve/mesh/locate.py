@@ -3,7 +3,6 @@ ends of state-constrained arcs (normalised time)."""
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -127,7 +126,6 @@ def _jump(mesh, k, errors, controls, U, lay):
     the quadrature of the collocated control (the same impulse as ``locate_switches``, with
     the neighbours' controls in place of the bounds), for the control with the largest jump.
     """
-    from scipy.integrate import quad
     from scipy.optimize import brentq
 
     sides = _smooth_neighbours(mesh, k, errors) if controls is not None else None
@@ -145,20 +143,28 @@ def _jump(mesh, k, errors, controls, U, lay):
     for q in range(lk + 1, rk):
         sc = mesh.scheme(q)
         Q += float(np.dot(sc.weights, U[lay.colloc[q], j])) * (mesh.breakpoints[q + 1] - mesh.breakpoints[q]) / 2
-    uL = lambda s: float(controls[lk](np.array([s]))[0, j])  # noqa: E731
-    uR = lambda s: float(controls[rk](np.array([s]))[0, j])  # noqa: E731
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")   # quad's round-off notes near the root
-        total_R = quad(uR, ga, gb, epsabs=1e-14)[0]
-        F = lambda ts: quad(lambda s: uL(s) - uR(s), ga, ts, epsabs=1e-14)[0] + total_R - Q  # noqa: E731
-        fa, fb = F(ga), F(gb)
-        if not fa * fb < 0:
-            return None
-        ts = brentq(F, ga, gb, xtol=1e-14)
+    # the control polynomials are integrated exactly by Gauss-Legendre (an adaptive quad per
+    # brentq step was issue 26's Rayleigh run: ~850 quad calls, 520 s of its mesh stage)
+    xg, wg = np.polynomial.legendre.leggauss(max(mesh.degrees) + 2)
+
+    def integral(poly, a, b):
+        s = a + (xg + 1.0) * (b - a) / 2.0
+        return (b - a) / 2.0 * float(np.dot(wg, poly(s)[:, j]))
+
+    total_R = integral(controls[rk], ga, gb)
+
+    def F(ts):
+        return integral(controls[lk], ga, ts) - integral(controls[rk], ga, ts) + total_R - Q
+
+    fa, fb = F(ga), F(gb)
+    if not fa * fb < 0:
+        return None
+    ts = brentq(F, ga, gb, xtol=1e-14)
     return ts if ga < ts < gb else None
 
 
-def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = None) -> list[float]:
+def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = None,
+                     budget=None) -> list[float]:
     """Entry and exit times of state-constrained arcs (normalised time), located from the
     arc next to them (our method; see docs/mesh-refinement.md).
 
@@ -187,7 +193,7 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
     mesh = lay.mesh
     free_syms = sorted(params, key=str)
     pvals = [params[s] for s in free_syms]
-    ubs = boundary_controls(ph, free_syms)
+    ubs = boundary_controls(ph, free_syms, budget=budget)
     if not ubs:
         return []
     X, U, t0, tf = solution_arrays(pb)
@@ -278,7 +284,8 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
     return sorted(g for g, _ in kept)
 
 
-def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None = None) -> list[float]:
+def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None = None,
+                    budget=None) -> list[float]:
     """Located nonsmooth points of one phase (normalised time): bound-to-bound switches, the
     ends of state-constrained arcs (``locate_junctions``; ``memory`` carries its secant steps
     across iterations), then, in nonsmooth segments that hold none, corners (``_corner``) or
@@ -290,7 +297,7 @@ def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None 
     feats = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
     junctions = []
     try:
-        junctions = locate_junctions(pb, params, max(1e-9, 0.1 * spec.tolerance), memory)
+        junctions = locate_junctions(pb, params, max(1e-9, 0.1 * spec.tolerance), memory, budget)
     except Exception:   # an aid only: the other locators and the estimate still work
         pass
     for f in junctions:

@@ -8,14 +8,34 @@ import numpy as np
 import sympy as sp
 
 
+_FUNCTIONS: dict = {}     # id(phase) -> (phase, free symbols, functions): lambdified once per run
+
+
 def phase_functions(ph, free_syms):
-    args = list(ph.states) + list(ph.controls) + [sp.Symbol("t", real=True)] + list(free_syms)
+    """The phase's dynamics ``f`` and path constraints ``g`` (None without any) as NumPy
+    callables of (states..., controls..., t, free parameters...)."""
+    f, g, _ = phase_functions_all(ph, free_syms)
+    return f, g
+
+
+def phase_functions_all(ph, free_syms):
+    """``f``, ``g`` and the integrands ``q`` of every integral of the phase (None without any),
+    lambdified once per phase and free-parameter list (the mesh iterations reuse them)."""
+    key = id(ph)
+    hit = _FUNCTIONS.get(key)
+    if hit is not None and hit[0] is ph and hit[1] == tuple(free_syms):
+        return hit[2]
     from ...symbolic.model import TIME
 
-    args[len(ph.states) + len(ph.controls)] = TIME
-    f = sp.lambdify(args, list(ph.rhs()), "numpy")
-    g = sp.lambdify(args, [c.expr for c in ph.path], "numpy") if ph.path else None
-    return f, g
+    args = list(ph.states) + list(ph.controls) + [TIME] + list(free_syms)
+    f = sp.lambdify(args, list(ph.rhs()), "numpy", cse=True)
+    g = sp.lambdify(args, [ph.substitute(c.expr) for c in ph.path], "numpy", cse=True) if ph.path else None
+    q = (sp.lambdify(args, [ph.substitute(e) for e in ph.integrals.values()], "numpy", cse=True)
+         if ph.integrals else None)
+    if len(_FUNCTIONS) > 64:     # a long study builds many problems: keep the cache small
+        _FUNCTIONS.clear()
+    _FUNCTIONS[key] = (ph, tuple(free_syms), (f, g, q))
+    return f, g, q
 
 
 def solution_arrays(pb):

@@ -1,0 +1,149 @@
+"""Breakpoints held by bang-bang switches, moved to where the objective is stationary in them.
+
+A switch on a breakpoint is pinned there: with the control at one bound on every node before
+it and at the other bound after it, the next solve shows no interior control value, and the
+quadrature locator (``locate.locate_switches``) sees the switch exactly on the breakpoint
+whether or not it belongs there. Where a free final time or an integral constraint can absorb
+the misplacement, the discrete optimum then sits with the switch pinned and t_f off
+(configs/mesh_tumour.yaml: dose window fixed at s_b t_f, t_f 2.2e-3 off the exact bang-off
+solution with every error estimate within 1e-7).
+
+For a breakpoint s_b the derivative of the discrete optimum J*(s_b) is, by the envelope
+theorem, the partial derivative of the Lagrangian at the solution: with the primal values and
+multipliers fixed, dJ*/ds_b = dJ/ds_b + sum_c y_c d(body_c)/ds_b, y_c the multipliers as
+``ipopt.solve`` loads them into the ``dual`` suffix (checked against re-solves on the tumour
+mesh [0, 0.16687, 1], degrees (4, 8): envelope 24.99, finite difference of J* 24.77).
+Minimisation only (a maximised objective is left to the quadrature locator). The partial derivatives are forward differences of the model rebuilt with
+the breakpoint moved by ``DELTA`` (same nodes, same variables, same constraints: only the node
+times and segment widths change). The stationary breakpoint is then found by a secant on
+s_b -> dJ*/ds_b across mesh iterations (``memory``), its first step a fixed fraction of the
+neighbouring segments (no curvature known yet).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DELTA = 1e-7          # normalised-time step of the finite difference
+FIRST_STEP = 0.05     # first move without a known slope, fraction of the smaller neighbour
+
+
+def _values(model):
+    import pyomo.core as pyo
+
+    vars_ = list(model.component_data_objects(pyo.Var, descend_into=True))
+    cons = list(model.component_data_objects(pyo.Constraint, active=True, descend_into=True))
+    return vars_, cons
+
+
+def breakpoint_gradient(tr, rebuild, phase: str, q: int) -> float:
+    """dJ*/ds at breakpoint ``q`` of phase ``phase`` of the solved transcription ``tr``
+    (see the module doc); ``rebuild(meshes)`` builds the model on other meshes exactly as
+    ``tr`` was built. NaN when the two models do not match."""
+    import pyomo.core as pyo
+
+    other = rebuild(_moved(tr, phase, q, DELTA))
+    v0, c0 = _values(tr.model)
+    v1, c1 = _values(other.model)
+    if len(v0) != len(v1) or len(c0) != len(c1):
+        return math.nan
+    for a, b in zip(v0, v1):
+        b.set_value(a.value, skip_validation=True)
+    dual = tr.model.dual
+    total = 0.0
+    for a, b in zip(c0, c1):
+        y = dual.get(a)
+        if not y:
+            continue
+        total += y * (pyo.value(b.body) - pyo.value(a.body))
+    obj0 = next(tr.model.component_data_objects(pyo.Objective, active=True))
+    obj1 = next(other.model.component_data_objects(pyo.Objective, active=True))
+    total += pyo.value(obj1.expr) - pyo.value(obj0.expr)
+    return total / DELTA
+
+
+def _moved(tr, phase: str, q: int, step: float) -> dict:
+    """The meshes of ``tr`` with breakpoint ``q`` of ``phase`` moved by ``step``."""
+    from ...transcribe.mesh import Mesh
+
+    meshes = {p.phase.name: p.layout.mesh for p in tr.phases}
+    m = meshes[phase]
+    bps = np.asarray(m.breakpoints, float).copy()
+    bps[q] += step
+    meshes[phase] = Mesh(m.scheme_name, bps, tuple(m.degrees))
+    return meshes
+
+
+def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, memory: dict,
+                  objective: float) -> dict:
+    """Per phase: the features with those on breakpoint-pinned switches replaced by the
+    breakpoint the secant on dJ*/ds predicts (left as they are when that is within
+    ``corner_tolerance`` or the derivative is insignificant). ``switches``: per phase, the
+    bound-to-bound switches located this iteration; ``memory``: per phase and switch order,
+    the previous (breakpoint, derivative). ``resolve(meshes)``: the objective of a
+    warm-started solve on other meshes (None when it fails)."""
+    import pyomo.core as pyo
+
+    out = dict(features)
+    obj = next(tr.model.component_data_objects(pyo.Objective, active=True))
+    if obj.sense == pyo.maximize:
+        return out
+    j_model = float(pyo.value(obj.expr))   # as solved (a regularisation term included)
+    tol = spec.corner_tolerance
+    for pb in tr.phases:
+        name = pb.phase.name
+        bps = np.asarray(pb.layout.mesh.breakpoints, float)
+        feats = list(features.get(name, []))
+        mem = memory.setdefault(name, {})
+        for order, f in enumerate(sorted(switches.get(name, []))):
+            q = int(np.argmin(np.abs(bps - f)))
+            if not (0 < q < len(bps) - 1):
+                continue
+            width = min(bps[q] - bps[q - 1], bps[q + 1] - bps[q])
+            pinned = abs(bps[q] - f) <= tol
+            # a switch off its breakpoint but near it: the breakpoint is on its way there (the
+            # quadrature estimate f is a fixed-point map that only halves the distance per
+            # iteration, tumour: 0.200237, 0.200129, 0.20007, ...): the secant on dJ*/ds takes over
+            if not pinned and abs(bps[q] - f) > spec.snap * width:
+                continue
+            g = breakpoint_gradient(tr, rebuild, name, q)
+            if not math.isfinite(g):
+                continue
+            prev = mem.get(order)
+            mem[order] = (bps[q], g)
+            # insignificant: moving the breakpoint by corner_tolerance changes J by far less
+            # than the tolerance asks of it
+            if pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
+                continue
+            if pinned and prev is None:
+                # a switch exactly on its breakpoint makes J*(s_b) kinked there (moving it
+                # either way forces interior control values: double integrator, switch at 1),
+                # and the multipliers give one subgradient only: the move is tried by a
+                # warm-started solve first, and kept only if it lowers J
+                step = min(10 * tol, 0.01 * width)
+                j_trial = resolve(_moved(tr, name, q, -math.copysign(step, g)))
+                if j_trial is None or not (j_trial < j_model - 0.25 * abs(g) * step):
+                    mem.pop(order, None)
+                    continue
+            target = None
+            if prev is not None and abs(prev[0] - bps[q]) > 1e-15 and (g - prev[1]) != 0:
+                slope = (g - prev[1]) / (bps[q] - prev[0])
+                if slope > 0:          # a minimum of J*(s_b) (J* is what the NLP minimises)
+                    target = bps[q] - g / slope
+                    # the move would gain far less than the tolerance: the breakpoint is where
+                    # the objective needs it (J* can be flat in it: tumour, p(tf) at its minimum)
+                    if g * g / (2.0 * slope) <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
+                        target = float(bps[q])
+            if target is None:
+                target = f if not pinned else bps[q] - math.copysign(FIRST_STEP * width, g)
+            # within the two neighbouring segments
+            target = float(min(max(target, bps[q - 1] + 0.1 * (bps[q] - bps[q - 1])),
+                               bps[q + 1] - 0.1 * (bps[q + 1] - bps[q])))
+            if abs(target - bps[q]) > tol:
+                feats = [target if abs(x - f) <= tol else x for x in feats]
+            elif not pinned:
+                # the secant says the breakpoint is where it belongs: the switch counts as on it
+                feats = [float(bps[q]) if abs(x - f) <= tol else x for x in feats]
+        out[name] = sorted(feats)
+    return out
