@@ -13,7 +13,8 @@ theorem, the partial derivative of the Lagrangian at the solution: with the prim
 multipliers fixed, dJ*/ds_b = dJ/ds_b + sum_c y_c d(body_c)/ds_b, y_c the multipliers as
 ``ipopt.solve`` loads them into the ``dual`` suffix (checked against re-solves on the tumour
 mesh [0, 0.16687, 1], degrees (4, 8): envelope 24.99, finite difference of J* 24.77).
-Minimisation only (a maximised objective is left to the quadrature locator). The partial derivatives are forward differences of the model rebuilt with
+Minimisation only (a maximised objective is left to the quadrature locator), and phases with a
+free initial or final time only (see ``move_switches``). The partial derivatives are forward differences of the model rebuilt with
 the breakpoint moved by ``DELTA`` (same nodes, same variables, same constraints: only the node
 times and segment widths change). The stationary breakpoint is then found by a secant on
 s_b -> dJ*/ds_b across mesh iterations (``memory``), its first step a fixed fraction of the
@@ -93,6 +94,11 @@ def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, me
     tol = spec.corner_tolerance
     for pb in tr.phases:
         name = pb.phase.name
+        if pb.phase.tf is not None and pb.phase.t0 is not None:
+            # fixed times: the quadrature locator's switches converge by themselves, and the
+            # secant made configs/mesh_bang_off_bang.yaml oscillate (terminal error 1e-6 ->
+            # 8.6e-3 -> 2.8e-3 ... in 20 iterations, against 1.4e-7 without it)
+            continue
         bps = np.asarray(pb.layout.mesh.breakpoints, float)
         feats = list(features.get(name, []))
         mem = memory.setdefault(name, {})
