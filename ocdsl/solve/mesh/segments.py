@@ -44,22 +44,41 @@ def solution_arrays(pb):
     return (*node_values(pb), *phase_times(pb))
 
 
+def _interpolant(nodes, values):
+    """tau -> (m, ncols): the polynomial through ``values`` at ``nodes``, by the barycentric
+    formula with its weights computed once (the integrators of the estimate call it at every
+    step: lagrange_matrix, which recomputes them, was most of the mesh stage's time)."""
+    x = np.asarray(nodes, float)
+    F = np.asarray(values, float)
+    diff = (x[:, None] - x[None, :]) * (4.0 / (np.ptp(x) or 1.0))
+    np.fill_diagonal(diff, 1.0)
+    w = 1.0 / np.prod(diff, axis=1)
+
+    def ev(tau):
+        t = np.atleast_1d(np.asarray(tau, float))
+        d = t[:, None] - x[None, :]
+        hit = d == 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            terms = w / d
+            L = terms / terms.sum(axis=1, keepdims=True)
+        rows = hit.any(axis=1)
+        if rows.any():
+            L[rows] = hit[rows].astype(float)
+        return L @ F
+
+    return ev
+
+
 def seg_polys(lay, k, X, U):
     """Callables tau -> state (m, nx) and tau -> control (m, nu) of segment k."""
-    from ...transcribe.nodes import lagrange_matrix
-
     sc = lay.mesh.scheme(k)
     Xs, Uc = X[lay.support[k]], U[lay.colloc[k]]
-
-    def xs(tau):
-        return lagrange_matrix(np.asarray(sc.support), np.atleast_1d(tau)) @ Xs
-
-    def us(tau):
-        tau = np.atleast_1d(tau)
-        if len(sc.colloc) == 1:
-            return np.repeat(Uc, len(tau), axis=0)
-        return lagrange_matrix(np.asarray(sc.colloc), tau) @ Uc
-
+    xs = _interpolant(sc.support, Xs)
+    if len(sc.colloc) == 1:
+        def us(tau):
+            return np.repeat(Uc, len(np.atleast_1d(tau)), axis=0)
+    else:
+        us = _interpolant(sc.colloc, Uc)
     return xs, us
 
 
