@@ -23,7 +23,12 @@ Error estimate (does not trust the collocation equations)
     integration of the dynamics instead of a higher-degree collocation). In addition, the
     violation of the state bounds and path constraints by the integrated trajectory on the
     same points, relative to 1 + |bound|, counts as error (a polynomial state may leave a
-    bound between collocation points).
+    bound between collocation points), and so does each integral's quadrature on the segment
+    against its integral along the integrated trajectory (relative to 1 + max |integral|).
+    Over the problem, the boundary conditions, links and integral constraints are evaluated
+    with every phase flown from x(t0) (``estimate.phase_end``, ``terminal.terminal_error``):
+    their violation counts as the mesh's error, and while it is above tolerance the segments
+    are held to tolerance * (largest segment error / terminal error) (docs/mesh.md).
 
 Refinement rule
     - Smooth segment (no change of active set inside it): raise the degree by
@@ -80,6 +85,11 @@ Refinement rule
     - Optional regularisation (``regularise`` > 0): w * int (du/ds)^2 ds over the arcs where
       the control chattered (``chattering_segments``, ``regularise``); the reported objective
       leaves the term out. It changes the problem (measured bias in docs/mesh-refinement.md).
+
+Switches pinned on breakpoints (``switches.move_switches``, free-time phases): moved to
+where the discrete optimum is stationary in the breakpoint (envelope derivative, secant).
+Symbolic steps (``budget.bounded``): in a forked child with a time and memory bound, skipped
+with a note past it; ``symbolic: false`` turns them off.
 
 Warm start (``warm_start``): with ``multipliers`` (default) the new mesh starts from the
 previous mesh's polynomials and from its multipliers mapped through the costate, the path and
