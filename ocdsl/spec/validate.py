@@ -1,0 +1,157 @@
+"""A problem file's YAML against the schema: every mistake an :class:`Issue` at its line, the
+most specific one per location, and what is left valid for the compiler to check further
+(so that a file's independent mistakes come in one pass)."""
+from __future__ import annotations
+
+from typing import Any
+
+import pydantic
+
+from ..hints import did_you_mean
+from .errors import Issue, SpecError
+from .loader import Located
+from .schema import ProblemFile
+
+def validate(located: Located) -> ProblemFile:
+    try:
+        return ProblemFile.model_validate(located.data)
+    except pydantic.ValidationError as e:
+        raise SpecError(_schema_issues(located, e.errors())) from None
+
+
+def _schema_issues(located: Located, errors: list) -> list[Issue]:
+    """One issue per location: a value that is none of a union's types (text or a number)
+    fails each of them, which is one mistake."""
+    locs = [_document_loc(err["loc"]) for err in errors]
+    out, seen = [], set()
+    for err, loc in zip(errors, locs):
+        # one per location, the most specific: `segments: [0, x, 1]` is not an integer
+        # either, but the item that is not a number is the mistake
+        if loc in seen or any(len(o) > len(loc) and o[:len(loc)] == loc for o in locs):
+            continue
+        seen.add(loc)
+        out.append(_issue_from_pydantic(located, err))
+    return out
+
+
+SPLICED = ("constraints", "links")
+
+
+def splice_lists(located: Located) -> None:
+    """A list item of ``constraints:`` or ``links:`` that is itself a list (``- *bounds``, an
+    anchored list of shared constraints) is spliced in its place; lines follow the items."""
+    def walk(node, path):
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key in SPLICED and isinstance(value, list) and any(isinstance(v, list) for v in value):
+                    node[key] = splice(value, path + (key,))
+                else:
+                    walk(value, path + (key,))
+
+    def splice(items, path):
+        out, lines = [], {}
+        for i, item in enumerate(items):
+            parts = [(item, path + (i,))] if not isinstance(item, list) else \
+                [(v, path + (i, k)) for k, v in enumerate(item)]
+            for value, old in parts:
+                line = located.lines.get(old)
+                if line is not None:
+                    lines[path + (len(out),)] = line
+                out.append(value)
+        for key in [k for k in located.lines if k[:len(path)] == path and len(k) > len(path)]:
+            del located.lines[key]
+        located.lines.update(lines)
+        return out
+
+    walk(located.data, ())
+
+
+def validate_all(located: Located) -> tuple[ProblemFile | None, list[Issue]]:
+    """The schema's issues, and a spec of what is left once the entries they name are set
+    aside, so that compiling it reports the file's other mistakes in the same pass (a
+    misspelt key and a bad expression elsewhere come together, not one per run). None when
+    nothing valid is left (e.g. a required key is missing)."""
+    import copy
+
+    splice_lists(located)
+    try:
+        return ProblemFile.model_validate(located.data), []
+    except pydantic.ValidationError as e:
+        errors = e.errors()
+    issues = _schema_issues(located, errors)
+    data = copy.deepcopy(located.data)
+    for _ in range(3):          # setting a value aside may expose a check of its parent
+        for err in errors:
+            _set_aside(data, _document_loc(err["loc"]))
+        try:
+            return ProblemFile.model_validate(data), issues
+        except pydantic.ValidationError as e:
+            errors = e.errors()
+            if any(err["type"] == "missing" or not err["loc"] for err in errors):
+                break
+    return None, issues
+
+
+def _set_aside(data, loc: tuple) -> None:
+    parent = data
+    for p in loc[:-1]:
+        if isinstance(parent, dict) and p in parent:
+            parent = parent[p]
+        elif isinstance(parent, list) and isinstance(p, int) and p < len(parent):
+            parent = parent[p]
+        else:
+            return
+    if isinstance(parent, dict) and loc and loc[-1] in parent:
+        del parent[loc[-1]]
+
+
+def _issue_from_pydantic(located: Located, err: dict) -> Issue:
+    loc = _document_loc(err["loc"])
+    msg = err["msg"].removeprefix("Value error, ")
+    if err["type"] == "extra_forbidden":
+        parent = located.data
+        for p in loc[:-1]:
+            parent = parent.get(p, {}) if isinstance(parent, dict) else {}
+        msg = f"unknown key '{loc[-1]}'"
+        if isinstance(parent, dict):
+            msg += did_you_mean(loc[-1], _known_keys(loc[:-1]))
+    elif err["type"] == "missing":
+        msg = f"missing required key '{loc[-1]}'"
+    if loc and isinstance(loc[-1], str) and ("(" in loc[-1]) != (")" in loc[-1]):
+        # YAML split `{a: f(x, y)}` at the comma: the tail became a key
+        msg += "; inside { } a comma ends the value: quote an expression with commas, e.g. {a: 'f(x, y)'}"
+    where = ".".join(str(p) for p in loc) or "top level"
+    return located.issue(loc, f"{where}: {msg}", _source_line(located, loc))
+
+
+def _document_loc(loc) -> tuple:
+    """A pydantic error location as a path in the document: without the names pydantic gives
+    the members of a union (``float``, ``function-after[_check(), ParameterSpec]``, ...)."""
+    return tuple(p for p in loc if not (isinstance(p, str) and (p in _UNION_TAGS or p.startswith(_TAG_PREFIXES))))
+
+
+_TAG_PREFIXES = ("function-", "list[", "dict[", "union[", "literal[", "tuple[")
+_UNION_TAGS = {"float", "int", "str", "ParameterSpec", "list[float]", "list[int]",
+               "function-after[_segments(), union[int,list[float]]]", "literal['free']"}
+
+
+def _known_keys(loc: tuple) -> list[str]:
+    from . import schema
+
+    model: Any = schema.ProblemFile
+    for p in loc:
+        if isinstance(p, int):
+            continue
+        f = getattr(model, "model_fields", {}).get(p)
+        if f is None:
+            return []
+        ann = f.annotation
+        for cand in getattr(ann, "__args__", ()) + (ann,):
+            if isinstance(cand, type) and issubclass(cand, pydantic.BaseModel):
+                model = cand
+                break
+    return list(getattr(model, "model_fields", {}))
+
+
+def _source_line(located: Located, loc: tuple) -> str:
+    return located.source(located.line(loc))
