@@ -397,7 +397,10 @@ def main(argv: list[str] | None = None) -> int:
     if "position_error_km" in r:
         print(f"re-integrated collocated control: |dr| = {r['position_error_km']:.3g} km, "
               f"|dv| = {r['velocity_error_m_s']:.3g} m/s, passed = {r['passed']}")
-    return 0 if res.status == "optimal" and r.get("passed") else 1
+    v = res.verification or {}
+    print(f"verification: {v.get('status', 'none')} - {v.get('summary', '')}")
+    # the status contract: converged, every expect check passed and verified (Result.ok)
+    return 0 if res.ok and r.get("passed") else 1
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import numpy as np
 import sympy as sp
 
 from ..symbolic.model import TIME
+from ..symbolic.numbers import substitute_numbers   # exp(885 - r/H) kept whole
 from ..symbolic.problem import Phase
 
 
@@ -50,11 +51,11 @@ class PhaseFunctions:
             key = by_name.get(name, sp.Symbol(name, real=True))
             subs.setdefault(key, sp.Float(float(v)))
         self._subs = subs
-        f = [e.xreplace(subs) for e in phase.rhs()]
+        f = [substitute_numbers(e, subs) for e in phase.rhs()]
         self.integral_symbols = list(integrals)
-        q = [phase.substitute(e).xreplace(subs) for e in integrals.values()]
+        q = [substitute_numbers(phase.substitute(e), subs) for e in integrals.values()]
         self.path = list(phase.path)
-        g = [phase.substitute(c.expr).xreplace(subs) for c in self.path]
+        g = [substitute_numbers(phase.substitute(c.expr), subs) for c in self.path]
         allowed = set(self.states) | set(self.controls) | {TIME}
         left = set().union(*(e.free_symbols for e in f + q + g)) - allowed if (f or q or g) else set()
         if left:
