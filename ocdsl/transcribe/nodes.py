@@ -205,7 +205,7 @@ def _as_nodes(nodes) -> np.ndarray:
     return x
 
 
-def _barycentric_weights(x: np.ndarray) -> np.ndarray:
+def barycentric_weights(x: np.ndarray) -> np.ndarray:
     """w_j = 1 / prod_{k != j} (x_j - x_k), up to a common factor (which cancels)."""
     # Scaling the differences by 4 / (interval length) keeps the products near 1, so they
     # neither overflow nor underflow for many nodes; the common factor cancels in every use.
@@ -225,7 +225,12 @@ def lagrange_matrix(nodes, points) -> np.ndarray:
     p = np.atleast_1d(np.asarray(points, dtype=float))
     if p.ndim != 1:
         raise ValueError(f"points must be a 1-D array, got shape {p.shape}")
-    w = _barycentric_weights(x)
+    return barycentric_rows(x, barycentric_weights(x), p)
+
+
+def barycentric_rows(x: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """:func:`lagrange_matrix` with the weights ``w`` of the nodes ``x`` given (a caller that
+    evaluates one interpolant many times computes them once)."""
     diff = p[:, None] - x[None, :]
     hit = diff == 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -243,7 +248,7 @@ def differentiation_matrix(nodes) -> np.ndarray:
     D annihilates constants to rounding, which is more accurate than the explicit formula.
     """
     x = _as_nodes(nodes)
-    w = _barycentric_weights(x)
+    w = barycentric_weights(x)
     diff = x[:, None] - x[None, :]
     np.fill_diagonal(diff, 1.0)
     D = (w[None, :] / w[:, None]) / diff

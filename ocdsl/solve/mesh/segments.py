@@ -48,23 +48,14 @@ def _interpolant(nodes, values):
     """tau -> (m, ncols): the polynomial through ``values`` at ``nodes``, by the barycentric
     formula with its weights computed once (the integrators of the estimate call it at every
     step: lagrange_matrix, which recomputes them, was most of the mesh stage's time)."""
+    from ...transcribe.nodes import barycentric_rows, barycentric_weights
+
     x = np.asarray(nodes, float)
     F = np.asarray(values, float)
-    diff = (x[:, None] - x[None, :]) * (4.0 / (np.ptp(x) or 1.0))
-    np.fill_diagonal(diff, 1.0)
-    w = 1.0 / np.prod(diff, axis=1)
+    w = barycentric_weights(x)
 
     def ev(tau):
-        t = np.atleast_1d(np.asarray(tau, float))
-        d = t[:, None] - x[None, :]
-        hit = d == 0.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            terms = w / d
-            L = terms / terms.sum(axis=1, keepdims=True)
-        rows = hit.any(axis=1)
-        if rows.any():
-            L[rows] = hit[rows].astype(float)
-        return L @ F
+        return barycentric_rows(x, w, np.atleast_1d(np.asarray(tau, float))) @ F
 
     return ev
 
