@@ -41,7 +41,6 @@ import numpy as np
 
 from ocdsl import run_folder
 from ocdsl.result import Result
-from ocdsl.report import derived as D
 from ocdsl.report import figures as F
 from ocdsl.report import tables as T
 
@@ -354,7 +353,7 @@ def _figures_section(doc: Doc, res: Result) -> None:
                      ("Hamiltonian figures", F.fig_hamiltonian), ("trajectory view", F.fig_positions),
                      ("other time histories", F.fig_other_extra)):
         doc.guard(what, lambda fn=fn: doc.figures(b, fn(res)))
-    if any(k == "reintegration" or k.startswith("reintegration_") for k in res.tables):
+    if reintegration_tables(res):
         b2 = doc.section("reintegration", "Re-integration check")
         doc.table(b2, doc.guard("re-integration table", lambda: T.reintegration_table(res)))
         doc.guard("re-integration figure", lambda: doc.figures(b2, F.fig_reintegration(res)))
@@ -541,9 +540,7 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
         raise ReportError(f"{run_dir}: not a run folder (no result.json)")
     res, notes = load_run(run_dir)
     doc = Doc()
-    d_notes, d_warnings = doc.guard("derived quantities", lambda: D.complete_from_problem_file(run_dir, res)) or ([], [])
-    doc.warnings += d_warnings
-    notes = notes + d_notes
+    notes = notes + missing_notes(res)
     if res.status in GOOD:      # the problem first, as a paper would
         _problem_section(doc, res)
         _solution_section(doc, res, notes)
@@ -561,6 +558,33 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
     return _render(doc, title, prob.get("description", "") if not prob.get("phases") else "", meta,
                    res.status in GOOD)
+
+
+def has_hamiltonian(p) -> bool:
+    return any(k in p.extra for k in F.HAMILTONIAN_KEYS)
+
+
+def reintegration_tables(res: Result) -> dict[str, dict[str, np.ndarray]]:
+    """Phase name (None: the only phase of an older folder) -> the re-integrated
+    trajectory the run wrote (``tables/reintegration_<phase>.csv``, ocdsl/verify)."""
+    out = {}
+    for name, tab in sorted(res.tables.items()):
+        if (name == "reintegration" or name.startswith("reintegration_")) and "t" in tab:
+            out[name[len("reintegration_"):] if name != "reintegration" else None] = tab
+    return out
+
+
+def missing_notes(res: Result) -> list[str]:
+    """What an older run folder lacks; the report says so and computes nothing itself."""
+    notes = []
+    if any(p.costates and p.controls and not has_hamiltonian(p) for p in res.phases):
+        notes.append("This run folder holds costates but not the Hamiltonian or its control gradients "
+                     "(written by an ocdsl that did not record them): the Hamiltonian figures are left "
+                     "out. Re-run the problem file to get them.")
+    if res.phases and res.status in GOOD and not reintegration_tables(res) and res.verification is None:
+        notes.append("This run folder has no independent verification and no re-integrated trajectory "
+                     "(written by an ocdsl before ocdsl/verify): re-run the problem file to get them.")
+    return notes
 
 
 def _renumber(doc: Doc) -> None:

@@ -430,7 +430,7 @@ def fig_reintegration(res: Result) -> list[Fig]:
             continue
         phase = tname[len("reintegration_"):] if tname != "reintegration" else None
         phases = [p for p in res.phases if phase is None or p.name == phase]
-        names = [k for k in table if k != "t" and _nonempty(table[k])]
+        names = [k for k in table if k != "t" and not k.startswith("err_") and _nonempty(table[k])]
         if not names:
             continue
         chunks = _chunks(names, MAX_PANELS)
@@ -468,7 +468,8 @@ def fig_positions(res: Result) -> list[Fig]:
     """2-D or 3-D trajectory view of the position states (``problem.positions``)."""
     out: list[Fig] = []
     units = res.problem.get("units") or {}
-    reint = res.tables.get("reintegration")
+    reint = {k[len("reintegration_"):] if k != "reintegration" else None: v
+             for k, v in res.tables.items() if k == "reintegration" or k.startswith("reintegration_")}
     for gi, group in enumerate(_position_groups(res.problem)):
         segs = [(p.name, [np.asarray(p.states[n], float) for n in group]) for p in res.phases
                 if all(n in p.states for n in group)]
@@ -486,9 +487,13 @@ def fig_positions(res: Result) -> list[Fig]:
             ax.plot(*xyz, color=c, label=pname if len(segs) > 1 else "trajectory", **_marker_kw(len(xyz[0])))
         ax.plot(*[[a[0]] for a in segs[0][1]], marker="o", color="k", linestyle="none", label="start")
         ax.plot(*[[a[-1]] for a in segs[-1][1]], marker="s", color="k", linestyle="none", label="end")
-        if reint is not None and all(n in reint for n in group):
-            ax.plot(*[reint[n] for n in group], color="#c0392b", linestyle="--", linewidth=1.0,
-                    label="re-integrated")
+        first = True
+        for pname, _ in segs:
+            tab = reint.get(pname, reint.get(None) if len(segs) == 1 else None)
+            if tab is not None and all(n in tab for n in group):
+                ax.plot(*[tab[n] for n in group], color="#c0392b", linestyle="--", linewidth=1.0,
+                        label="re-integrated" if first else None)
+                first = False
         ax.set_xlabel(axis_label(group[0], units))
         ax.set_ylabel(axis_label(group[1], units))
         if len(group) == 3:

@@ -381,16 +381,19 @@ def _truthy(v: Any) -> bool:
 
 
 def reintegration_table(res: Result) -> dict | None:
-    """Deviation of the re-integrated trajectory from the collocated states."""
+    """Per state: the re-integrated trajectory (``tables/reintegration_<phase>.csv``, written
+    by the run's verification) against the solution's rows: largest and final deviation,
+    and the largest relative to the state's range (``err_<state>``, the verification's measure)."""
     rows = []
     for tname, tab in sorted(res.tables.items()):
         if not (tname == "reintegration" or tname.startswith("reintegration_")) or "t" not in tab:
             continue
         phase = tname[len("reintegration_"):] if tname != "reintegration" else None
         phases = [p for p in res.phases if phase is None or p.name == phase]
+        label = phase if phase and len(res.phases) > 1 else None
         t_r = np.asarray(tab["t"], float)
         for n, y_r in tab.items():
-            if n == "t":
+            if n == "t" or n.startswith("err_"):
                 continue
             ts, ys = [], []
             for p in phases:
@@ -400,16 +403,22 @@ def reintegration_table(res: Result) -> dict | None:
             if not ts or t_r.size < 2:
                 continue
             t_c, y_c = np.concatenate(ts), np.concatenate(ys)
+            ok = np.isfinite(t_c) & np.isfinite(y_c)
+            t_c, y_c = t_c[ok], y_c[ok]
             order = np.argsort(t_r, kind="stable")
-            interp = np.interp(t_c, t_r[order], np.asarray(y_r, float)[order])
-            dev = np.abs(interp - y_c)
-            scale = max(float(np.nanmax(np.abs(y_c))) if y_c.size else 0.0, 1e-300)
-            rows.append([cell(f"{phase}: {n}" if phase else n, "name"), cell(float(np.nanmax(dev)), "num", 3),
-                         cell(float(np.nanmax(dev)) / scale, "num", 3),
-                         cell(float(abs(np.asarray(y_r, float)[order][-1] - y_c[-1])), "num", 3)])
-    return table("reintegration", "Re-integration check: deviation of the trajectory integrated from "
-                 "the optimal control from the collocated states.",
-                 ["state", "max |deviation|", "relative to max |x|", "final deviation"], rows)
+            y_r = np.asarray(y_r, float)[order]
+            dev = np.abs(np.interp(t_c, t_r[order], y_r) - y_c)
+            if f"err_{n}" in tab:
+                rel = float(np.nanmax(np.asarray(tab[f"err_{n}"], float)))
+            else:
+                rng = float(np.nanmax(y_c) - np.nanmin(y_c)) if y_c.size else 0.0
+                rel = float(np.nanmax(dev)) / max(rng, 1e-300)
+            rows.append([cell(f"{label}: {n}" if label else n, "name"), cell(float(np.nanmax(dev)), "num", 3),
+                         cell(rel, "num", 3), cell(float(abs(y_r[-1] - y_c[-1])), "num", 3)])
+    return table("reintegration", "Re-integration: the dynamics integrated from the solution's initial "
+                 "state with its controls (the verification's trajectory, from the run folder) against "
+                 "the solution's rows.",
+                 ["state", "max |deviation|", "relative to its range", "final deviation"], rows)
 
 
 def closed_loop_table(tables: dict[str, dict[str, np.ndarray]], problem: dict) -> dict | None:

@@ -15,7 +15,7 @@ import sympy as sp
 
 from ..result import Result
 from ..symbolic.problem import Problem
-from .certificate import certificate
+from .certificate import certificate, hamiltonian_arrays
 
 
 def certify_result(problem: Problem, result: Result) -> dict:
@@ -59,6 +59,10 @@ def certify_result(problem: Problem, result: Result) -> dict:
             kw["path_constraints"] = [(c.expr, c.lower, c.upper, c.text) for c in ph.path]
             kw["multipliers"] = {k: np.asarray(v, float) * nan for k, v in mus.items()}
         per_phase[ph.name] = certificate(ph.model, params, arrays, bounds, L, kind, **kw)
+        try:    # H and dH/du into the run folder: the report reads them, never recomputes them
+            traj.extra.update(hamiltonian_arrays(ph.model, params, arrays, L))
+        except Exception:  # noqa: BLE001  (a figure less, never a lost run)
+            pass
     if len(per_phase) == 1:
         return next(iter(per_phase.values()))
     return {"passed": all(c.get("passed") for c in per_phase.values()), "phases": per_phase}
