@@ -94,12 +94,16 @@ def solved_result() -> Result:
                              "passed": True},
             "bang_bang": {"all": False, "per_control": {"theta": {"fraction_at_bound": 0.0,
                                                                   "switch_times": []}}},
-            "reintegration": {"method": "Radau", "local_max_error": 4e-6, "worst_state": "x",
-                              "per_state": {"x": {"local": 4e-6, "global": 1e-5, "range": 2.0}},
-                              "passed": True},
-            "tolerances": {"hamiltonian": 1e-3, "reintegration": 1e-2}},
+            "tolerances": {"hamiltonian_max": 3e-2, "hamiltonian_mean": 2e-3, "stationarity": 1e-2,
+                           "sign_agreement": 0.99}},
+        verification={"mode": "enforce", "tolerance": 1e-5, "status": "verified",
+                      "summary": "verified: 2 checks within 1e-05",
+                      "checks": [{"name": "dynamics from x(t0)", "phase": "main", "value": 3.1e-7, "limit": 1e-5,
+                                  "passed": True, "where": "x at t = 0.8", "detail": "DOP853, 90 steps"},
+                                 {"name": "boundary conditions", "phase": None, "value": 2e-9, "limit": 1e-5,
+                                  "passed": True, "where": "y(tf) == -2", "detail": "4 conditions"}]},
         problem=brachistochrone_problem(), extra={"solver": "ipopt", "ipopt_version": "3.14.16"},
-        tables={"reintegration": reint, "mesh_history": mesh})
+        tables={"reintegration_main": reint, "mesh_history": mesh})
 
 
 def failed_result() -> Result:
@@ -255,10 +259,21 @@ def test_solved_report_html(runs, solved_report):
     cert = cert[:cert.index("</table>")]
     assert re.search(r">hamiltonian</td>.*?<td class=\"fail\">FAIL</td>", cert, re.S)
     assert re.search(r">stationarity</td>.*?<td class=\"pass\">pass</td>", cert, re.S)
-    assert re.search(r">reintegration</td>.*?<td class=\"pass\">pass</td>", cert, re.S)
-    assert "per_control.theta.max_abs = 3e−09" in cert
-    assert re.search(r">bang_bang</td>.*?all = no.*?<td class=\"\">—</td>", cert, re.S)   # no flag, no verdict
-    assert re.search(r">overall</td>.*?<td class=\"fail\">FAIL</td>", cert, re.S)
+    # each check with its value, comparison and tolerance beside it
+    assert re.search(r">hamiltonian</td>.*?expected [-−]1.*?0\.07</td><td class=\"\">≤</td><td class=\"num\">0\.03</td>",
+                     cert, re.S)
+    assert "switch times" in html and "Switching structure" in html
+    ver = html[html.index("Independent verification of the returned"):]
+    ver = ver[:ver.index("</table>")]
+    assert re.search(r"dynamics from x\(t0\)</td>.*?3\.1e−07</td><td class=\"\">≤</td><td class=\"num\">1e−05</td>",
+                     ver, re.S)
+    # the header's badges: solver, verification, a failed certificate, expect, overall
+    head = html[:html.index("</header>")]
+    for label, cls, text in (("solver", "pass", "optimal"), ("verification", "pass", "verified"),
+                             ("certificate", "fail", "failed"), ("expect", "fail", "1 of 2 pass"),
+                             ("overall", "fail", "not ok (exit 1)")):
+        assert re.search(rf'{label} <span class="badge {cls}"[^>]*>{re.escape(text)}</span>', head), label
+    assert re.search(r'class="build">ocdsl \d+\.\d+\.\d+, commit \w+', head)
     assert "Optimality certificate" in html and "Wall-time breakdown" in html
     # no warnings: every optional part was drawn
     assert "could not be drawn" not in html

@@ -42,6 +42,7 @@ import numpy as np
 from ocdsl import run_folder
 from ocdsl.result import Result
 from ocdsl.report import figures as F
+from ocdsl.report import status as S
 from ocdsl.report import tables as T
 
 TEMPLATES = Path(__file__).with_name("templates")
@@ -334,7 +335,9 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
     doc.table(b, doc.guard("wall-time table", lambda: T.wall_time_table(res)))
     doc.table(b, doc.guard("phases table", lambda: T.phases_table(res)))
     doc.table(b, doc.guard("expect table", lambda: T.expect_table(res)))
+    doc.table(b, doc.guard("verification table", lambda: T.verification_table(res)))
     doc.table(b, doc.guard("certificate table", lambda: T.certificate_table(res.certificate)))
+    doc.table(b, doc.guard("switch table", lambda: T.switch_table(res.certificate)))
     doc.table(b, doc.guard("multi-start table", lambda: T.starts_table(res)))
     doc.table(b, doc.guard("back-end table", lambda: T.extra_table(res)))
     hist = (res.extra or {}).get("ipopt_history")
@@ -431,12 +434,13 @@ def _env():
                               trim_blocks=False, lstrip_blocks=False)
 
 
-def _render(doc: Doc, title: str, subtitle: str, meta: list[tuple[str, str]], good: bool) -> str:
+def _render(doc: Doc, title: str, subtitle: str, meta: list[tuple[str, str]], badges: Sequence = ()) -> str:
     if doc.warnings:
         b = doc.section("warnings", "Notes on this report")
         b.append({"type": "warnings", "entries": doc.warnings})
     return _env().get_template("report.html.j2").render(
-        title=title, subtitle=subtitle, meta=meta, good=good, sections=doc.sections)
+        title=title, subtitle=subtitle, meta=meta, badges=list(badges), sections=doc.sections,
+        build=S.ocdsl_build())
 
 
 def _atomic_write(path: Path, data: bytes | str) -> None:
@@ -551,13 +555,13 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
     _tables_sections(doc, res)
     prob = res.problem or {}
     title = prob.get("name") or res.name
-    meta = [("run", run_dir.name), ("status", res.status)]
+    meta = [("run", run_dir.name)]
     if res.objective is not None:
         meta.append(("objective", T.fmt(res.objective)))
     if res.method.get("name") or res.method.get("method"):
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
     return _render(doc, title, prob.get("description", "") if not prob.get("phases") else "", meta,
-                   res.status in GOOD)
+                   S.badges(res))
 
 
 def has_hamiltonian(p) -> bool:
@@ -680,9 +684,25 @@ def build_comparison_html(run_dirs: Sequence[str | os.PathLike], title: str | No
             title = f"Study {studies[0][0].name}"
         else:
             title = "Comparison of " + ", ".join(inputs[:5]) + (f" and {len(inputs) - 5} more" if len(inputs) > 5 else "")
-    n_good = sum(r.status in GOOD for r in results)
-    meta = [("runs", str(len(results))), ("converged", f"{n_good} of {len(results)}")]
-    return _render(doc, title, "", meta, n_good == len(results) and bool(results))
+    return _render(doc, title, "", [("runs", str(len(results)))], study_badges(results))
+
+
+def study_badges(results: Sequence[Result]) -> list[S.Badge]:
+    """A comparison's badges: how many runs converged, were verified and are ok."""
+    n = len(results)
+    if not n:
+        return [S.Badge("runs", "none", "fail")]
+    conv = sum(r.status in GOOD for r in results)
+    ver = sum(r.verified or (r.verification or {}).get("status") == "not_applicable" for r in results)
+    ok = sum(r.ok for r in results)
+    out = [S.Badge("solver", f"{conv} of {n} converged", "pass" if conv == n else "fail"),
+           S.Badge("verification", f"{ver} of {n} verified", "pass" if ver == n else "fail")]
+    certs = [S.certificate_passed(r.certificate) for r in results if r.certificate]
+    if certs:
+        out.append(S.Badge("certificate", f"{sum(c is True for c in certs)} of {len(certs)} pass",
+                           "pass" if all(c is True for c in certs) else "fail"))
+    out.append(S.Badge("overall", f"{ok} of {n} ok", "pass" if ok == n else "fail"))
+    return out
 
 
 def _append(doc: Doc, sub: Doc, title: str) -> None:

@@ -257,28 +257,43 @@ def _bounds_of(problem: dict, names: Iterable[str]) -> dict[str, tuple[float | N
     return res
 
 
+def time_variable(res: Result) -> str | None:
+    """The state that is physical time when the independent variable is not (a Sundman
+    run: ``problem.time_variable``); None when the independent variable is time."""
+    tv = (res.problem or {}).get("time_variable")
+    return tv if tv and any(tv in p.states for p in res.phases) else None
+
+
+def phase_time(res: Result, p: PhaseTrajectory) -> np.ndarray:
+    """Physical time of a phase's rows: what every time axis shows."""
+    tv = time_variable(res)
+    return np.asarray(p.states[tv] if tv and tv in p.states else p.time, float)
+
+
 def _phase_series(res: Result, attr: str, prefix: str = "") -> list[tuple[str, Series]]:
     names: list[str] = []
+    skip = time_variable(res) if attr == "states" else None    # time against time says nothing
     for p in res.phases:
         for n in getattr(p, attr):
-            if n not in names:
+            if n not in names and n != skip:
                 names.append(n)
     multi = len(res.phases) > 1
-    return [(prefix + n, [(p.name if multi else "solution", p.time, getattr(p, attr)[n])
+    return [(prefix + n, [(p.name if multi else "solution", phase_time(res, p), getattr(p, attr)[n])
                           for p in res.phases if n in getattr(p, attr)]) for n in names]
 
 
 def _sequential(res: Result) -> bool:
     """Phases one after another in time (not alternatives over the same interval, as the
     controllers of a controller file are)."""
-    ends = [(float(np.nanmin(p.time)), float(np.nanmax(p.time))) for p in res.phases if len(p.time)]
+    ends = [(float(np.nanmin(phase_time(res, p))), float(np.nanmax(phase_time(res, p)))) for p in res.phases
+            if len(p.time)]
     return all(b[0] >= a[1] - 1e-9 * max(1.0, abs(a[1])) for a, b in zip(ends, ends[1:]))
 
 
 def _phase_boundaries(res: Result) -> list[float]:
     if len(res.phases) < 2 or not _sequential(res):
         return []
-    return [float(np.asarray(p.time, float)[-1]) for p in res.phases[:-1] if len(p.time)]
+    return [float(np.asarray(phase_time(res, p), float)[-1]) for p in res.phases[:-1] if len(p.time)]
 
 
 def _phases_note(res: Result) -> str:
@@ -350,7 +365,8 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
     def ham(p: PhaseTrajectory):
         return next((p.extra[k] for k in HAMILTONIAN_KEYS if k in p.extra), None)
 
-    series = [(p.name if multi else "solution", p.time, ham(p)) for p in res.phases if ham(p) is not None]
+    series = [(p.name if multi else "solution", phase_time(res, p), ham(p)) for p in res.phases
+              if ham(p) is not None]
     if series:
         hfigs = _grid_figures("hamiltonian", "Hamiltonian H along the solution "
                               "(constant for an autonomous problem, −1 for minimum time with free t_f).",
@@ -371,7 +387,8 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
         names += [k for k in p.extra if k.startswith("dH_d") and k not in names]
     for k in names:
         u = k[len("dH_d"):]
-        grads.append((k, [(p.name if multi else "solution", p.time, p.extra[k]) for p in res.phases if k in p.extra]))
+        grads.append((k, [(p.name if multi else "solution", phase_time(res, p), p.extra[k]) for p in res.phases
+                          if k in p.extra]))
     if grads:
         tex = {k: r"\partial H / \partial %s" % tex_name(k[len("dH_d"):]) for k, _ in grads}
         out += _grid_figures("dHdu", "Gradient of the Hamiltonian with respect to each control "
@@ -386,7 +403,7 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
             u = k[len("switch_"):]
             for p in res.phases:
                 if k in p.extra:
-                    ax.plot(p.time, p.extra[k], color="#1f4e9c", label="switching function")
+                    ax.plot(phase_time(res, p), p.extra[k], color="#1f4e9c", label="switching function")
             ax.axhline(0.0, color="0.4", linewidth=0.7)
             ax.set_ylabel(f"$\\sigma_{{{tex_name(u)}}}$")
             ax.set_xlabel(time_label(units))
@@ -394,7 +411,7 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
                 ax2 = ax.twinx()
                 for p in res.phases:
                     if u in p.controls:
-                        ax2.step(p.time, p.controls[u], where="post", color="#c0392b",
+                        ax2.step(phase_time(res, p), p.controls[u], where="post", color="#c0392b",
                                  linewidth=1.0, alpha=0.8, label=f"${tex_name(u)}$")
                 ax2.set_ylabel(axis_label(u, units), color="#c0392b")
                 ax2.grid(False)
@@ -414,7 +431,8 @@ def fig_other_extra(res: Result) -> list[Fig]:
     for p in res.phases:
         names += [k for k in p.extra if k not in names and k not in HAMILTONIAN_KEYS
                   and k not in FLAG_COLUMNS and not k.startswith(("dH_d", "switch_"))]
-    panels = [(k, [(p.name if multi else "solution", p.time, p.extra[k]) for p in res.phases if k in p.extra])
+    panels = [(k, [(p.name if multi else "solution", phase_time(res, p), p.extra[k]) for p in res.phases
+                   if k in p.extra])
               for k in names]
     return _grid_figures("other", "Other time histories in the trajectory.", panels,
                          res.problem.get("units") or {}, boundaries=_phase_boundaries(res))
@@ -430,18 +448,20 @@ def fig_reintegration(res: Result) -> list[Fig]:
             continue
         phase = tname[len("reintegration_"):] if tname != "reintegration" else None
         phases = [p for p in res.phases if phase is None or p.name == phase]
-        names = [k for k in table if k != "t" and not k.startswith("err_") and _nonempty(table[k])]
+        tvar = time_variable(res)
+        names = [k for k in table if k not in ("t", tvar) and not k.startswith("err_") and _nonempty(table[k])]
         if not names:
             continue
         chunks = _chunks(names, MAX_PANELS)
         for ci, chunk in enumerate(chunks):
             fig, axes = _new_figure(len(chunk))
             for ax, n in zip(axes, chunk):
-                ax.plot(table["t"], table[n], color="#c0392b", linewidth=1.2, label="re-integrated")
+                ax.plot(table.get(tvar, table["t"]) if tvar else table["t"], table[n], color="#c0392b",
+                        linewidth=1.2, label="re-integrated")
                 first = True
                 for p in phases:
                     if n in p.states:
-                        ax.plot(p.time, p.states[n], linestyle="none", marker="o", markersize=2.6,
+                        ax.plot(phase_time(res, p), p.states[n], linestyle="none", marker="o", markersize=2.6,
                                 markerfacecolor="none", color="#1f4e9c",
                                 label="collocated" if first else None)
                         first = False
@@ -724,7 +744,7 @@ def fig_compare_runs(results: list[Result]) -> list[Fig]:
         for r in results:
             for p in r.phases:
                 names += [n for n in getattr(p, attr) if n not in names]
-        panels = [(n, [(r.name, p.time, getattr(p, attr)[n]) for r in results for p in r.phases
+        panels = [(n, [(r.name, phase_time(r, p), getattr(p, attr)[n]) for r in results for p in r.phases
                        if n in getattr(p, attr)]) for n in names]
         if panels:
             out += _grid_figures(f"cmp-{attr}", f"{what} histories of the compared runs, one colour per run.",

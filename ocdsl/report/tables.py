@@ -197,17 +197,22 @@ def phases_table(res: Result) -> dict | None:
 
 
 # ----------------------------------------------------------------------- solution
+def badge_cell(b) -> dict[str, Any]:
+    return {"text": b.text, "cls": {"pass": "pass", "fail": "fail", "warn": "warn"}.get(b.cls, "")}
+
+
 def summary_table(res: Result) -> dict:
-    rows = [[cell("status", "name"), status_cell(res.status)]]
-    if res.message:
-        rows.append([cell("message", "name"), cell(res.message, "")])
+    from ocdsl.report.status import badges
+
+    rows = []
+    for b in badges(res):
+        rows.append([cell(b.label, "name"), badge_cell(b)])
+        if b.title:
+            rows[-1][1] = {**rows[-1][1], "text": f"{b.text}: {b.title}"}
     sense = ((res.problem or {}).get("objective") or {}).get("sense")
     rows.append([cell("objective" + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
-    if isinstance(res.tf, dict):
-        for k, v in res.tf.items():
-            rows.append([cell(f"final time t_f ({k})", "name"), cell(v, "num", 10)])
-    else:
-        rows.append([cell("final time t_f", "name"), cell(res.tf, "num", 10)])
+    for label, v in time_rows(res):
+        rows.append([cell(label, "name"), cell(v, "num", 10)])
     rows.append([cell("iterations", "name"), cell(res.iterations)])
     for k in ("variables", "constraints", "nonzeros"):
         if k in (res.nlp or {}):
@@ -217,14 +222,35 @@ def summary_table(res: Result) -> dict:
             rows.append([cell(f"NLP {k}", "name"), cell(v)])
     if "total" in (res.wall_time_s or {}):
         rows.append([cell("wall time total [s]", "name"), cell(res.wall_time_s["total"], "num", 4)])
-    if res.expect:
-        n_ok = sum(bool(c.get("passed")) for c in res.expect)
-        rows.append([cell("expect checks passed", "name"),
-                     {"text": f"{n_ok} of {len(res.expect)}", "cls": "pass" if n_ok == len(res.expect) else "fail"}])
-    if res.certificate:
-        ok = _overall(res.certificate)
-        rows.append([cell("optimality certificate", "name"), verdict(ok) if ok is not None else cell("present", "")])
-    return table("summary", "Solution summary.", ["quantity", "value"], rows)
+    return table("summary", "Solution summary: the solver's status, the independent verification, the "
+                 "certificate and the expect checks; \"overall\" is the exit code of ocdsl run.",
+                 ["quantity", "value"], rows)
+
+
+def time_rows(res: Result) -> list[tuple[str, Any]]:
+    """Final times in physical time: a run whose independent variable is not time (a
+    Sundman-transformed problem) carries its physical time as the state or expression
+    ``problem.time_variable`` names; its end is the flight time."""
+    tvar = (res.problem or {}).get("time_variable")
+    unit = ((res.problem or {}).get("units") or {}).get("t")
+    u = f" [{unit}]" if unit else ""
+    if tvar:
+        ends = [(p.name, physical_time(p, tvar)) for p in res.phases]
+        ends = [(n, float(a[np.isfinite(a)][-1])) for n, a in ends if a is not None and np.isfinite(a).any()]
+        out = [(f"flight time ({tvar}(t_f)){u}" + (f" ({n})" if len(ends) > 1 else ""), v) for n, v in ends]
+        if isinstance(res.tf, (int, float)):
+            out.append(("final value of the independent variable", res.tf))
+        return out
+    if isinstance(res.tf, dict):
+        return [(f"final time t_f ({k}){u}", v) for k, v in res.tf.items()]
+    return [(f"final time t_f{u}", res.tf)]
+
+
+def physical_time(p, tvar: str) -> np.ndarray | None:
+    for group in (p.states, p.extra, p.controls):
+        if tvar in group:
+            return np.asarray(group[tvar], float)
+    return None
 
 
 def wall_time_table(res: Result) -> dict | None:
@@ -239,75 +265,128 @@ def wall_time_table(res: Result) -> dict | None:
     return table("wall_time", "Wall-time breakdown by stage.", ["stage", "time [s]", "share [%]"], rows)
 
 
+COMPARE_TEXT = {"equal": "|error| ≤ tol", "at_most": "ocdsl ≤ ref + tol", "at_least": "ocdsl ≥ ref − tol"}
+
+
+def tolerance_text(c: dict) -> str:
+    """An expect check's band: the larger of rtol·|reference| and atol."""
+    parts = []
+    if c.get("rtol") is not None:
+        parts.append(f"rtol {fmt(c['rtol'], 3)}")
+    if c.get("atol") is not None:
+        parts.append(f"atol {fmt(c['atol'], 3)}")
+    return ", ".join(parts) or "—"
+
+
+def compare_text(c: dict) -> str:
+    return COMPARE_TEXT.get(c.get("compare") or "equal", str(c.get("compare")))
+
+
 def expect_table(res: Result) -> dict | None:
     rows = []
     for c in res.expect or []:
-        tol = []
-        if c.get("rtol") is not None:
-            tol.append(f"rtol {fmt(c['rtol'], 3)}")
-        if c.get("atol") is not None:
-            tol.append(f"atol {fmt(c['atol'], 3)}")
         rows.append([cell(c.get("name", "?"), "name"), cell(c.get("reference"), "num", 10),
                      cell(c.get("value"), "num", 10), cell(c.get("error"), "num", 3),
-                     cell(", ".join(tol) or "—", ""), verdict(c.get("passed"))])
-    return table("expect", "Expected values (reference, e.g. from the paper) against ocdsl's.",
-                 ["check", "reference", "ocdsl", "error", "tolerance", "result"], rows)
+                     cell(compare_text(c), "nowrap"), cell(tolerance_text(c), "nowrap"), verdict(c.get("passed"))])
+    return table("expect", "Expected values (the file's expect block: reference, e.g. from the paper) "
+                 "against ocdsl's, with the comparison and tolerance of each check.",
+                 ["check", "reference", "ocdsl", "error", "comparison", "tolerance", "result"], rows)
 
 
-_PASS_KEYS = ("passed", "pass", "ok", "satisfied", "valid", "verified", "success")
+def verification_table(res: Result) -> dict | None:
+    """The independent verification (ocdsl/verify, ``result.json`` ``verification``): one row
+    per check, its relative value against the tolerance it is held to."""
+    v = res.verification
+    if not isinstance(v, dict):
+        return None
+    rows = []
+    for c in v.get("checks") or []:
+        what = c.get("name", "?")
+        if c.get("phase") and len(res.phases) > 1:
+            what += f" ({c['phase']})"
+        rows.append([cell(what, "name"), cell(c.get("detail") or "", ""), cell(c.get("value"), "num", 3),
+                     cell("≤", ""), cell(c.get("limit"), "num", 3), cell(c.get("where") or "", ""),
+                     verdict(c.get("passed"))])
+    note = v.get("summary") or ""
+    if v.get("mode") == "warn":
+        note += " The file asks for verify: {mode: warn}: a failed check is reported but does not fail the run."
+    if not rows:
+        rows.append([cell("verification", "name"), cell(v.get("summary") or "", ""), cell(None), cell("", ""),
+                     cell(v.get("tolerance"), "num", 3), cell("", ""),
+                     {"text": str(v.get("status")), "cls": "fail" if v.get("status") in ("failed", "error") else ""}])
+        note = ""
+    return table("verification", "Independent verification of the returned trajectory (ocdsl/verify, "
+                 "docs/verification.md): each value is relative and held to the tolerance beside it.",
+                 ["check", "how", "value", "", "tolerance", "worst at", "result"], rows, note)
 
 
-def _overall(cert: Any) -> bool | None:
-    if isinstance(cert, dict):
-        for k in _PASS_KEYS:
-            if isinstance(cert.get(k), (bool, np.bool_)):
-                return bool(cert[k])
-        subs = [_overall(v) for v in cert.values() if isinstance(v, (dict, list))]
-        subs = [s for s in subs if s is not None]
-        return all(subs) if subs else None
-    if isinstance(cert, list):
-        subs = [s for s in (_overall(v) for v in cert) if s is not None]
-        return all(subs) if subs else None
-    return None
+# certificate check -> (its measured value, the tolerance key, comparison, what it measures)
+CERTIFICATE_CHECKS = {
+    "hamiltonian": ("relative_max_deviation", "hamiltonian_max", "≤",
+                    "max |H − expected| / scale (constant H where expected is none)"),
+    "stationarity": ("max_relative", "stationarity", "≤", "max |∂H/∂u| / term size at interior nodes"),
+    "switching": ("agreement", "sign_agreement", "≥", "share of saturated nodes where the sign of ∂H/∂u "
+                  "picks that bound"),
+    "path_multipliers": ("complementarity", "complementarity", "≤",
+                         "max |μ (g − bound)| / term size (complementarity)"),
+}
+
+
+def certificate_phases(cert: Any) -> list[tuple[str | None, dict]]:
+    if not isinstance(cert, dict):
+        return []
+    if isinstance(cert.get("phases"), dict):
+        return [(p, c) for p, c in cert["phases"].items() if isinstance(c, dict)]
+    return [(None, cert)]
 
 
 def certificate_table(cert: Any) -> dict | None:
-    """Any certificate dict, one row per top-level item: its numbers as ``key = value``
-    and, when it carries a pass flag (``passed``, ``ok``, ...), a coloured verdict."""
-    if not cert:
-        return None
-    if not isinstance(cert, dict):
-        cert = {"certificate": cert}
+    """The optimality certificate (necessary conditions where costates exist): one row per
+    check with its measured value, comparison and tolerance."""
     rows = []
-    overall = _overall(cert)
-    if overall is not None:
-        rows.append([cell("overall", "name"), cell("", ""), verdict(overall)])
-
-    def details(d: dict) -> str:
-        return "; ".join(f"{k} = {fmt(v, 4)}" for k, v in _flatten(d)
-                         if k.rsplit(".", 1)[-1] not in _PASS_KEYS or not isinstance(v, (bool, np.bool_)))
-
-    def flag(d: dict) -> bool | None:
-        return next((bool(d[k]) for k in _PASS_KEYS if isinstance(d.get(k), (bool, np.bool_))), None)
-
-    for k, v in cert.items():
-        if k in _PASS_KEYS and isinstance(v, (bool, np.bool_)):
+    for phase, c in certificate_phases(cert):
+        pre = f"{phase}: " if phase else ""
+        if c.get("error") or c.get("skipped"):
+            rows.append([cell(pre + "certificate", "name"), cell(c.get("error") or c.get("skipped"), ""),
+                         cell(None), cell("", ""), cell(None), verdict(False if c.get("error") else None)])
             continue
-        if isinstance(v, dict):
-            ok = flag(v)
-            rows.append([cell(k, "name"), cell(details(v) or "—", "details"),
-                         verdict(ok) if ok is not None else cell("", "")])
-        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
-            for i, x in enumerate(v):
-                label = x.get("name") or x.get("check") or x.get("label") or str(i)
-                rest = {kk: y for kk, y in x.items() if kk not in ("name", "check", "label")}
-                ok = flag(rest)
-                rows.append([cell(f"{k}[{label}]", "name"), cell(details(rest) or "—", "details"),
-                             verdict(ok) if ok is not None else cell("", "")])
-        else:
-            rows.append([cell(k, "name"), cell(v, "details"), cell("", "")])
-    return table("certificate", "Optimality certificate (first-order necessary conditions and "
-                 "re-integration).", ["item", "values", "verdict"], rows)
+        tol = c.get("tolerances") or {}
+        for key, (vkey, tkey, op, what) in CERTIFICATE_CHECKS.items():
+            d = c.get(key)
+            if not isinstance(d, dict):
+                continue
+            val = d.get(vkey)
+            extra = ""
+            if key == "hamiltonian":
+                exp = finite_or_none(d.get("expected"))
+                extra = (f"; expected {fmt(exp + 0.0, 4)}" if exp is not None else "; expected constant")
+            rows.append([cell(pre + key.replace("_", " "), "name"), cell(what + extra, ""), cell(val, "num", 3),
+                         cell(op, ""), cell(tol.get(tkey), "num", 3), verdict(d.get("passed"))])
+    if not rows:
+        return None
+    return table("certificate", "Optimality certificate: first-order necessary conditions (Pontryagin) "
+                 "evaluated with the costates; the re-integration is the verification's (above).",
+                 ["check", "what it measures", "value", "", "tolerance", "result"], rows)
+
+
+def switch_table(cert: Any) -> dict | None:
+    """Per control: the share of nodes at a bound and the switch times (bang-bang structure)."""
+    rows = []
+    for phase, c in certificate_phases(cert):
+        per = ((c.get("bang_bang") or {}).get("per_control") or {}) if isinstance(c, dict) else {}
+        for u, d in per.items():
+            if not isinstance(d, dict):
+                continue
+            times = [finite_or_none(x) for x in d.get("switch_times") or []]
+            times = [x for x in times if x is not None]
+            seq = d.get("sequence") or []
+            rows.append([cell(f"{phase}: {u}" if phase else u, "name"),
+                         cell(100 * float(d.get("fraction_at_bound") or 0.0), "num", 3),
+                         cell(len(times)), cell(", ".join(fmt(x, 5) for x in times) or "none", "list"),
+                         cell(" ".join(map(str, seq)) if seq else "—", "list")])
+    return table("switches", "Switching structure of each control: share of nodes at a bound and the "
+                 "switch times (from the certificate).",
+                 ["control", "at a bound [%]", "switches", "switch times", "bound sequence"], rows)
 
 
 def starts_table(res: Result) -> dict | None:
@@ -318,7 +397,10 @@ def starts_table(res: Result) -> dict | None:
     cols: list[str] = []
     for r in recs:
         cols += [k for k in r if k not in cols]
-    best = min((r.get("objective") for r in recs if isinstance(r.get("objective"), (int, float))), default=None)
+    maximize = ((res.problem or {}).get("objective") or {}).get("sense") == "maximize"
+    objs = [r.get("objective") for r in recs if isinstance(r.get("objective"), (int, float))
+            and str(r.get("status", "optimal")) in GOOD_STATUS]
+    best = (max if maximize else min)(objs, default=None)
     rows = []
     for r in recs:
         row = [status_cell(str(r[c])) if c == "status" else cell(r.get(c), None, 10 if c == "objective" else 6)

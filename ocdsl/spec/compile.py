@@ -362,7 +362,7 @@ class _Compiler:
             vectors = {**model.vectors, **self.vector_groups(mspec.vectors, names, loc)}
             return Model(model.name, model.states, model.controls, model.dynamics, params,
                          model.expressions, units, model.description,
-                         tuple(mspec.positions) or model.positions, vectors)
+                         tuple(mspec.positions) or model.positions, vectors, model.time_state)
         return self.inline_model(mspec, loc)
 
     def inline_model(self, m: ModelSpec, loc: tuple) -> Model | None:
@@ -743,6 +743,8 @@ class _Compiler:
                 "t0": ph.t0 if ph.t0 is not None else "free", "tf": ph.tf if ph.tf is not None else "free"}
             desc["units"].update(f.units)
             desc["positions"] = list(f.positions) or desc["positions"]
+            if f.time_state:        # the independent variable is not time: reports plot against this
+                desc["time_variable"] = f.time_state
             for s, v in ph.constants.items():
                 desc["parameters"][s.name] = {"value": v, "free": False}
         for s, fp in self.free.items():

@@ -42,6 +42,8 @@ class Model:
         them, :meth:`rhs` substitutes them.
     units : symbol name -> unit string (for reports); ``description`` one line.
     positions : names of states that form a position vector (for trajectory plots).
+    time_state : the state that is physical time when the independent variable is another
+        one (a Sundman-transformed model's clock); reports put it on their time axes.
     vectors : name -> column of symbols or expressions: declared vector groups (``r`` for
         the states ``x, y, z``) and vector-valued named expressions, usable by name in
         expressions (``norm(r)``, ``cross(r, v)``, ``r(tf)``).
@@ -57,6 +59,7 @@ class Model:
     description: str = ""
     positions: tuple[str, ...] = ()
     vectors: Mapping[str, sp.ImmutableMatrix] = field(default_factory=dict)
+    time_state: str = ""    # the state that is physical time when the independent variable is not (Sundman)
 
     def __post_init__(self) -> None:
         missing = [s for s in self.states if s not in self.dynamics]

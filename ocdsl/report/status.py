@@ -1,0 +1,123 @@
+"""One status vocabulary for every report, the index and the terminal: the solver's
+status, the verification's, the certificate's and the expect checks', each a badge, and
+the overall verdict, which is :attr:`ocdsl.result.Result.ok` (the exit code of
+``ocdsl run``). Read from ``result.json`` only.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ocdsl.result import Result
+
+SOLVER_GOOD = ("optimal", "acceptable", "feasible", "stable")
+# verification status -> badge class (docs/verification.md)
+VERIFICATION_CLASS = {"verified": "pass", "not_applicable": "neutral", "failed": "fail", "error": "fail",
+                      "skipped": "neutral"}
+VERIFICATION_TEXT = {"verified": "verified", "not_applicable": "not applicable", "failed": "failed",
+                     "error": "error", "skipped": "skipped", None: "not recorded"}
+
+
+@dataclass(frozen=True)
+class Badge:
+    label: str      # what is judged: "solver", "verification", ...
+    text: str       # its verdict, in the one vocabulary
+    cls: str        # pass | fail | warn | neutral
+    title: str = ""  # the reason, shown on hover and in the summary table
+
+
+def certificate_passed(cert: Any) -> bool | None:
+    """The certificate's own verdict (``passed``; several phases: every phase's); None when
+    there is none or it was skipped."""
+    if not isinstance(cert, dict) or not cert:
+        return None
+    if cert.get("skipped"):
+        return None
+    if isinstance(cert.get("passed"), bool):
+        return cert["passed"]
+    phases = cert.get("phases")
+    if isinstance(phases, dict) and phases:
+        flags = [certificate_passed(c) for c in phases.values()]
+        return None if any(f is None for f in flags) else all(flags)
+    return None
+
+
+def certificate_reason(cert: Any) -> str:
+    if not isinstance(cert, dict):
+        return ""
+    if cert.get("error"):
+        return f"could not be evaluated: {cert['error']}"
+    if cert.get("skipped"):
+        return f"skipped: {cert['skipped']}"
+    failed = cert.get("failed")
+    if isinstance(cert.get("phases"), dict):
+        failed = [f"{p}: {', '.join(c.get('failed') or [])}" for p, c in cert["phases"].items()
+                  if isinstance(c, dict) and c.get("passed") is False]
+    return ("failed: " + "; ".join(map(str, failed))) if failed else ""
+
+
+def badges(res: Result) -> list[Badge]:
+    """Solver, verification, certificate (when there is one), expect checks (when there are
+    any) and the overall verdict, in that order."""
+    out = [Badge("solver", res.status, "pass" if res.status in SOLVER_GOOD else "fail",
+                 (res.message or "").splitlines()[0] if res.message else "")]
+    v = res.verification if isinstance(res.verification, dict) else None
+    vs = v.get("status") if v else None
+    cls = VERIFICATION_CLASS.get(vs, "neutral")
+    text = VERIFICATION_TEXT.get(vs, str(vs))
+    if vs in ("failed", "error") and v.get("mode") == "warn":
+        cls, text = "warn", f"{text} (warn only)"
+    out.append(Badge("verification", text, cls, (v or {}).get("summary", "") if v else
+                     "this run folder was written before ocdsl verified its results"))
+    cp = certificate_passed(res.certificate)
+    if res.certificate:
+        out.append(Badge("certificate", {True: "pass", False: "failed", None: "not evaluated"}[cp],
+                         {True: "pass", False: "fail", None: "neutral"}[cp], certificate_reason(res.certificate)))
+    if res.expect:
+        n_ok = sum(bool(c.get("passed")) for c in res.expect)
+        out.append(Badge("expect", f"{n_ok} of {len(res.expect)} pass",
+                         "pass" if n_ok == len(res.expect) else "fail",
+                         "; ".join(f"{c.get('name')} failed" for c in res.expect if not c.get("passed"))))
+    out.append(overall(res))
+    return out
+
+
+def overall(res: Result) -> Badge:
+    """:attr:`Result.ok`, the exit code's verdict, with what stands in its way."""
+    reasons = []
+    if res.status not in ("optimal", "stable", "feasible"):
+        reasons.append(f"solver {res.status}")
+    bad = [c for c in res.expect if not c.get("passed")]
+    if bad:
+        reasons.append(f"{len(bad)} expect check{'s' if len(bad) > 1 else ''} failed")
+    if not res.verification_ok:
+        vs = (res.verification or {}).get("status")
+        reasons.append("not verified" if vs is None else f"verification {VERIFICATION_TEXT.get(vs, vs)}")
+    if res.ok:
+        return Badge("overall", "ok (exit 0)", "pass")
+    return Badge("overall", "not ok (exit 1)", "fail", "; ".join(reasons))
+
+
+def ocdsl_build() -> dict[str, str]:
+    """The ocdsl version, the commit of its source tree (``unknown`` outside a git
+    checkout; ``+changes`` when the tree differs from it) and the date, for every report."""
+    from ocdsl import __version__
+
+    root = Path(__file__).resolve().parents[2]
+    commit = "unknown"
+    try:
+        proc = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10)
+        if proc.returncode == 0 and proc.stdout.strip():
+            commit = proc.stdout.strip()
+            dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no",
+                                    "--", "ocdsl"], capture_output=True, text=True, timeout=10)
+            if dirty.returncode == 0 and dirty.stdout.strip():
+                commit += "+changes"
+    except (OSError, subprocess.SubprocessError):
+        pass
+    date = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    return {"version": __version__, "commit": commit, "date": date}
