@@ -342,7 +342,7 @@ def test_index_page(runs, solved_report):
         {"study": "seed0", "quantity": "x(t_f)", "paper": 2.0, "ocdsl": 2.0, "error": 0.0, "passed": True,
          "report_link": runs["solved"] / "report.html"}])
     html = out.read_text()
-    assert "1 of 2 numbers agree" in html and '<td class="fail">FAIL</td>' in html
+    assert '<td class="fail">not reproduced</td>' in html and '<td class="pass">reproduced</td>' in html
     assert html.count('href="../solved/report.html"') == 3
     assert not re.search(r"https?://", html)
 

@@ -761,13 +761,17 @@ def make_comparison_report(run_dirs: Sequence[str | os.PathLike] | str | os.Path
 
 def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.PathLike,
                paper_numbers: Sequence[dict[str, Any]], *, title: str = "ocdsl reproductions") -> Path:
-    """Write ``out_path`` (e.g. ``reports/index.html``): a table of every paper number
-    against ocdsl's and a list of links to the reports in ``report_dirs``.
+    """Write ``out_path`` (e.g. ``reports/index.html``): a table of every reference number
+    against ocdsl's and a list of links to the reports in ``report_dirs`` with their badges.
 
-    ``paper_numbers``: dicts ``{study, quantity, paper, ocdsl, error, passed,
-    report_link}``; ``report_link`` (a path to a report file or folder) is made relative to
+    ``paper_numbers``: dicts as :func:`ocdsl.report.reproduce.expect_numbers` makes them
+    (``study, quantity, paper`` (printed in the paper) or ``other`` (another reference, with
+    ``source``), ``ocdsl, error, compare, tolerance, verification, verdict, test,
+    report_link``); ``report_link`` (a path to a report file or folder) is made relative to
     the index. Links are relative, so the folder can be moved or published as is.
     """
+    from ocdsl.report import reproduce as R
+
     out_path = Path(out_path)
     base = out_path.parent.resolve()
 
@@ -780,30 +784,76 @@ def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.Path
         p = p if p.is_absolute() else (Path.cwd() / p)
         return os.path.relpath(p.resolve(), base).replace(os.sep, "/")
 
+    vcls = {"verified": "pass", "failed": "fail", "error": "fail"}
+    dcls = {R.REPRODUCED: "pass", R.AGREES: "pass", R.SHOWN_WRONG: "warn", R.NOT_REPRODUCED: "fail",
+            R.DIFFERS: "fail"}
     numbers = []
     for r in paper_numbers:
-        passed = r.get("passed")
+        verdict = r.get("verdict") or (R.REPRODUCED if r.get("passed") else R.NOT_REPRODUCED)
+        ver = r.get("verification")
         numbers.append({"study": r.get("study", ""), "quantity": r.get("quantity", ""),
-                        "paper": T.fmt(r.get("paper"), 8), "ocdsl": T.fmt(r.get("ocdsl"), 8),
-                        "error": T.fmt(r.get("error"), 3),
-                        "verdict": "—" if passed is None else ("pass" if passed else "FAIL"),
-                        "cls": "" if passed is None else ("pass" if passed else "fail"),
+                        "paper": T.fmt(r.get("paper"), 8) if r.get("paper") is not None else "",
+                        "other": T.fmt(r.get("other"), 8) if r.get("other") is not None else "",
+                        "source": r.get("source", ""), "kind": r.get("kind", ""),
+                        "ocdsl": T.fmt(r.get("ocdsl"), 8), "error": T.fmt(r.get("error"), 3),
+                        "compare": r.get("compare", ""), "tolerance": r.get("tolerance", ""),
+                        "verification": S.VERIFICATION_TEXT.get(ver, str(ver)), "vcls": vcls.get(ver, ""),
+                        "verdict": verdict, "cls": dcls.get(verdict, ""), "test": r.get("test"),
                         "link": rel(r.get("report_link"))})
     reports = []
     for d in report_dirs:
         d = Path(d)
-        title_r, status = d.name, None
+        title_r, marks = d.name, []
         if _is_run(d):
             try:
-                data = json.loads((d / "result.json").read_text())
-                title_r = (data.get("problem") or {}).get("name") or data.get("name") or d.name
-                status = data.get("status")
+                res, _ = load_run(d)
+                title_r = (res.problem or {}).get("name") or res.name or d.name
+                marks = S.badges(res)
             except Exception:  # noqa: BLE001
-                pass
+                marks = [S.Badge("result.json", "unreadable", "fail")]
+        elif (d / "study.csv").is_file() or (d / "study.json").is_file():
+            rows, meta = read_study_table(d)
+            title_r = _study_title(d, meta)
+            marks = _study_row_badges(rows)
         reports.append({"title": f"{title_r} ({d.name})" if title_r != d.name else title_r,
-                        "link": rel(d), "status": status, "good": status in GOOD})
-    n_passed = sum(1 for r in paper_numbers if r.get("passed"))
+                        "link": rel(d), "badges": marks})
+    paper_rows = [n for n in numbers if n["paper"]]
+    other_rows = [n for n in numbers if not n["paper"]]
+    counts = {k: sum(n["verdict"] == k for n in paper_rows) for k in (R.REPRODUCED, R.SHOWN_WRONG, R.NOT_REPRODUCED)}
+    counts_other = {k: sum(n["verdict"] == k for n in other_rows) for k in (R.AGREES, R.DIFFERS)}
+    verified = sum(n["verdict"] == R.REPRODUCED and n["verification"] == "verified" for n in paper_rows)
     html = _env().get_template("index.html.j2").render(
-        title=title, numbers=numbers, reports=reports, n_passed=n_passed, n_total=len(paper_numbers))
+        title=title, numbers=numbers, reports=reports, counts=counts, counts_other=counts_other,
+        n_paper=len(paper_rows), n_other=len(other_rows), n_verified=verified, build=S.ocdsl_build())
     _atomic_write(out_path, html)
     return out_path
+
+
+def _study_title(folder: Path, meta: dict) -> str:
+    for key in ("title", "name"):
+        if isinstance(meta.get(key), str) and meta[key]:
+            return meta[key]
+    plan = folder / "plan.json"
+    if plan.is_file():
+        try:
+            p = json.loads(plan.read_text())
+            if isinstance(p, dict) and isinstance(p.get("name"), str):
+                return p["name"]
+        except ValueError:
+            pass
+    return folder.name
+
+
+def _study_row_badges(rows: list[dict]) -> list[S.Badge]:
+    """A study's badges from study.csv: points converged, verified, and ok."""
+    n = len(rows)
+    if not n:
+        return [S.Badge("points", "none", "fail")]
+    conv = sum(str(r.get("status")) in GOOD for r in rows)
+    out = [S.Badge("solver", f"{conv} of {n} converged", "pass" if conv == n else "fail")]
+    if any("verification" in r for r in rows):
+        ver = sum(str(r.get("verification")) in ("verified", "not_applicable") for r in rows)
+        out.append(S.Badge("verification", f"{ver} of {n} verified", "pass" if ver == n else "fail"))
+    else:
+        out.append(S.Badge("verification", "not recorded", "neutral"))
+    return out

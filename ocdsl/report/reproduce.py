@@ -58,24 +58,107 @@ SLOW_MARK = re.compile(r"^#\s*reproduce:\s*slow\b", re.M | re.I)
 REFINE_MARK = re.compile(r"^#\s*reproduce:\s*refine\s+(\S+)", re.M | re.I)
 GOOD = ("optimal", "acceptable", "feasible", "stable")
 
+#: Where each reference value of the index comes from, per (report folder, expect check).
+#: ``paper``: printed in the paper (the table or equation is named) - only these go to the
+#: index's "paper" column; every other kind (``digest``: the seed digest's own synthetic
+#: case or re-implementation; ``published``: a benchmark's published or analytic value;
+#: ``computed``: a converged reference computed here) goes to the "other reference" column
+#: with its label. ``wrong``: the test that shows the printed value cannot be right (the
+#: row then counts as "paper value shown wrong" when ocdsl does not meet it, or meets an
+#: ``at_most`` bound with room to spare: a better optimum).
+REFERENCES: dict[tuple[str, str], dict[str, str]] = {
+    ("brachistochrone", "tf"): {"kind": "published", "source": "dymos benchmark; the cycloid gives 1.8016031"},
+    ("bryson_denham", "objective"): {"kind": "published", "source": "analytic, Bryson & Ho (1975): 4/(9 l)"},
+    ("mesh_bryson_denham", "objective"): {"kind": "published", "source": "analytic, Bryson & Ho (1975): 4/(9 l)"},
+    ("double_integrator", "tf"): {"kind": "published", "source": "analytic (bang-bang, one switch)"},
+    ("minimal_double_integrator", "tf"): {"kind": "published", "source": "analytic (bang-bang, one switch)"},
+    ("mesh_double_integrator", "tf"): {"kind": "published", "source": "analytic (bang-bang, one switch)"},
+    ("two_phase_double_integrator", "brake.tf"): {"kind": "published", "source": "analytic"},
+    ("two_phase_double_integrator", "accelerate.tf"): {"kind": "published", "source": "analytic"},
+    ("goddard", "r(tf)"): {"kind": "published", "source": "control-toolbox indirect solution"},
+    ("mesh_goddard", "r(tf)"): {"kind": "published", "source": "control-toolbox indirect solution"},
+    **{(stem, q): {"kind": "published", "source": "exact bang-bang solution, Meditch (1964)"}
+       for stem in ("moon_landing", "mesh_moon_landing") for q in ("objective", "tf", "m(tf)")},
+    ("seed0_rendezvous", "tf"): {"kind": "paper", "source": "seed 0, §5.1 and Table 4 row [20, 0, 0] (GPM)"},
+    ("seed0_fine", "tf"): {"kind": "digest", "source": "seed 0 issue's band [25.868, 25.873] (finer mesh)"},
+    ("seed0_exact_euler", "tf"): {"kind": "digest", "source": "digest's re-implementation with the exact "
+                                  "Euler equation (seed_000.md §7.3); the paper prints 25.8727 for eq. (13)"},
+    ("seed1_10N_paper", "tf"): {"kind": "paper", "source": "seed 1, Table 5, present method (OCR-reconstructed)"},
+    ("seed1_5N_paper", "tf"): {"kind": "paper", "source": "seed 1, Table 6, 5 N"},
+    ("seed1_2N_paper", "tf"): {"kind": "paper", "source": "seed 1, Table 6, 2 N"},
+    ("seed1_10N_optimal", "time(tf)"): {"kind": "paper", "source": "seed 1, Table 5, indirect reference [36]",
+                                        "wrong": "tests/test_seed1_optimal.py::test_optimal_10N"},
+    ("seed1_5N_optimal", "time(tf)"): {"kind": "paper", "source": "seed 1, Table 6, 5 N (Fourier-DPSO)",
+                                       "wrong": "tests/test_seed1_optimal.py::test_optimal_5N_2N"},
+    ("seed1_2N_optimal", "time(tf)"): {"kind": "paper", "source": "seed 1, Table 6, 2 N (Fourier-DPSO)",
+                                       "wrong": "tests/test_seed1_optimal.py::test_optimal_5N_2N"},
+    ("seed2_strategy1", "m(tf)"): {"kind": "paper", "source": "seed 2, Table 2 row 1 (strategy 1)"},
+    ("seed2_strategy1", "tf"): {"kind": "computed", "source": "the time the printed mass implies, "
+                                "(M − 149.932)/ṁ (the printed 1036.458 s is inconsistent with it)"},
+    **{(stem, q): {"kind": "digest", "source": "digest's synthetic case (seed_004.md §5.3; the paper's "
+                   "Table 1 is lost)"}
+       for stem in ("seed4_case_A", "seed4_case_B", "seed4_two_burn_nlp") for q in ("n_solutions", "pareto_labels")},
+}
+
+#: Printed values a run folder is compared with beyond its expect block (the file's
+#: expect holds another reference): report folder -> rows ``{quantity, column, paper,
+#: source, tol | rtol, wrong}``, ``column`` a key of result.json (``tf``, ``objective``).
+PRINTED_EXTRA: dict[str, list[dict[str, Any]]] = {
+    "seed2_strategy1": [{"quantity": "tf", "column": "tf", "paper": 1036.458, "rtol": 5.0e-3,
+                         "source": "seed 2, Table 2 row 1 (strategy 1)",
+                         "wrong": "tests/test_lander.py::test_strategy1_printed_pair_is_inconsistent"}],
+}
+
 #: Paper numbers of study files, compared row by row with ``study.csv``: the study stem ->
-#: the quantity of ``study.csv`` compared and, per row (matched on its parameters), the
-#: paper value and the accepted band: ``tol`` (|ocdsl - paper| <= tol) or ``at_most``
-#: (ocdsl <= paper + tol: the problem is multi-modal and better optima exist).
+#: per row (matched on its parameters) the printed values of ``study.csv`` columns
+#: (``tf.<phase>``: that phase's entry of a per-phase ``tf``) and the accepted band per
+#: column: ``tol`` (|ocdsl - paper| <= tol), ``rtol`` (relative), ``at_most`` (ocdsl <=
+#: paper + tol: the problem is multi-modal and better optima exist). ``wrong``: the test
+#: that shows the printed value cannot be right.
+_T2 = "tests/test_lander.py::test_strategy1_printed_pair_is_inconsistent"
+_T3 = "tests/test_lander.py::test_strategy3_printed_descents_cannot_land"
 PAPER_TABLES: dict[str, dict[str, Any]] = {
     "seed0_table4": {
         "label": "Seed 0 Table 4 (GPM)",
-        "quantity": "tf",
         "match": ("x0", "y0", "z0"),
+        "columns": {"tf": {"label": "tf", "tol": 5.0e-4}},
         "rows": [
-            {"x0": 20, "y0": 0, "z0": 0, "paper": 25.8727, "tol": 5.0e-4},
-            {"x0": 20, "y0": 4, "z0": 0, "paper": 26.1674, "tol": 5.0e-4, "at_most": True},
-            {"x0": 20, "y0": 4, "z0": 4, "paper": 25.9360, "tol": 5.0e-4},
-            {"x0": 20, "y0": 4, "z0": -5, "paper": 25.6607, "tol": 5.0e-4},
-            {"x0": 25, "y0": -5, "z0": -5, "paper": 28.7185, "tol": 5.0e-4, "at_most": True},
+            {"x0": 20, "y0": 0, "z0": 0, "paper": {"tf": 25.8727}, "source": "Table 4"},
+            {"x0": 20, "y0": 4, "z0": 0, "paper": {"tf": 26.1674}, "at_most": True, "source": "Table 4",
+             "wrong": "tests/test_seed0_pipeline.py::test_table4_row"},
+            {"x0": 20, "y0": 4, "z0": 4, "paper": {"tf": 25.9360}, "source": "Table 4"},
+            {"x0": 20, "y0": 4, "z0": -5, "paper": {"tf": 25.6607}, "source": "Table 4"},
+            {"x0": 25, "y0": -5, "z0": -5, "paper": {"tf": 28.7185}, "at_most": True, "source": "Table 4",
+             "wrong": "tests/test_seed0_pipeline.py::test_table4_row"},
         ],
     },
+    "seed2_strategy2": {
+        "label": "seed2_strategy2",
+        "match": ("h_i",),
+        "columns": {"tf": {"label": "tf", "rtol": 5.0e-3}, "objective": {"label": "m(tf)", "tol": 0.1}},
+        "rows": [{"h_i": h, "paper": {"tf": t, "objective": m}, "source": "seed 2, Table 2",
+                  **({"wrong": _T2, "wrong_columns": ["tf"]} if h == 100 else {})}
+                 for h, t, m in ((100, 1036.458, 149.932), (50, 1012.252, 152.384), (25, 1001.326, 153.395),
+                                 (20, 999.288, 153.575), (15, 997.303, 153.747), (10, 995.371, 153.911),
+                                 (5, 993.586, 154.053))],
+    },
+    "seed2_strategy3": {
+        "label": "seed2_strategy3",
+        "match": ("h_v",),
+        "columns": {"tf.descent": {"label": "tf (braking + vertical descent)", "rtol": 5.0e-3},
+                    "objective": {"label": "m(tf)", "tol": 0.1}},
+        "rows": [{"h_v": h, "paper": {"tf.descent": round(tb + tv, 3), "objective": m},
+                  "source": "seed 2, Table 3 (braking + vertical-descent time)",
+                  **({"wrong": _T3} if h != 2 else {})}
+                 for h, tb, tv, m in ((5, 959.520, 83.436, 147.140), (4, 963.165, 72.497, 148.195),
+                                      (3, 967.450, 61.752, 149.130), (2, 974.204, 46.391, 150.376),
+                                      (1, 983.827, 27.584, 151.705))],
+    },
 }
+
+#: The index's verdicts of a row with a paper value, and of a row with another reference.
+REPRODUCED, SHOWN_WRONG, NOT_REPRODUCED = "reproduced", "paper value shown wrong", "not reproduced"
+AGREES, DIFFERS = "agrees", "differs"
 
 
 # ================================================================================ configs
@@ -188,7 +271,7 @@ def run_example(ex: Example, out_dir: Path, formats: Sequence[str], *, workers: 
         res = run_study(ex.path, out_dir, workers=workers, quiet=quiet)
         status = f"study {res.state}: {res.counts.get('ok', 0)} of {res.counts.get('points', 0)} ok"
         numbers = study_paper_numbers(out_dir, ex.stem)
-        ok = res.ok and all(n["passed"] for n in numbers)
+        ok = res.ok and all(n["verdict"] != NOT_REPRODUCED for n in numbers)
         files = make_comparison_report([out_dir], out_dir, formats, title=ex.name) if formats else []
     else:  # pragma: no cover
         raise ValueError(f"unknown example kind {ex.kind!r}")
@@ -263,12 +346,54 @@ def write_manifest(reports: Path, outcomes: Sequence[Outcome]) -> Path:
 
 
 # ================================================================================= index
+def _band(c: dict) -> float:
+    ref = c.get("reference")
+    try:
+        ref = abs(float(ref))
+    except (TypeError, ValueError):
+        return 0.0
+    return max((c.get("rtol") or 0.0) * ref, c.get("atol") or 0.0)
+
+
+def verdict_of(kind: str, passed: bool | None, compare: str, value: Any, reference: Any, band: float,
+               wrong: str | None) -> str:
+    """The index's verdict of one row (see :data:`REFERENCES`)."""
+    if kind != "paper":
+        return AGREES if passed else DIFFERS
+    beyond = False      # an at_most/at_least bound met with room to spare: a better optimum
+    try:
+        v, r = float(value), float(reference)
+        beyond = (compare == "at_most" and v < r - band) or (compare == "at_least" and v > r + band)
+    except (TypeError, ValueError):
+        pass
+    if wrong and value is not None and (not passed or beyond):     # no value: nothing shown
+        return SHOWN_WRONG
+    return REPRODUCED if passed else NOT_REPRODUCED
+
+
+def _row(study: str, quantity: str, ref: dict[str, str], reference: Any, value: Any, error: Any, passed: Any,
+         compare: str, tolerance: str, verification: str | None, link: Path, band: float = 0.0,
+         mode: str = "equal") -> dict[str, Any]:
+    kind = ref.get("kind", "other")
+    wrong = ref.get("wrong")
+    verdict = verdict_of(kind, passed, mode, value, reference, band, wrong)
+    return {"study": study, "quantity": quantity, "kind": kind, "source": ref.get("source", ""),
+            "paper": reference if kind == "paper" else None, "other": reference if kind != "paper" else None,
+            "ocdsl": value, "error": error, "passed": passed, "compare": compare, "tolerance": tolerance,
+            "verification": verification, "verdict": verdict, "test": wrong if verdict == SHOWN_WRONG else None,
+            "report_link": link}
+
+
 def expect_numbers(run_dir: Path, study: str, link: Path) -> list[dict[str, Any]]:
-    """Rows of the index for the ``expect`` checks of one run folder."""
+    """Rows of the index for the ``expect`` checks of one run folder (and its
+    :data:`PRINTED_EXTRA` values)."""
+    from ocdsl.report.tables import compare_text, tolerance_text
+
     try:
         data = json.loads((Path(run_dir) / "result.json").read_text())
     except (OSError, ValueError):
         return []
+    ver = (data.get("verification") or {}).get("status") if isinstance(data.get("verification"), dict) else None
     rows = []
     for c in data.get("expect") or []:
         paper, value = c.get("reference"), c.get("value")
@@ -276,14 +401,45 @@ def expect_numbers(run_dir: Path, study: str, link: Path) -> list[dict[str, Any]
             paper = ", ".join(map(str, paper))
         if isinstance(value, (list, tuple)):
             value = ", ".join(map(str, value))
-        rows.append({"study": study, "quantity": str(c.get("name", "")), "paper": paper, "ocdsl": value,
-                     "error": c.get("error"), "passed": c.get("passed"), "report_link": link})
+        name = str(c.get("name", ""))
+        ref = REFERENCES.get((study, name), {"kind": "other", "source": "the file's expect value"})
+        exact = not (c.get("rtol") or c.get("atol")) and (c.get("compare") or "equal") == "equal"
+        rows.append(_row(study, name, ref, paper, value, c.get("error"), c.get("passed"),
+                         "exact" if exact else compare_text(c), "—" if exact else tolerance_text(c), ver, link,
+                         _band(c), c.get("compare") or "equal"))
+    for extra in PRINTED_EXTRA.get(study, []):
+        value = data.get(extra["column"])
+        value = value if isinstance(value, (int, float)) else None
+        paper = float(extra["paper"])
+        band = extra.get("tol", 0.0) or extra.get("rtol", 0.0) * abs(paper)
+        err = None if value is None else abs(value - paper)
+        passed = err is not None and err <= band
+        tol = f"rtol {extra['rtol']:g}" if "rtol" in extra else f"atol {extra['tol']:g}"
+        rows.append(_row(study, extra["quantity"], {"kind": "paper", "source": extra["source"],
+                                                    "wrong": extra.get("wrong")},
+                         paper, value, err, passed, "|error| ≤ tol", tol, ver, link, band))
     return rows
+
+
+def _column(row: dict[str, Any], col: str) -> float | None:
+    """``col`` of a study row; ``tf.<phase>`` reads that phase's entry of a per-phase tf."""
+    from ocdsl.report.tables import finite_or_none
+
+    if "." in col:
+        base, key = col.split(".", 1)
+        v = row.get(base)
+        if isinstance(v, str):
+            try:
+                v = json.loads(v)
+            except ValueError:
+                return None
+        return finite_or_none(v.get(key)) if isinstance(v, dict) else None
+    return finite_or_none(row.get(col))
 
 
 def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> list[dict[str, Any]]:
     """Rows of the index for a study folder: its :data:`PAPER_TABLES` entry against
-    ``study.csv`` (a paper row without a study row counts as failed)."""
+    ``study.csv`` (a paper row without a study row counts as not reproduced)."""
     from ocdsl.report.build import read_study_table
     from ocdsl.report.tables import finite_or_none
 
@@ -291,23 +447,29 @@ def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> li
     if not spec:
         return []
     rows, _ = read_study_table(Path(folder))
-    q = spec["quantity"]
     out = []
     for ref in spec["rows"]:
         key = tuple(ref[k] for k in spec["match"])
         hit = next((r for r in rows if all(finite_or_none(r.get(k)) == float(v) for k, v in zip(spec["match"], key))), None)
-        value = finite_or_none(hit.get(q)) if hit and hit.get("status") in GOOD else None
-        paper, tol = float(ref["paper"]), float(ref.get("tol", 0.0))
-        if value is None:
-            err, passed = None, False
-        else:
-            err = value - paper
-            passed = err <= tol if ref.get("at_most") else abs(err) <= tol
         where = ", ".join(f"{k} = {v:g}" for k, v in zip(spec["match"], key))
-        out.append({"study": spec.get("label", stem),
-                    "quantity": f"{q} at {where}" + (" (at most)" if ref.get("at_most") else ""),
-                    "paper": paper, "ocdsl": value, "error": err, "passed": passed,
-                    "report_link": link or Path(folder) / "report.html"})
+        ver = str(hit.get("verification")) if hit and hit.get("verification") not in (None, "") else None
+        for col, printed in ref["paper"].items():
+            cs = spec["columns"][col]
+            value = _column(hit, col) if hit and hit.get("status") in GOOD else None
+            paper = float(printed)
+            tol = cs.get("tol", 0.0) or cs.get("rtol", 0.0) * abs(paper)
+            if value is None:
+                err, passed = None, False
+            else:
+                err = value - paper
+                passed = err <= tol if ref.get("at_most") else abs(err) <= tol
+            wrong = ref.get("wrong") if col in ref.get("wrong_columns", [col]) else None
+            out.append(_row(spec.get("label", stem), f"{cs['label']} at {where}",
+                            {"kind": "paper", "source": ref.get("source", ""), "wrong": wrong},
+                            paper, value, None if err is None else abs(err), passed,
+                            "ocdsl ≤ ref + tol" if ref.get("at_most") else "|error| ≤ tol",
+                            f"rtol {cs['rtol']:g}" if "rtol" in cs else f"atol {cs.get('tol', 0):g}", ver,
+                            link or Path(folder) / "report.html", tol, "at_most" if ref.get("at_most") else "equal"))
     return out
 
 
@@ -328,7 +490,7 @@ def paper_numbers(reports: Path) -> list[dict[str, Any]]:
         elif (d / "study.csv").is_file() or (d / "study.json").is_file():
             out += study_paper_numbers(d, d.name, link)
             points = d / "points"
-            if points.is_dir():
+            if points.is_dir() and d.name not in PAPER_TABLES:   # else the table's rows stand for them
                 for p in sorted(points.iterdir()):
                     if (p / "result.json").is_file():
                         out += expect_numbers(p, f"{d.name}/{p.name}", link)
