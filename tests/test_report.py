@@ -204,10 +204,15 @@ def embedded_images(html: str) -> list[np.ndarray]:
     return [mpimg.imread(io.BytesIO(base64.b64decode(b)), format="png") for b in _IMG.findall(html)]
 
 
-def figure_images(html: str) -> list[np.ndarray]:
-    import matplotlib.image as mpimg
-    blocks = re.findall(r'<figure[^>]*>\s*<img src="data:image/png;base64,([^"]+)"', html)
-    return [mpimg.imread(io.BytesIO(base64.b64decode(b)), format="png") for b in blocks]
+def figure_images(html: str) -> list[bytes]:
+    """The figures' embedded SVG documents (figures are vector graphics)."""
+    blocks = re.findall(r'<figure[^>]*>\s*<img src="data:image/svg\+xml;base64,([^"]+)"', html)
+    return [base64.b64decode(b) for b in blocks]
+
+
+def svg_size(svg: bytes) -> tuple[float, float]:
+    m = re.search(rb'<svg[^>]*width="([\d.]+)pt" height="([\d.]+)pt"', svg)
+    return float(m.group(1)), float(m.group(2))
 
 
 def assert_self_contained(html: str) -> None:
@@ -218,7 +223,9 @@ def assert_self_contained(html: str) -> None:
     assert not re.search(r"url\((?!data:)", html)
 
 
-def not_blank(img: np.ndarray, min_std: float = 0.02) -> bool:
+def not_blank(img, min_std: float = 0.02) -> bool:
+    if isinstance(img, bytes):      # an SVG figure: axes and drawn paths
+        return img.count(b"<path") >= 20 and b'id="axes_1"' in img
     gray = img[..., :3].mean(axis=-1) if img.ndim == 3 else img
     return float(gray.std()) > min_std and float((gray < 0.9).mean()) > 0.002
 
@@ -379,12 +386,12 @@ def test_html_renders_in_chromium(solved_report, tmp_path):
     assert blue > 2000 and red > 300, (blue, red)    # the curves themselves
     # the figures are laid out one below the other at their full size: the inked band is
     # as tall as the embedded images (a broken image would collapse to an icon)
-    sizes = re.findall(r'<figure[^>]*>\s*<img src="data:image/png;base64,([^"]+)"[^>]*style="width: ([\d.]+)cm"', html)
-    import matplotlib.image as mpimg
+    sizes = re.findall(r'<figure[^>]*>\s*<img src="data:image/svg\+xml;base64,([^"]+)"[^>]*style="width: ([\d.]+)cm"',
+                       html)
     expected = 0.0
     for b64, width_cm in sizes:
-        img = mpimg.imread(io.BytesIO(base64.b64decode(b64)), format="png")
-        expected += float(width_cm) / 2.54 * 96 * img.shape[0] / img.shape[1]
+        w, h = svg_size(base64.b64decode(b64))
+        expected += float(width_cm) / 2.54 * 96 * h / w
     rows_with_ink = np.flatnonzero((rgb.mean(axis=-1) < 0.85).any(axis=1))
     assert len(sizes) >= 9 and rows_with_ink[0] < 60
     assert 0.9 * expected < rows_with_ink[-1] - rows_with_ink[0] < 1.05 * expected, (rows_with_ink[-1], expected)
@@ -408,7 +415,10 @@ def test_pdf_pages(solved_report, tmp_path):
     assert pages >= 3 and page_numbers == list(range(1, pages + 1)), page_numbers   # page numbers
     lst = subprocess.run([PDFIMAGES, "-list", str(pdf)], capture_output=True, text=True).stdout
     n_img = len(lst.strip().splitlines()) - 2
-    assert n_img >= n_fig + 10, lst                           # figures + equations embedded
+    widths = [int(line.split()[3]) for line in lst.strip().splitlines()[2:]]
+    # the equations are small images; the figures are vector graphics (a raster figure
+    # would be a 960-pixel-wide image)
+    assert n_img >= 10 and max(widths) < 600, lst
     subprocess.run([PDFTOPPM, "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
     pngs = sorted(tmp_path.glob("page*.png"))
     assert len(pngs) == pages
@@ -485,3 +495,21 @@ def test_pareto_criteria_fall_back_to_the_first_numeric_columns():
     assert _criteria(rows, {}) == ("fuel", "time")
     assert _criteria(rows, {"pareto": {"criteria": ["time", "fuel"]}}) == ("time", "fuel")
     assert _criteria(rows[:1], {}) == ("fuel", "time") and _criteria([], {}) is None
+
+
+def test_figures_are_vector_files_written_0644(runs, solved_report):
+    """Each figure is embedded as SVG and also saved as SVG and PDF beside the report, and
+    the report's files are written 0644 (the umask's mode, not mkstemp's 0600)."""
+    import os
+    html = solved_report[0].read_text()
+    files = re.findall(r'<span class="ffile">\((figures/[^ ]+)\.svg, \.pdf\)</span>', html)
+    assert files and len(files) == len(figure_images(html))
+    for name in files:
+        svg, pdf = runs["solved"] / f"{name}.svg", runs["solved"] / f"{name}.pdf"
+        assert svg.read_bytes().lstrip().startswith((b"<?xml", b"<svg")) and pdf.read_bytes()[:5] == b"%PDF-"
+    old = os.umask(0o022)
+    try:
+        for p in make_report(runs["solved"], formats=("html",)) + [runs["solved"] / f"{files[0]}.svg"]:
+            assert p.stat().st_mode & 0o777 == 0o644, (p, oct(p.stat().st_mode))
+    finally:
+        os.umask(old)

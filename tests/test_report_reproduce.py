@@ -88,7 +88,7 @@ def test_run_folders_and_reports(repro):
         assert ".new" not in html
         assert (d / "report.pdf").read_bytes()[:5] == b"%PDF-"
     html = (out / "double_integrator" / "report.html").read_text()
-    assert len(re.findall(r'<img[^>]+src="data:image/png;base64,', html)) >= 6
+    assert len(re.findall(r'<img[^>]+src="data:image/svg\+xml;base64,', html)) >= 6
     # the Hamiltonian and the re-integration, computed from problem.yaml for the report
     assert "Hamiltonian H along the solution" in html and "Re-integrated trajectory" in html
     manifest = json.loads((out / "reproduce.json").read_text())
@@ -139,7 +139,7 @@ def test_failed_run_report_shows_diagnosis(repro, stem, status, words):
     # the diagnosis comes before the problem, the last iterate is still drawn and flagged
     assert html.index('class="diagnosis"') < html.index('id="problem"')
     assert "last iterate" in html
-    assert len(re.findall(r'src="data:image/png;base64,', html)) >= 3
+    assert len(re.findall(r'src="data:image/svg\+xml;base64,', html)) >= 3
     if PDFTOTEXT:
         text = subprocess.run([PDFTOTEXT, "-layout", str(d / "report.pdf"), "-"], capture_output=True,
                               text=True, check=True).stdout

@@ -67,6 +67,7 @@ class Doc:
         self.sections: list[dict] = []
         self.n_tables = self.n_figures = self.n_equations = 0
         self.warnings: list[str] = []
+        self.files: dict[str, bytes] = {}     # figures/<key>.svg|pdf, written beside the report
 
     def section(self, sid: str, title: str) -> list[dict]:
         self.sections.append({"id": sid, "title": title, "blocks": []})
@@ -81,11 +82,16 @@ class Doc:
         for f in figs:
             try:
                 width_cm = f.figure.get_figwidth() * 2.54
-                src = F.to_png_data_uri(f.figure)
+                svg, pdf = F.to_svg(f.figure), F.to_pdf(f.figure)
             finally:
                 f.figure.clear()
             self.n_figures += 1
-            blocks.append({"type": "figure", "number": self.n_figures, "src": src,
+            name = f"figures/{re.sub(r'[^A-Za-z0-9_.-]+', '_', f.key)}"
+            while f"{name}.svg" in self.files:
+                name += "_"
+            self.files[f"{name}.svg"], self.files[f"{name}.pdf"] = svg, pdf
+            blocks.append({"type": "figure", "number": self.n_figures, "file": name,
+                           "src": "data:image/svg+xml;base64," + base64.b64encode(svg).decode("ascii"),
                            "caption": f.caption, "width_cm": min(width_cm, 16.5)})
 
     def equations(self, blocks: list[dict], title: str | None, items: list[tuple[str, str, str]]) -> None:
@@ -339,7 +345,6 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
     doc.table(b, doc.guard("certificate table", lambda: T.certificate_table(res.certificate)))
     doc.table(b, doc.guard("switch table", lambda: T.switch_table(res.certificate)))
     doc.table(b, doc.guard("multi-start table", lambda: T.starts_table(res)))
-    doc.table(b, doc.guard("back-end table", lambda: T.extra_table(res)))
     hist = (res.extra or {}).get("ipopt_history")
     if hist:
         doc.guard("solver history", lambda: doc.figures(b, F.fig_solver_history(hist)))
@@ -378,23 +383,29 @@ def _tables_sections(doc: Doc, res: Result) -> None:
     cl = F.closed_loop_tables(res.tables)
     if cl:
         b = doc.section("closed-loop", "Closed-loop simulation")
-        doc.table(b, doc.guard("closed-loop table", lambda: T.closed_loop_table(res.tables, res.problem)))
+        doc.table(b, doc.guard("controller table", lambda: T.controller_table(res)))
+        doc.table(b, doc.guard("closed-loop table", lambda: T.closed_loop_table(res.tables, res.problem, res.extra)))
         doc.guard("closed-loop figures", lambda: doc.figures(b, F.fig_closed_loop(res.tables, res.problem)))
     mh = doc.guard("mesh history", lambda: _mesh_table(res))
     if mh:
         b = doc.section("mesh", "Mesh refinement")
         doc.table(b, doc.guard("mesh table", lambda: T.column_table(
-            "mesh_history", "Mesh refinement history.", mh, max_rows=30)))
-        doc.guard("mesh figure", lambda: doc.figures(b, F.fig_mesh_history(mh)))
+            "mesh_history", "Mesh refinement history.", mh, max_rows=30, drop_constant=True)))
+        hist = (res.extra or {}).get("mesh_history")
+        tol = T.finite_or_none(((res.method or {}).get("mesh") or {}).get("tolerance")
+                               if isinstance((res.method or {}).get("mesh"), dict) else None)
+        doc.guard("mesh figure", lambda: doc.figures(b, F.fig_mesh_history(
+            mh, hist if isinstance(hist, list) else None, res.tables.get("mesh_error"), tol)))
     for name, tab in sorted(res.tables.items()):
         if name.startswith("pareto") or "pareto" in tab:
             b = doc.section(f"tab-{name}", f"Pareto set ({name})")
             rows = _rows_of(tab)
-            crit = _criteria(rows, {})
+            crit = _criteria(rows, {"objectives": (res.extra or {}).get("objectives")})
             doc.table(b, doc.guard(f"table {name}", lambda: T.column_table(name, f"Solutions ({name}).", tab)))
             if crit:
                 doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, res.problem.get("units"))))
-    other = [n for n in sorted(res.tables) if n != "mesh_history" and not n.startswith(("closed_loop_", "reintegration"))
+    other = [n for n in sorted(res.tables) if n not in ("mesh_history", "mesh_error")
+             and not n.startswith(("closed_loop_", "reintegration"))
              and not (n.startswith("pareto") or "pareto" in res.tables[n])]
     if other:
         b = doc.section("tables", "Other tables in the run folder")
@@ -519,7 +530,8 @@ def write_pdf(html: str, pdf: Path, engine: str = "auto") -> str:
                       "or Debian's chromium, or ask for formats=('html',).")
 
 
-def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str, stem: str = "report") -> list[Path]:
+def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str, stem: str = "report",
+                   files: dict[str, bytes] | None = None) -> list[Path]:
     formats = tuple(formats)
     bad = [f for f in formats if f not in FORMATS]
     if bad:
@@ -527,6 +539,15 @@ def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str
     written: dict[str, Path] = {}
     _output_folder(out_dir, [f"{stem}.{f}" for f in formats])
     run_folder.claim(out_dir, [f"{stem}.{f}" for f in formats])
+    if files:       # each figure as SVG and PDF, for reuse in a paper
+        run_folder.claim(out_dir, ["figures"])
+        old = out_dir / "figures"
+        if old.is_dir():
+            for f in old.iterdir():
+                if f.suffix in (".svg", ".pdf") and f"figures/{f.name}" not in files:
+                    f.unlink()
+        for name, data in files.items():
+            _atomic_write(out_dir / name, data)
     if "html" in formats:
         written["html"] = out_dir / f"{stem}.html"
         _atomic_write(written["html"], html)
@@ -539,6 +560,10 @@ def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str
 # ============================================================================ public API
 def build_run_html(run_dir: str | os.PathLike) -> str:
     """The HTML of one run folder's report (what :func:`make_report` writes)."""
+    return _build_run(Path(run_dir))[0]
+
+
+def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
     run_dir = Path(run_dir)
     if not _is_run(run_dir):
         raise ReportError(f"{run_dir}: not a run folder (no result.json)")
@@ -553,6 +578,9 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
         _problem_section(doc, res)
     _figures_section(doc, res)
     _tables_sections(doc, res)
+    extra = doc.guard("back-end table", lambda: T.extra_table(res))
+    if extra:
+        doc.table(doc.section("appendix", "Appendix: back-end details"), extra)
     prob = res.problem or {}
     title = prob.get("name") or res.name
     meta = [("run", run_dir.name)]
@@ -561,7 +589,7 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
     if res.method.get("name") or res.method.get("method"):
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
     return _render(doc, title, prob.get("description", "") if not prob.get("phases") else "", meta,
-                   S.badges(res))
+                   S.badges(res)), doc.files
 
 
 def has_hamiltonian(p) -> bool:
@@ -616,11 +644,15 @@ def make_report(run_dir: str | os.PathLike, formats: Sequence[str] = ("html", "p
     engine is available (the HTML is written first).
     """
     run_dir = Path(run_dir)
-    html = build_run_html(run_dir)
-    return _write_outputs(html, Path(out_dir) if out_dir else run_dir, formats, engine)
+    html, files = _build_run(run_dir)
+    return _write_outputs(html, Path(out_dir) if out_dir else run_dir, formats, engine, files=files)
 
 
 def build_comparison_html(run_dirs: Sequence[str | os.PathLike], title: str | None = None) -> str:
+    return _build_comparison(run_dirs, title)[0]
+
+
+def _build_comparison(run_dirs: Sequence[str | os.PathLike], title: str | None = None) -> tuple[str, dict[str, bytes]]:
     entries: list[tuple[str, Path]] = []       # (label, run folder)
     studies: list[tuple[Path, list[dict], dict]] = []
     for d in [Path(x) for x in ([run_dirs] if isinstance(run_dirs, (str, os.PathLike)) else run_dirs)]:
@@ -684,7 +716,7 @@ def build_comparison_html(run_dirs: Sequence[str | os.PathLike], title: str | No
             title = f"Study {studies[0][0].name}"
         else:
             title = "Comparison of " + ", ".join(inputs[:5]) + (f" and {len(inputs) - 5} more" if len(inputs) > 5 else "")
-    return _render(doc, title, "", [("runs", str(len(results)))], study_badges(results))
+    return _render(doc, title, "", [("runs", str(len(results)))], study_badges(results)), doc.files
 
 
 def study_badges(results: Sequence[Result]) -> list[S.Badge]:
@@ -713,17 +745,92 @@ def _append(doc: Doc, sub: Doc, title: str) -> None:
     _renumber(doc)
 
 
+def swept_parameters(meta: dict) -> tuple[list[str], str]:
+    """The parameters a study sweeps, from ``study.json``'s spec (``sweep: {grid | zip |
+    list | random ...: {name: ...}}``), and how: ``zip`` moves its parameters together (a
+    one-dimensional sweep along the first). Empty when the spec names none."""
+    spec = meta.get("spec")
+    if isinstance(spec, str):
+        return [], ""
+    sweep = (spec or {}).get("sweep") if isinstance(spec, dict) else None
+    if not isinstance(sweep, dict):
+        return [], ""
+    for how, body in sweep.items():
+        if isinstance(body, dict) and body:
+            return [str(k) for k in body], str(how)
+    return [], ""
+
+
+#: study.csv columns that are bookkeeping, not results: left out of the study table
+STUDY_BOOKKEEPING = ("sweep", "host", "warm_start", "seed", "message", "worker", "client_host")
+
+
+def study_columns(rows: list[dict], swept: Sequence[str]) -> dict[str, list]:
+    """study.csv as columns for reading: the swept parameters first, a per-phase ``tf``
+    (a JSON object per row) as one column per phase, bookkeeping columns and empty ones
+    left out (messages go to notes for the rows that failed)."""
+    if not rows:
+        return {}
+    names = [k for k in rows[0] if k not in STUDY_BOOKKEEPING]
+    order = [k for k in swept if k in names] + [k for k in names if k not in swept]
+    cols: dict[str, list] = {}
+    for k in order:
+        vals = [r.get(k) for r in rows]
+        parsed = [_json_obj(v) for v in vals]
+        if any(isinstance(v, dict) for v in parsed):
+            keys: list[str] = []
+            for v in parsed:
+                keys += [x for x in (v or {}) if x not in keys]
+            for x in keys:
+                cols[f"{k} ({x})"] = [(v or {}).get(x) for v in parsed]
+        elif any(v not in (None, "") for v in vals):
+            cols[k] = vals
+    return cols
+
+
+def _json_obj(v: Any) -> Any:
+    if isinstance(v, dict):
+        return v
+    if isinstance(v, str) and v.startswith("{"):
+        try:
+            return json.loads(v)
+        except ValueError:
+            return None
+    return None
+
+
+def _study_meta_rows(folder: Path, meta: dict) -> list[list[dict]]:
+    """The study definition without machine details: file names, not paths; no host names."""
+    rows = []
+    for k, v in meta.items():
+        if k in ("points", "best", "columns", "client_host", "host", "spec") or isinstance(v, list) and len(v) > 8:
+            continue
+        if k.endswith("_file") and isinstance(v, str):
+            v = Path(v).name
+        if isinstance(v, dict):
+            v = ", ".join(f"{a} {T.fmt(b)}" for a, b in v.items())
+        rows.append([T.cell(k.replace("_", " "), "name"), T.cell(v)])
+    swept, how = swept_parameters(meta)
+    if swept:
+        rows.append([T.cell("swept", "name"), T.cell(f"{', '.join(swept)} ({how})")])
+    return rows
+
+
 def _study_section(doc: Doc, folder: Path, rows: list[dict], meta: dict, results: list[Result]) -> None:
-    b = doc.section(f"study-{folder.name}", f"Study {folder.name}")
-    scalars = {k: v for k, v in meta.items() if not isinstance(v, (list, dict)) or
-               (isinstance(v, list) and len(v) <= 8 and not any(isinstance(x, dict) for x in v))}
-    if scalars:
-        doc.table(b, T.table("study-meta", "Study definition (study.json).", ["item", "value"],
-                             [[T.cell(k, "name"), T.cell(v)] for k, v in scalars.items()]))
+    b = doc.section(f"study-{folder.name}", f"Study {meta.get('name') or folder.name}")
+    mrows = _study_meta_rows(folder, meta)
+    if mrows:
+        doc.table(b, T.table("study-meta", "Study definition (study.json).", ["item", "value"], mrows))
+    swept, how = swept_parameters(meta)
     if rows:
-        cols = {k: [r.get(k) for r in rows] for k in rows[0]}
+        cols = study_columns(rows, swept)
         doc.table(b, doc.guard("study table", lambda: T.column_table(
-            f"study-{folder.name}", f"Study table (study.csv), one row per point.", cols, max_rows=60)))
+            f"study-{folder.name}", "Study table (study.csv), one row per point; the solver's message "
+            "is given below for the points that did not converge.", cols, max_rows=60, drop_constant=True)))
+        for r in rows:
+            if str(r.get("status")) not in GOOD and r.get("message"):
+                b.append({"type": "note", "text": f"{r.get('id', '?')} ({r.get('status')}): "
+                                                  f"{str(r['message']).splitlines()[0][:300]}"})
         if any("pareto" in r for r in rows):
             crit = _criteria(rows, meta)
             if crit:
@@ -732,15 +839,23 @@ def _study_section(doc: Doc, folder: Path, rows: list[dict], meta: dict, results
             else:
                 b.append({"type": "note", "text": "The study has Pareto flags but its two criteria could "
                                                   "not be identified (name them in study.json: criteria)."})
-        varying = [k for k in rows[0] if k not in STUDY_OUTPUT_COLS
-                   and all(isinstance(r.get(k), (int, float)) for r in rows)
-                   and len({r.get(k) for r in rows}) > 1]
-        outputs = [o for o in ("objective", "tf", "t_f", "iterations") if o in rows[0]]
+            return
         units = next((r.problem.get("units") for r in results if r.problem), {})
-        if len(varying) == 1 and "pareto" not in rows[0]:
-            doc.guard("sweep figure", lambda: doc.figures(b, F.fig_sweep(rows, varying[0], outputs[:3], units)))
-        elif len(rows) >= 8 and "pareto" not in rows[0]:
-            doc.guard("histograms", lambda: doc.figures(b, F.fig_histograms(rows, outputs[:2])))
+        maximize = next((((r.problem or {}).get("objective") or {}).get("sense") == "maximize"
+                         for r in results if r.problem), False)
+        outputs = [c for c in cols if c == "objective" or c == "tf" or c.startswith("tf (")]
+        one_d = bool(swept) and (len(swept) == 1 or how == "zip")
+        if not swept:   # no declared sweep: a single varying input column is one
+            varying = [k for k in cols if k not in STUDY_OUTPUT_COLS and k not in outputs
+                       and all(isinstance(r.get(k), (int, float)) for r in rows) and len({r.get(k) for r in rows}) > 1]
+            if len(varying) == 1:
+                swept, one_d = varying, True
+        if one_d:
+            doc.guard("sweep figure", lambda: doc.figures(b, F.fig_sweep(
+                [dict(zip(cols, vals)) for vals in zip(*cols.values())], swept[0], outputs, units,
+                objective_label="objective (maximize)" if maximize else "objective")))
+        elif len(rows) >= 8:
+            doc.guard("histograms", lambda: doc.figures(b, F.fig_histograms(rows, [o for o in outputs if o in rows[0]][:2])))
 
 
 def make_comparison_report(run_dirs: Sequence[str | os.PathLike] | str | os.PathLike,
@@ -755,8 +870,8 @@ def make_comparison_report(run_dirs: Sequence[str | os.PathLike] | str | os.Path
     when the study has one), a per-run comparison table, every run's expect checks, states
     and controls of all runs overlaid, closed-loop comparisons, and the common problem.
     """
-    html = build_comparison_html(run_dirs, title)
-    return _write_outputs(html, Path(out_dir), formats, engine)
+    html, files = _build_comparison(run_dirs, title)
+    return _write_outputs(html, Path(out_dir), formats, engine, files=files)
 
 
 def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.PathLike,

@@ -103,6 +103,24 @@ def time_label(units: dict[str, str] | None) -> str:
     return axis_label("t", units)
 
 
+def to_svg(fig: Figure) -> bytes:
+    """The figure as SVG (vector; text as paths, so it looks the same everywhere)."""
+    import matplotlib
+    buf = io.BytesIO()
+    FigureCanvasAgg(fig)
+    with matplotlib.rc_context({"svg.hashsalt": "ocdsl", "svg.fonttype": "path"}):
+        fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None})
+    return buf.getvalue()
+
+
+def to_pdf(fig: Figure) -> bytes:
+    """The figure as a one-page vector PDF, for a paper."""
+    buf = io.BytesIO()
+    FigureCanvasAgg(fig)
+    fig.savefig(buf, format="pdf", metadata={"CreationDate": None, "Creator": None, "Producer": None})
+    return buf.getvalue()
+
+
 PALETTE_COLORS = 128   # figures are line art: an adaptive palette keeps them sharp at ~1/2.5 the size
 
 
@@ -368,18 +386,19 @@ def fig_hamiltonian(res: Result) -> list[Fig]:
     series = [(p.name if multi else "solution", phase_time(res, p), ham(p)) for p in res.phases
               if ham(p) is not None]
     if series:
-        hfigs = _grid_figures("hamiltonian", "Hamiltonian H along the solution "
-                              "(constant for an autonomous problem, −1 for minimum time with free t_f).",
-                              [("H", series)], _time_units(res), tex={"H": "H"}, boundaries=_phase_boundaries(res))
         expected = _expected_hamiltonian(res.certificate)
+        if expected is not None:
+            expected = expected + 0.0          # -0.0 -> 0.0: the legend says what the caption says
+        what = (f"the certificate expects H = {expected:g} (dashed)" if expected is not None else
+                "constant where the problem is autonomous")
+        hfigs = _grid_figures("hamiltonian", f"Hamiltonian H along the solution: {what}.",
+                              [("H", series)], _time_units(res), tex={"H": "H"}, boundaries=_phase_boundaries(res))
         if expected is not None and hfigs and hfigs[0].figure.axes:
             ax = hfigs[0].figure.axes[0]
-            ax.axhline(expected, color="#c0392b", linestyle="--", linewidth=0.9,
-                       label=f"expected ({expected:g}, certificate)")
+            ax.axhline(expected, color="#c0392b", linestyle="--", linewidth=0.9, label=f"expected H = {expected:g}")
             lo, hi = ax.get_ylim()
             ax.set_ylim(min(lo, expected - 0.05 * (hi - lo)), max(hi, expected + 0.05 * (hi - lo)))
             ax.legend(fontsize=7, loc="best", frameon=False)
-            hfigs[0].caption += " Dashed: the value the optimality certificate expects."
         out += hfigs
     grads: list[tuple[str, Series]] = []
     names: list[str] = []
@@ -531,7 +550,8 @@ def fig_positions(res: Result) -> list[Fig]:
 
 
 @_styled
-def fig_mesh_history(table: dict[str, np.ndarray]) -> list[Fig]:
+def fig_mesh_history(table: dict[str, np.ndarray], history: list | None = None,
+                     error_table: dict[str, np.ndarray] | None = None, tolerance: float | None = None) -> list[Fig]:
     """Mesh refinement history: error and mesh size per iteration, and, when the table has
     one row per segment (``t`` column), error per segment against time and the mesh per
     iteration."""
@@ -569,19 +589,92 @@ def fig_mesh_history(table: dict[str, np.ndarray]) -> list[Fig]:
         out.append(Fig("mesh-segments", "Mesh refinement: error per segment against time (left) "
                        "and the mesh points of every iteration (right).", fig))
         return out
-    if not cols:
+    # one row per iteration: the error first, then what changes; constants and bookkeeping
+    # (phase index, where the error sat) are left out
+    keep = [k for k in MESH_PANELS if k in cols] + [k for k in cols if k not in MESH_PANELS
+                                                   and k not in MESH_BOOKKEEPING]
+    keep = [k for k in keep if len(np.unique(np.asarray(table[k], float)[np.isfinite(np.asarray(table[k], float))])) > 1
+            or k == "max_error"]
+    if not keep:
         return []
-    fig, axes = _new_figure(min(len(cols), MAX_PANELS))
-    for ax, k in zip(axes, cols):
+    fig, axes = _new_figure(len(keep), ncols=2 if len(keep) > 1 else 1)
+    for ax, k in zip(axes, keep):
         y = np.asarray(table[k], float)
         ax.plot(it, y, marker="o", markersize=3)
         pos = y[np.isfinite(y)]
-        if pos.size and np.all(pos > 0) and pos.max() / pos.min() > 100:
-            ax.set_yscale("log")
+        if k == "max_error" or (pos.size and np.all(pos > 0) and pos.max() / pos.min() > 100):
+            if pos.size and np.all(pos > 0):
+                ax.set_yscale("log")
+        if k == "max_error" and tolerance is not None:
+            ax.axhline(tolerance, color="#c0392b", linestyle="--", linewidth=0.9, label=f"tolerance {tolerance:g}")
+            ax.legend(fontsize=7, frameon=False)
         ax.set_xlabel("mesh iteration")
-        ax.set_ylabel(k.replace("_", " "))
-    out.append(Fig("mesh-history", "Mesh refinement history, one point per mesh iteration.", fig))
+        ax.set_ylabel(MESH_LABELS.get(k, k.replace("_", " ")))
+        ax.xaxis.get_major_locator().set_params(integer=True)
+    out.append(Fig("mesh-history", "Mesh refinement history, one point per mesh iteration"
+                   + (" (dashed: the tolerance)." if tolerance is not None else "."), fig))
+    out += _mesh_points(history or [])
+    if error_table:
+        out += _mesh_error(error_table)
     return out
+
+
+MESH_PANELS = ("max_error", "segments", "nodes", "nlp_variables", "ipopt_iterations", "objective", "time_s")
+MESH_BOOKKEEPING = ("phase", "max_error_segment", "max_error_t", "nlp_constraints")
+MESH_LABELS = {"max_error": "largest estimated error", "segments": "segments", "nlp_variables": "NLP variables",
+               "ipopt_iterations": "Ipopt iterations", "time_s": "solve time [s]", "min_degree": "smallest degree",
+               "max_degree": "largest degree"}
+
+
+def _mesh_points(history: list[dict]) -> list[Fig]:
+    """The breakpoints of every iteration's mesh (``extra.mesh_history[].meshes``), one row
+    per iteration, in the phase's normalised time."""
+    rows = [(int(h.get("iteration", i + 1)), (h.get("meshes") or {})) for i, h in enumerate(history)
+            if isinstance(h, dict) and isinstance(h.get("meshes"), dict)]
+    if not rows:
+        return []
+    phases: list[str] = []
+    for _, m in rows:
+        phases += [p for p in m if p not in phases]
+    fig, axes = _new_figure(len(phases[:MAX_PANELS]), ncols=1, height=0.6 + min(2.6, 0.28 * len(rows) + 0.8)
+                            * len(phases[:MAX_PANELS]))
+    for ax, ph in zip(axes, phases):
+        for k, m in rows:
+            bp = np.asarray((m.get(ph) or {}).get("breakpoints") or [], float)
+            if bp.size:
+                ax.plot(bp, np.full(bp.size, k), "|", color="#1f4e9c", markersize=9, markeredgewidth=1.1)
+                ax.annotate(f"{bp.size - 1} seg.", (1.01, k), xycoords=("axes fraction", "data"), fontsize=6.5,
+                            va="center")
+        ax.set_ylim(max(k for k, _ in rows) + 0.6, min(k for k, _ in rows) - 0.6)
+        ax.set_xlim(-0.02, 1.02)
+        ax.yaxis.get_major_locator().set_params(integer=True)
+        ax.set_ylabel("mesh iteration")
+        ax.set_xlabel("normalised time $(t - t_0)/(t_f - t_0)$" + (f", phase {ph}" if len(phases) > 1 else ""))
+        ax.grid(False, axis="y")
+    return [Fig("mesh-points", "Mesh breakpoints of every refinement iteration (one row per iteration, "
+                "first at the top): where the refinement placed its segments.", fig)]
+
+
+def _mesh_error(table: dict[str, np.ndarray]) -> list[Fig]:
+    """The final mesh's estimated error per segment (``tables/mesh_error.csv``) against time."""
+    if not all(k in table for k in ("t_start", "t_end", "error")):
+        return []
+    t0, t1 = np.asarray(table["t_start"], float), np.asarray(table["t_end"], float)
+    e = np.asarray(table["error"], float)
+    ph = np.asarray(table.get("phase", np.zeros_like(e)), float)
+    fig, axes = _new_figure(1, height=2.4)
+    ax = axes[0]
+    for k, c in zip(np.unique(ph), _phase_colors(len(np.unique(ph)))):
+        m = ph == k
+        for a, b, y in zip(t0[m], t1[m], e[m]):
+            if y > 0 and np.isfinite(y):
+                ax.plot([a, b], [y, y], color=c, linewidth=1.6)
+    pos = e[np.isfinite(e) & (e > 0)]
+    if pos.size:
+        ax.set_yscale("log")
+    ax.set_xlabel("$t$")
+    ax.set_ylabel("estimated error")
+    return [Fig("mesh-error", "Estimated error of each segment of the final mesh (one bar per segment).", fig)]
 
 
 # ------------------------------------------------------------------- closed loop
@@ -692,27 +785,33 @@ def _truthy(v: Any) -> bool:
 
 
 @_styled
-def fig_sweep(rows: list[dict[str, Any]], param: str, outputs: Sequence[str], units: dict | None = None) -> list[Fig]:
-    """Outputs (objective, t_f, ...) against one swept parameter; failed points marked x."""
+def fig_sweep(rows: list[dict[str, Any]], param: str, outputs: Sequence[str], units: dict | None = None,
+              objective_label: str = "objective") -> list[Fig]:
+    """Outputs (objective, t_f per phase) against the swept parameter; points that did not
+    converge marked x."""
     outputs = [o for o in outputs if any(finite_or_none(r.get(o)) is not None for r in rows)]
     if not outputs:
         return []
+    units = units or {}
     fig, axes = _new_figure(len(outputs))
+    good = ("optimal", "acceptable", "feasible", "stable")
     for ax, o in zip(axes, outputs):
-        ok = [(float(r[param]), float(r[o])) for r in rows
-              if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None
-              and str(r.get("status", "optimal")) in ("optimal", "feasible", "stable")]
-        bad = [(float(r[param]), float(r[o])) for r in rows
-               if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None
-               and str(r.get("status", "optimal")) not in ("optimal", "feasible", "stable")]
-        ok.sort()
+        pts = [(float(r[param]), float(r[o]), str(r.get("status", "optimal")) in good) for r in rows
+               if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None]
+        ok = sorted((x, y) for x, y, g in pts if g)
+        bad = [(x, y) for x, y, g in pts if not g]
         if ok:
             ax.plot([p[0] for p in ok], [p[1] for p in ok], marker="o", markersize=3, label="converged")
         if bad:
             ax.plot([p[0] for p in bad], [p[1] for p in bad], "x", color="#c0392b", label="not converged")
             ax.legend(fontsize=7, frameon=False)
-        ax.set_xlabel(axis_label(param, units or {}))
-        ax.set_ylabel(o.replace("_", " "))
+        ax.set_xlabel(axis_label(param, units))
+        if o == "objective":
+            ax.set_ylabel(objective_label)
+        else:
+            phase = o[len("tf ("):-1] if o.startswith("tf (") else ""
+            unit = units.get("t")
+            ax.set_ylabel("$t_f$" + (f" ({phase})" if phase else "") + (f" [{unit_tex(unit)}]" if unit else ""))
     return [Fig("sweep", f"Study outputs against the swept parameter {param}.", fig)]
 
 

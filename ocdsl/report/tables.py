@@ -105,10 +105,14 @@ def name_cell(name: str) -> dict[str, Any]:
     return {"html": name_html(name), "cls": "name"}
 
 
+WIDE_COLUMNS = 7       # tables with more columns are set smaller (report.css: table.data.wide)
+
+
 def table(key: str, caption: str, columns: Sequence[str], rows: list[list[dict]], note: str = "") -> dict | None:
     if not rows:
         return None
-    return {"key": key, "caption": caption, "columns": list(columns), "rows": rows, "note": note}
+    return {"key": key, "caption": caption, "columns": list(columns), "rows": rows, "note": note,
+            "wide": len(columns) > WIDE_COLUMNS, "very_wide": len(columns) > 2 * WIDE_COLUMNS - 2}
 
 
 # ------------------------------------------------------------------------ problem
@@ -410,10 +414,23 @@ def starts_table(res: Result) -> dict | None:
                  (f" (best objective {fmt(best, 10)})." if best is not None else "."), cols, rows)
 
 
-def extra_table(res: Result, skip: Iterable[str] = ("mesh_history", "ipopt_history", "starts")) -> dict | None:
-    rows = [[cell(k, "name"), cell(v)] for k, v in _flatten({k: v for k, v in (res.extra or {}).items()
-                                                             if k not in skip})]
-    return table("extra", "Back-end details.", ["item", "value"], rows)
+MACHINE_KEYS = ("host", "hostname", "client_host", "worker_host", "user", "pid", "cwd")
+
+
+def machine_free(v: Any) -> Any:
+    """A value without this machine's details: an absolute path becomes its file name."""
+    if isinstance(v, str) and re.match(r"^(/|[A-Za-z]:[\\/])\S+$", v.strip()):
+        return v.strip().rstrip("/").rsplit("/", 1)[-1]
+    return v
+
+
+def extra_table(res: Result, skip: Iterable[str] = ("mesh_history", "ipopt_history", "starts", "mesh")) -> dict | None:
+    """The back end's own details (``result.json`` ``extra``), for the appendix: no host
+    names, file names instead of paths."""
+    rows = [[cell(k, "name"), cell(machine_free(v))] for k, v in _flatten({k: v for k, v in (res.extra or {}).items()
+                                                                           if k not in skip})
+            if k.rsplit(".", 1)[-1] not in MACHINE_KEYS]
+    return table("extra", "Back-end details (result.json, extra).", ["item", "value"], rows)
 
 
 def _flatten(d: Any, prefix: str = "") -> list[tuple[str, Any]]:
@@ -429,11 +446,20 @@ def _flatten(d: Any, prefix: str = "") -> list[tuple[str, Any]]:
 
 
 # -------------------------------------------------------------------- run tables
-def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 40, digits: int = 6) -> dict | None:
-    """A tables/<name>.csv (or study table) as rows; long tables are thinned evenly."""
+def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 40, digits: int = 6,
+                 drop_constant: bool = False) -> dict | None:
+    """A tables/<name>.csv (or study table) as rows; long tables are thinned evenly;
+    ``drop_constant``: columns with one value in every row are named in the note instead."""
     if not cols:
         return None
     names = list(cols)
+    constant = []
+    if drop_constant and max((len(v) for v in cols.values()), default=0) > 1:
+        for c in names:
+            vals = {fmt(v) for v in cols[c]}
+            if len(vals) == 1:
+                constant.append(f"{c} = {vals.pop()}")
+        names = [c for c in names if not any(x.startswith(f"{c} = ") for x in constant)] or list(cols)
     n = max((len(v) for v in cols.values()), default=0)
     idx = list(range(n))
     note = ""
@@ -452,7 +478,9 @@ def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 4
             else:
                 row.append(cell(v, None, digits))
         rows.append(row)
-    return table(key, caption, names, rows, note)
+    if constant:
+        note = (note + " " if note else "") + "The same in every row: " + "; ".join(constant) + "."
+    return table(key, caption, [c.replace("_", " ") for c in names], rows, note)
 
 
 def _truthy(v: Any) -> bool:
@@ -503,26 +531,87 @@ def reintegration_table(res: Result) -> dict | None:
                  ["state", "max |deviation|", "relative to its range", "final deviation"], rows)
 
 
-def closed_loop_table(tables: dict[str, dict[str, np.ndarray]], problem: dict) -> dict | None:
+def controller_metrics(extra: dict) -> dict[str, dict]:
+    """Controller name -> its closed-loop metrics (``extra[<controller>]["metrics"]``, as the
+    controller back end writes them), in the file's order."""
+    return {k: v["metrics"] for k, v in (extra or {}).items()
+            if isinstance(v, dict) and isinstance(v.get("metrics"), dict)}
+
+
+def _threshold_label(key: str, unit: str) -> tuple[float, str]:
+    thr = float(key.split("@", 1)[1])
+    if unit == "rad":
+        return thr, f"settling to {fmt(np.degrees(thr), 3)}° [s]"
+    return thr, f"settling to {fmt(thr, 3)}{(' ' + unit) if unit else ''} [s]"
+
+
+def controller_table(res: Result) -> dict | None:
+    """The controllers side by side: settling time (every regulated state within each
+    threshold), largest overshoot, peak control, cost, and the controller's time per
+    update, from the metrics in ``result.json``."""
+    mets = controller_metrics(res.extra)
+    if not mets:
+        return None
+    units = (res.problem or {}).get("units") or {}
+    first = next(iter(mets.values()))
+    states = list((first.get("states") or {}))
+    unit = units.get(states[0], "") if states and len({units.get(x, "") for x in states}) == 1 else ""
+    settle = sorted((k for k in first if k.startswith("settling_time@")), key=lambda k: -float(k.split("@")[1]))
+    heads = [_threshold_label(k, unit)[1] for k in settle]
+    rows = []
+    for name, m in mets.items():
+        st = m.get("states") or {}
+        over = [finite_or_none(v.get("overshoot_pct")) for v in st.values() if isinstance(v, dict)]
+        over = [x for x in over if x is not None]
+        peak = m.get("peak_control")
+        peak = max(abs(float(x)) for x in peak) if isinstance(peak, list) and peak else finite_or_none(peak)
+        ct = m.get("controller_time_s") or {}
+        status = (res.extra.get(name) or {}).get("status", "")
+        rows.append([cell(name, "name"), status_cell(str(status)) if status else cell("—"),
+                     *[cell(m.get(k), "num", 4) for k in settle],
+                     cell(max(over) if over else None, "num", 3), cell(peak, "num", 4),
+                     cell(m.get("cost"), "num", 6), cell(m.get("control_cost"), "num", 5),
+                     cell(1e3 * ct["mean"] if finite_or_none(ct.get("mean")) is not None else None, "num", 3),
+                     cell(1e3 * ct["p95"] if finite_or_none(ct.get("p95")) is not None else None, "num", 3)])
+    over_of = ", ".join(states) if states else "the states"
+    return table("controllers", f"Controller comparison: settling time (every one of {over_of} within the "
+                 f"threshold from then on), largest overshoot of {over_of}, peak control magnitude, the cost J "
+                 "and its control part, and the controller's computation time per update.",
+                 ["controller", "status", *heads, "overshoot [%]", "peak control", "cost J", "control cost",
+                  "time/update mean [ms]", "95 % [ms]"], rows)
+
+
+def closed_loop_table(tables: dict[str, dict[str, np.ndarray]], problem: dict,
+                      extra: dict | None = None) -> dict | None:
+    """Per closed-loop run: samples, final time, the final size of the regulated states
+    (those the metrics name; all states otherwise) and the controller timing (the table's
+    ``timing`` column, else the metrics' ``controller_time_s``)."""
     rows = []
     states = set()
     for info in (problem.get("phases") or {}).values():
         states |= set(info.get("states") or [])
+    mets = controller_metrics(extra or {})
     for name, tab in sorted(tables.items()):
         if not name.startswith("closed_loop_") or "t" not in tab:
             continue
+        cname = name[len("closed_loop_"):]
+        m = mets.get(cname.rsplit(":", 1)[-1], {})
         t = np.asarray(tab["t"], float)
-        sv = [k for k in tab if k in states] or [k for k in tab if k not in ("t", "timing")]
+        regulated = [k for k in (m.get("states") or {}) if k in tab]
+        sv = regulated or [k for k in tab if k in states] or [k for k in tab if k not in ("t", "timing")]
         final = np.array([np.asarray(tab[k], float)[-1] for k in sv]) if t.size else np.array([])
         timing = np.asarray(tab.get("timing", []), float) * 1e3
         timing = timing[np.isfinite(timing)]
-        rows.append([cell(name[len("closed_loop_"):], "name"), cell(int(t.size)),
-                     cell(float(t[-1]) if t.size else None),
+        ct = m.get("controller_time_s") or {}
+        mean = float(np.mean(timing)) if timing.size else (1e3 * ct["mean"] if "mean" in ct else None)
+        p95 = float(np.percentile(timing, 95)) if timing.size else (1e3 * ct["p95"] if "p95" in ct else None)
+        mx = float(np.max(timing)) if timing.size else (1e3 * ct["max"] if "max" in ct else None)
+        rows.append([cell(cname, "name"), cell(int(t.size)), cell(float(t[-1]) if t.size else None),
                      cell(float(np.linalg.norm(final)) if final.size else None, "num", 4),
-                     cell(float(np.mean(timing)) if timing.size else None, "num", 4),
-                     cell(float(np.percentile(timing, 95)) if timing.size else None, "num", 4),
-                     cell(float(np.max(timing)) if timing.size else None, "num", 4)])
-    return table("closed_loop", "Closed-loop runs: final state and controller timing per update.",
+                     cell(mean, "num", 4), cell(p95, "num", 4), cell(mx, "num", 4)])
+    return table("closed_loop", "Closed-loop runs: final size of the regulated states ("
+                 + (", ".join(sorted({k for m in mets.values() for k in (m.get('states') or {})})) or "all states")
+                 + ") and the controller's time per update.",
                  ["controller", "samples", "final t", "final ‖x‖", "mean [ms]", "95 % [ms]", "max [ms]"], rows)
 
 
