@@ -1,0 +1,204 @@
+"""Issue 25's figure and table defects, each on a small synthetic run folder: the report
+draws what the run folder declares (objectives, swept parameters, physical time), not what
+column guessing finds."""
+from __future__ import annotations
+
+import base64
+import csv
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocdsl.report import make_comparison_report, make_index, make_report
+from ocdsl.report.build import build_run_html, _criteria
+from ocdsl.result import PhaseTrajectory, Result
+
+
+def _svgs(html: str) -> list[str]:
+    return [base64.b64decode(b).decode() for b in
+            re.findall(r'<figure[^>]*>\s*<img src="data:image/svg\+xml;base64,([^"]+)"', html)]
+
+
+def _captions(html: str) -> list[str]:
+    return re.findall(r"<figcaption><b>Figure \d+\.</b> (.*?)</figcaption>", html, re.S)
+
+
+def _table(html: str, caption_start: str) -> list[list[str]]:
+    i = html.index(caption_start)
+    body = html[i:html.index("</table>", i)]
+    return [re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", r, re.S) for r in re.findall(r"<tr>(.*?)</tr>", body, re.S)]
+
+
+# ------------------------------------------------------------------------ Pareto
+def test_pareto_axes_are_the_results_objectives(tmp_path):
+    """A Pareto run folder's front is drawn in its objectives' plane, whatever columns come
+    first in the table (the seed-4 reports plotted family_id against label_major)."""
+    n = 6
+    tab = {"family_id": np.array([0, 0, 0, 1, 1, 1.0]), "label_major": np.array([1, 1, 1, 2, 2, 2.0]),
+           "t_mot": np.linspace(0.5, 1.5, n), "t_sum": np.linspace(40, 20, n), "pareto": np.ones(n)}
+    res = Result(name="front", status="optimal", extra={"objectives": ["t_mot", "t_sum"]},
+                 tables={"pareto": tab}, problem={"name": "front"})
+    assert _criteria([{k: v[0] for k, v in tab.items()}], {}) == ("family_id", "label_major")  # the old guess
+    html = build_run_html(res.write(tmp_path / "p"))
+    caps = [c for c in _captions(html) if "Pareto front" in c]
+    assert caps and "(t_mot, t_sum)" in caps[0]
+
+
+# ------------------------------------------------------------------------ sweeps
+def _sweep_folder(folder: Path, swept: dict, rows: list[dict]) -> Path:
+    folder.mkdir(parents=True)
+    with open(folder / "study.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (folder / "study.json").write_text(json.dumps({"name": "sweep", "spec": {"sweep": swept},
+                                                   "study_file": "/home/someone/private/study.yaml",
+                                                   "client_host": "secret-host", "state": "complete"}))
+    return folder
+
+
+def test_one_dimensional_sweep_plots_outputs_against_the_parameter(tmp_path):
+    """The `sweep` index column is not a second parameter: a 1-D sweep gets objective and
+    t_f against the swept parameter, not histograms; no paths or host names in the report."""
+    rows = [{"id": f"p{i}", "E": 2.2 + 0.05 * i, "sweep": i, "seed": "", "status": "optimal",
+             "verification": "verified", "objective": 1.37 + 0.01 * i, "tf": 1.37 + 0.004 * i, "iterations": 20,
+             "wall_time_s": 1.4, "host": "secret-host", "warm_start": "", "message": "Optimal Solution Found."}
+            for i in range(10)]
+    folder = _sweep_folder(tmp_path / "s", {"grid": {"E": {"start": 2.2, "stop": 2.65, "num": 10}}}, rows)
+    html = make_comparison_report([folder], tmp_path / "out", formats=("html",))[0].read_text()
+    caps = _captions(html)
+    assert any("against the swept parameter E" in c for c in caps), caps
+    assert not any("Distribution" in c for c in caps)
+    assert "secret-host" not in html and "/home/someone" not in html and "study.yaml" in html
+    study = _table(html, "Study table (study.csv)")
+    assert "sweep" not in study[0] and "host" not in study[0] and "message" not in study[0]
+
+
+def test_zip_sweep_with_per_phase_tf_gets_one_column_per_phase(tmp_path):
+    rows = [{"id": f"p{i}", "h_v": float(5 - i), "t_ref": 1000.0 + i, "sweep": i, "status": "optimal",
+             "objective": 148.0 + i, "tf": json.dumps({"braking": 950.0 + i, "descent": 1030.0 + i}),
+             "message": "ok" if i else "Maximum Number of Iterations Exceeded."} for i in range(5)]
+    rows[0]["status"] = "max_iter"
+    folder = _sweep_folder(tmp_path / "z", {"zip": {"h_v": [5, 4, 3, 2, 1], "t_ref": [1000, 1001, 1002, 1003, 1004]}},
+                           rows)
+    html = make_comparison_report([folder], tmp_path / "out", formats=("html",))[0].read_text()
+    head = _table(html, "Study table (study.csv)")[0]
+    assert head[:2] == ["h v", "t ref"] and "tf (braking)" in head and "tf (descent)" in head
+    assert "{" not in "".join(c for row in _table(html, "Study table (study.csv)") for c in row)
+    # the message only where a point failed
+    assert html.count("Maximum Number of Iterations Exceeded.") == 1 and ">ok<" not in html
+    assert any("against the swept parameter h_v" in c for c in _captions(html))
+
+
+# -------------------------------------------------------------------------- mesh
+def test_mesh_figure_has_the_error_panel_and_the_mesh_per_iteration(tmp_path):
+    it = np.arange(1.0, 10.0)
+    mh = {"iteration": it, "phase": np.zeros(9), "segments": 2 + 3 * it, "min_degree": np.full(9, 3.0),
+          "max_degree": np.full(9, 3.0), "nlp_variables": 20 + 30 * it, "nlp_constraints": 15 + 20 * it,
+          "ipopt_iterations": np.full(9, 12.0), "objective": 1.0 + 1e-3 / it, "max_error": 10.0 ** -it,
+          "max_error_segment": np.zeros(9), "max_error_t": np.zeros(9), "time_s": np.full(9, 0.5)}
+    hist = [{"iteration": int(k), "meshes": {"main": {"breakpoints": list(np.linspace(0, 1, 3 + 3 * int(k)))}}}
+            for k in it]
+    t = np.linspace(0, 1, 11)
+    res = Result(name="mesh", status="optimal", objective=1.0, tf=1.0, method={"mesh": {"tolerance": 1e-8}},
+                 phases=[PhaseTrajectory("main", t, {"x": t}, {"u": t})], extra={"mesh_history": hist},
+                 tables={"mesh_history": mh, "mesh_error": {"phase": np.zeros(3), "t_start": np.array([0, .3, .6]),
+                                                            "t_end": np.array([.3, .6, 1.]),
+                                                            "error": np.array([1e-9, 3e-9, 2e-9])}},
+                 problem={"name": "mesh", "phases": {"main": {"states": ["x"], "controls": ["u"]}}})
+    html = build_run_html(res.write(tmp_path / "m"))
+    caps = _captions(html)
+    assert any("Mesh refinement history" in c for c in caps)
+    assert any("Mesh breakpoints of every refinement iteration" in c for c in caps)
+    assert any("final mesh" in c for c in caps)
+    hist_svg = _svgs(html)[[i for i, c in enumerate(caps) if "Mesh refinement history" in c][0]]
+    # 9 iterations, more than the old panel limit would have kept with the constants; the
+    # error panel is there (log axis label), the constant columns are not panels
+    # the error panel is there, and the columns that change (segments, NLP variables, objective);
+    # the constant ones (degrees, Ipopt iterations, time) are not panels
+    assert "<!-- largest estimated error -->" in hist_svg
+    assert hist_svg.count('id="axes_') == 4
+    mesh_tab = _table(html, "Mesh refinement history.")
+    assert "phase" not in mesh_tab[0] and "min degree" not in mesh_tab[0]
+    assert "The same in every row" in html
+
+
+# ----------------------------------------------------------------------- Sundman
+def test_sundman_run_shows_physical_time(tmp_path):
+    """The independent variable s runs to 31.87, the flight time is 1.5448: the time axes
+    and the summary show the clock state, not s."""
+    s = np.linspace(0, 31.87, 50)
+    clock = 1.5448 * (s / 31.87) ** 1.3
+    res = Result(name="sundman", status="optimal", objective=1.5448, tf=31.87,
+                 phases=[PhaseTrajectory("main", s, {"x": np.cos(s), "time": clock}, {"u": np.sin(s)})],
+                 problem={"name": "sundman", "time_variable": "time", "units": {"t": "TU", "time": "TU", "x": "LU"},
+                          "phases": {"main": {"states": ["x", "time"], "controls": ["u"]}}})
+    html = build_run_html(res.write(tmp_path / "s"))
+    summary = _table(html, "Solution summary")
+    flight = [r for r in summary if r and r[0].startswith("flight time")]
+    assert flight and flight[0][1] == "1.5448"
+    assert not any(r[0].startswith("final time t_f") for r in summary if r)
+    svg = _svgs(html)[[i for i, c in enumerate(_captions(html)) if c.startswith("State histories")][0]]
+    # the x axis ends near 1.5 (physical time), not at 30
+    ticks = [float(x) for x in re.findall(r"<!-- ([\d.]+) -->", svg) if re.fullmatch(r"[\d.]+", x)]
+    assert ticks and max(ticks) < 2.0, ticks
+
+
+# ------------------------------------------------------------------ controllers
+def test_controller_comparison_table_has_numbers_in_every_cell(tmp_path):
+    t = np.linspace(0, 10, 101)
+    tables, extra = {}, {}
+    for i, c in enumerate(("lqr", "sdre", "theta_d")):
+        tables[f"closed_loop_{c}"] = {"t": t, "phi": 0.17 * np.exp(-t) * np.cos(t), "h1": 0.3 + 0 * t,
+                                      "u1": -np.exp(-t)}
+        extra[c] = {"status": "stable", "metrics": {
+            "cost": 6.4 + 0.01 * i, "control_cost": 3.5, "peak_control": [1.2, 1.3, 1.1 + i],
+            "settling_time@0.00174533": 40.0 + i, "settling_time@1.74533e-05": 80.0 + i,
+            "states": {"phi": {"overshoot_pct": 42.0 + i}},
+            "controller_time_s": {"mean": 1e-5 * (1 + i), "p95": 2e-5 * (1 + i), "max": 5e-5}}}
+    res = Result(name="att", status="stable", tables=tables, extra=extra,
+                 problem={"name": "att", "units": {"phi": "rad", "t": "s"},
+                          "phases": {"main": {"states": ["phi", "h1"], "controls": ["u1"]}}})
+    html = build_run_html(res.write(tmp_path / "c"))
+    rows = _table(html, "Controller comparison")
+    assert rows[0][:4] == ["controller", "status", "settling to 0.1° [s]", "settling to 0.001° [s]"]
+    assert len(rows) == 4
+    for r in rows[1:]:
+        assert all(c not in ("", "—") for c in r), r
+    cl = _table(html, "Closed-loop runs")
+    assert all(c not in ("", "—") for r in cl[1:] for c in r)      # timing from the metrics
+    # the final size counts the regulated states only (not the wheel momentum h1 = 0.3)
+    assert all(float(r[3].replace("−", "-")) < 0.1 for r in cl[1:])
+
+
+# --------------------------------------------------------------- statuses
+def test_failed_certificate_shows_on_the_badge_and_in_the_index(tmp_path):
+    t = np.linspace(0, 1, 11)
+    res = Result(name="mg", status="optimal", objective=1.0, tf=1.0,
+                 phases=[PhaseTrajectory("main", t, {"x": t}, {"u": t})],
+                 expect=[{"name": "tf", "value": 1.0, "reference": 1.0, "rtol": 1e-6, "error": 0.0, "passed": True}],
+                 certificate={"passed": False, "failed": ["hamiltonian"],
+                              "hamiltonian": {"relative_max_deviation": 0.2, "expected": -0.0, "passed": False},
+                              "tolerances": {"hamiltonian_max": 0.03}},
+                 verification={"status": "verified", "tolerance": 1e-5, "checks": [], "summary": "verified"},
+                 problem={"name": "mg", "phases": {"main": {"states": ["x"], "controls": ["u"]}}})
+    run = res.write(tmp_path / "mg")
+    make_report(run, formats=("html",))
+    head = (run / "report.html").read_text().split("</header>")[0]
+    assert re.search(r'certificate <span class="badge fail"[^>]*>failed</span>', head)
+    assert re.search(r'overall <span class="badge pass"[^>]*>ok \(exit 0\)</span>', head)   # = Result.ok
+    assert "expected 0;" in build_run_html(run) or "expected 0<" in build_run_html(run)    # not -0
+    index = make_index([run], tmp_path / "index.html", []).read_text()
+    item = re.search(r"<li>.*?</li>", index, re.S).group(0)
+    assert re.search(r'certificate <span class="badge fail"[^>]*>failed</span>', item)
+
+
+def test_maximize_best_objective_is_the_largest(tmp_path):
+    starts = [{"start": i, "status": "optimal", "objective": v} for i, v in enumerate([149.85, 149.93, 149.90])]
+    res = Result(name="max", status="optimal", objective=149.93, extra={"starts": starts},
+                 problem={"name": "max", "objective": {"sense": "maximize"}})
+    html = build_run_html(res.write(tmp_path / "mx"))
+    assert "best objective 149.93" in html
