@@ -98,8 +98,8 @@ def test_index_page_counts_and_columns(tmp_path, rows):
     for k in (R.REPRODUCED, R.SHOWN_WRONG, R.NOT_REPRODUCED):
         n = sum(r["verdict"] == k for r in rows if r["paper"] is not None)
         assert re.search(rf"{k} <span class=\"badge \w+\">{n}</span>", head), k
-    assert re.search(r"<th>paper</th><th>other reference</th><th>source</th>.*<th>comparison</th>"
-                     r"<th>tolerance</th><th>verification</th><th>verdict</th>", html)
+    assert re.search(r"<th>paper</th><th>other reference</th><th>source</th>.*<th>comparison \(tolerance\)</th>"
+                     r"<th>verification</th><th>verdict</th>", html)
     assert html.count("<tr><td class=\"name\">") == len(rows)
     # every report folder is listed with a title and badges (studies too)
     listed = re.findall(r'<li><a href="[^"]+">([^<]+)</a>(.*?)</li>', html)

@@ -439,10 +439,25 @@ def _criteria(rows: list[dict], meta: dict) -> tuple[str, str] | None:
 
 
 # ================================================================================ output
+_INNER_HYPHEN = re.compile(r"(?<=\w)-(?=\w)")
+
+
+def nobreak(text: Any) -> Any:
+    """Hyphens inside words as non-breaking hyphens: a table cell never breaks
+    "bang-bang" across lines."""
+    from markupsafe import Markup, escape
+
+    if isinstance(text, Markup):
+        return text
+    return Markup(_INNER_HYPHEN.sub("\u2011", str(escape(text))))
+
+
 def _env():
     import jinja2
-    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), autoescape=True,
-                              trim_blocks=False, lstrip_blocks=False)
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), autoescape=True,
+                             trim_blocks=False, lstrip_blocks=False)
+    env.filters["nobreak"] = nobreak
+    return env
 
 
 def _render(doc: Doc, title: str, subtitle: str, meta: list[tuple[str, str]], badges: Sequence = ()) -> str:
@@ -911,6 +926,7 @@ def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.Path
                         "other": T.fmt(r.get("other"), 8) if r.get("other") is not None else "",
                         "source": r.get("source", ""), "kind": r.get("kind", ""),
                         "ocdsl": T.fmt(r.get("ocdsl"), 8), "error": T.fmt(r.get("error"), 3),
+                        "list": any(isinstance(r.get(k), str) and "," in r.get(k) for k in ("ocdsl", "paper", "other")),
                         "compare": r.get("compare", ""), "tolerance": r.get("tolerance", ""),
                         "verification": S.VERIFICATION_TEXT.get(ver, str(ver)), "vcls": vcls.get(ver, ""),
                         "verdict": verdict, "cls": dcls.get(verdict, ""), "test": r.get("test"),
