@@ -202,3 +202,19 @@ def test_maximize_best_objective_is_the_largest(tmp_path):
                  problem={"name": "max", "objective": {"sense": "maximize"}})
     html = build_run_html(res.write(tmp_path / "mx"))
     assert "best objective 149.93" in html
+
+
+def test_loose_bounds_do_not_flatten_the_curves(tmp_path):
+    """h <= 1e6 on a descent from 1: the axis spans the data (the bound is not drawn), while a
+    bound the state reaches (h >= 0) is drawn."""
+    t = np.linspace(0, 1, 21)
+    res = Result(name="land", status="optimal", objective=1.0, tf=1.0,
+                 phases=[PhaseTrajectory("main", t, {"h": 1 - t ** 2}, {"u": t})],
+                 problem={"name": "land", "phases": {"main": {"states": ["h"], "controls": ["u"],
+                                                              "bounds": {"h": [0.0, 1.0e6], "u": [0.0, 1.0]}}}})
+    html = build_run_html(res.write(tmp_path / "l"))
+    svg = _svgs(html)[[i for i, c in enumerate(_captions(html)) if c.startswith("State histories")][0]]
+    ticks = [float(x) for x in re.findall(r"<!-- (−?[\d.]+) -->", svg.replace("−", "-"))
+             if re.fullmatch(r"-?[\d.]+", x)]
+    assert ticks and max(ticks) <= 2.0, ticks
+    assert "<!-- bound -->" in svg

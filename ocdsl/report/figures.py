@@ -226,6 +226,7 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
                     ax.plot(t, y, color=color_of[lab], label=lab,
                             linestyle=(linestyles or {}).get(lab, "-"), **kw)
             lo, hi = (bounds or {}).get(name, (None, None))
+            lo, hi = (b if _near(b, [y for _, _, y in series]) else None for b in (lo, hi))
             drew_bound = False
             for b in (lo, hi):
                 if b is not None:
@@ -244,6 +245,20 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
         suffix = f" ({ci + 1} of {len(chunks)})" if len(chunks) > 1 else ""
         out.append(Fig(f"{key}-{ci}", caption + suffix, fig))
     return out
+
+
+def _near(bound: float | None, ys: list, margin: float = 0.25) -> bool:
+    """A bound is drawn only when it lies within ``margin`` of the data's span of the data:
+    a loose bound (h <= 1e6 for a landing from 1 km) would flatten the curve."""
+    if bound is None:
+        return False
+    vals = np.concatenate([np.ravel(np.asarray(y, float)) for y in ys]) if ys else np.array([])
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return False
+    lo, hi = float(vals.min()), float(vals.max())
+    span = max(hi - lo, 1e-12 * max(abs(lo), abs(hi), 1.0))
+    return lo - margin * span <= bound <= hi + margin * span
 
 
 def _readable_y(ax, ys: list) -> None:
