@@ -218,3 +218,18 @@ def test_loose_bounds_do_not_flatten_the_curves(tmp_path):
              if re.fullmatch(r"-?[\d.]+", x)]
     assert ticks and max(ticks) <= 2.0, ticks
     assert "<!-- bound -->" in svg
+
+
+def test_polar_positions_are_drawn_as_height_against_downrange(tmp_path):
+    t = np.linspace(0, 1000, 41)
+    r, th = 1738 + 15 * (1 - (t / 1000) ** 2), 0.3 * t / 1000
+    res = Result(name="lander", status="optimal", objective=1.0, tf=1000.0,
+                 phases=[PhaseTrajectory("main", t, {"r": r, "theta": th}, {"u": t})],
+                 problem={"name": "lander", "positions": ["r", "theta"], "units": {"r": "km", "theta": "rad"},
+                          "phases": {"main": {"states": ["r", "theta"], "controls": ["u"]}}})
+    html = build_run_html(res.write(tmp_path / "p"))
+    cap = [c for c in _captions(html) if c.startswith("Trajectory from")]
+    assert cap and "height above the end point against downrange" in cap[0]
+    svg = _svgs(html)[_captions(html).index(cap[0])]
+    ticks = [float(x) for x in re.findall(r"<!-- ([\d.]+) -->", svg)]
+    assert max(ticks) < 1000          # heights of 15 km and downrange of 520 km, not r = 1738 km

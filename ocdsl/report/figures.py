@@ -537,6 +537,12 @@ def fig_positions(res: Result) -> list[Fig]:
             import mpl_toolkits.mplot3d  # noqa: F401  (registers the 3d projection)
             fig = Figure(figsize=(WIDTH_IN * 0.8, WIDTH_IN * 0.7), layout="constrained")
             ax = fig.add_subplot(1, 1, 1, projection="3d")
+        polar = len(group) == 2 and str(units.get(group[1], "")).lower() in ("rad", "deg", "degree", "degrees")
+        if polar:   # (r, theta): height above the end point against downrange, as a paper draws it
+            r_end = float(segs[-1][1][0][np.isfinite(segs[-1][1][0])][-1])
+            scale = np.pi / 180 if str(units.get(group[1])).lower().startswith("deg") else 1.0
+            th0 = float(segs[0][1][1][np.isfinite(segs[0][1][1])][0])
+            segs = [(pn, [r_end * (xy[1] - th0) * scale, xy[0] - r_end]) for pn, xy in segs]
         for (pname, xyz), c in zip(segs, colors):
             ax.plot(*xyz, color=c, label=pname if len(segs) > 1 else "trajectory", **_marker_kw(len(xyz[0])))
         ax.plot(*[[a[0]] for a in segs[0][1]], marker="o", color="k", linestyle="none", label="start")
@@ -544,23 +550,31 @@ def fig_positions(res: Result) -> list[Fig]:
         first = True
         for pname, _ in segs:
             tab = reint.get(pname, reint.get(None) if len(segs) == 1 else None)
-            if tab is not None and all(n in tab for n in group):
+            if tab is not None and all(n in tab for n in group) and not polar:
                 ax.plot(*[tab[n] for n in group], color="#c0392b", linestyle="--", linewidth=1.0,
                         label="re-integrated" if first else None)
                 first = False
-        ax.set_xlabel(axis_label(group[0], units))
-        ax.set_ylabel(axis_label(group[1], units))
+        if polar:
+            u = units.get(group[0])
+            ax.set_xlabel(f"downrange ${tex_name(group[0])}(t_f)\\,({tex_name(group[1])} - {tex_name(group[1])}_0)$"
+                          + (f" [{unit_tex(u)}]" if u else ""))
+            ax.set_ylabel(f"height above the end point ${tex_name(group[0])} - {tex_name(group[0])}(t_f)$"
+                          + (f" [{unit_tex(u)}]" if u else ""))
+        else:
+            ax.set_xlabel(axis_label(group[0], units))
+            ax.set_ylabel(axis_label(group[1], units))
         if len(group) == 3:
             ax.set_zlabel(axis_label(group[2], units))
-        else:
-            try:
-                ax.set_aspect("equal", adjustable="datalim")
+        if not polar:
+            try:        # equal scales: a 3-D orbit must not look 40 times taller than it is
+                ax.set_aspect("equal", adjustable="datalim" if len(group) == 2 else "box")
             except Exception:  # noqa: BLE001  (degenerate ranges)
                 pass
         ax.legend(fontsize=7, frameon=False, loc="best")
         names = ", ".join(group)
-        out.append(Fig(f"positions-{gi}", f"Trajectory in the ({names}) {'plane' if len(group) == 2 else 'space'}; "
-                       "circle: start, square: end.", fig))
+        what = (f"Trajectory from ({names}): height above the end point against downrange (scales not equal)"
+                if polar else f"Trajectory in the ({names}) {'plane' if len(group) == 2 else 'space'}, equal scales")
+        out.append(Fig(f"positions-{gi}", f"{what}; circle: start, square: end.", fig))
     return out
 
 
