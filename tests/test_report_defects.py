@@ -159,7 +159,9 @@ def test_controller_comparison_table_has_numbers_in_every_cell(tmp_path):
             "settling_time@0.00174533": 40.0 + i, "settling_time@1.74533e-05": 80.0 + i,
             "states": {"phi": {"overshoot_pct": 42.0 + i}},
             "controller_time_s": {"mean": 1e-5 * (1 + i), "p95": 2e-5 * (1 + i), "max": 5e-5}}}
-    res = Result(name="att", status="stable", tables=tables, extra=extra,
+    phases = [PhaseTrajectory(c, t, {"phi": tables[f"closed_loop_{c}"]["phi"]}, {"u1": -np.exp(-t)})
+              for c in ("lqr", "sdre", "theta_d")]
+    res = Result(name="att", status="stable", tables=tables, extra=extra, phases=phases,
                  problem={"name": "att", "units": {"phi": "rad", "t": "s"},
                           "phases": {"main": {"states": ["phi", "h1"], "controls": ["u1"]}}})
     html = build_run_html(res.write(tmp_path / "c"))
@@ -172,6 +174,10 @@ def test_controller_comparison_table_has_numbers_in_every_cell(tmp_path):
     assert all(c not in ("", "—") for r in cl[1:] for c in r)      # timing from the metrics
     # the final size counts the regulated states only (not the wheel momentum h1 = 0.3)
     assert all(float(r[3].replace("−", "-")) < 0.1 for r in cl[1:])
+    # each law's run is drawn once (its phase and its closed-loop table are the same run)
+    caps = _captions(html)
+    assert any(c.startswith("Closed-loop state responses") for c in caps)
+    assert not any(c.startswith("State histories") for c in caps)
 
 
 # --------------------------------------------------------------- statuses

@@ -353,6 +353,9 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
 def _figures_section(doc: Doc, res: Result) -> None:
     if not any(len(p.time) for p in res.phases):
         return
+    cl = F.closed_loop_tables(res.tables)
+    if cl and all(p.name in cl for p in res.phases):
+        return      # a controller file's phases are its closed-loop runs: drawn once, in their section
     b = doc.section("trajectory", "Trajectory")
     if res.status not in GOOD:
         b.append({"type": "note", "text": f"The run ended with status {res.status}: the figures show the "
