@@ -558,12 +558,14 @@ def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str
     _output_folder(out_dir, [f"{stem}.{f}" for f in formats])
     run_folder.claim(out_dir, [f"{stem}.{f}" for f in formats])
     if files:       # each figure as SVG and PDF, for reuse in a paper
-        run_folder.claim(out_dir, ["figures"])
-        old = out_dir / "figures"
-        if old.is_dir():
-            for f in old.iterdir():
-                if f.suffix in (".svg", ".pdf") and f"figures/{f.name}" not in files:
-                    f.unlink()
+        marker = run_folder.read_marker(out_dir)
+        if marker is not None:     # an earlier report's figures (ocdsl's own, listed) go
+            stale = [n for n in marker.get("entries", []) if n.startswith("figures/") and n not in files]
+            for name in stale:
+                (out_dir / name).unlink(missing_ok=True)
+            run_folder.write_marker(out_dir, marker["kind"], [n for n in marker.get("entries", []) if n not in stale],
+                                    partial=marker.get("partial", False))
+        run_folder.claim(out_dir, ["figures", *files])
         for name, data in files.items():
             _atomic_write(out_dir / name, data)
     if "html" in formats:
