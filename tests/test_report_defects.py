@@ -239,3 +239,20 @@ def test_polar_positions_are_drawn_as_height_against_downrange(tmp_path):
     svg = _svgs(html)[_captions(html).index(cap[0])]
     ticks = [float(x) for x in re.findall(r"<!-- ([\d.]+) -->", svg)]
     assert max(ticks) < 1000          # heights of 15 km and downrange of 520 km, not r = 1738 km
+
+
+def test_pareto_set_takes_its_points_verification(tmp_path):
+    from ocdsl.report.build import load_run
+
+    run = Result(name="set", status="optimal", extra={"objectives": ["a", "b"]}, problem={"name": "set"}).write(
+        tmp_path / "set")
+    for i, st in enumerate(("verified", "verified")):
+        Result(name=f"p{i}", status="optimal", verification={"status": st, "checks": []}).write(
+            run / "points" / f"p{i}")
+    res, _ = load_run(run)
+    assert res.verification["status"] == "verified" and res.ok
+    Result(name="p2", status="optimal", verification={"status": "failed", "checks": []}).write(run / "points" / "p2")
+    res, _ = load_run(run)
+    assert res.verification["status"] == "failed" and "2 of 3 points verified" in res.verification["summary"]
+    head = build_run_html(run).split("</header>")[0]
+    assert re.search(r'verification <span class="badge fail"[^>]*>failed</span>', head)

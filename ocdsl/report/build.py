@@ -211,9 +211,34 @@ def _find_runs(folder: Path, depth: int = 2) -> list[Path]:
     return out
 
 
+def points_verification(run_dir: Path) -> dict[str, Any] | None:
+    """A Pareto set's verdict from its points' run folders (``points/*/result.json``, each
+    verified by ocdsl/verify): verified when every point is."""
+    pts = sorted(Path(run_dir).glob("points/*/result.json"))
+    if not pts:
+        return None
+    st = []
+    for f in pts:
+        try:
+            st.append(((json.loads(f.read_text()).get("verification") or {}).get("status")))
+        except (OSError, ValueError):
+            st.append("error")
+    n_ok = sum(s == "verified" for s in st)
+    return {"status": "verified" if n_ok == len(st) else "failed", "checks": [], "tolerance": None,
+            "summary": f"{n_ok} of {len(st)} points verified (points/*/result.json)"}
+
+
 def load_run(run_dir: Path) -> tuple[Result, list[str]]:
     """``Result.read`` with a fallback: a run folder with a broken or missing trajectory
-    still gives the scalars of ``result.json`` (and a note)."""
+    still gives the scalars of ``result.json`` (and a note). A Pareto set without its own
+    verdict takes its points'."""
+    res, notes = _load_run(run_dir)
+    if res.verification is None:
+        res.verification = points_verification(run_dir)
+    return res, notes
+
+
+def _load_run(run_dir: Path) -> tuple[Result, list[str]]:
     try:
         return Result.read(run_dir), []
     except Exception as exc:  # noqa: BLE001

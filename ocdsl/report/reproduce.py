@@ -351,8 +351,7 @@ def remake_reports(reports: Path = REPORTS, formats: Sequence[str] = ("html", "p
     """Re-make the reports of the run and study folders under ``reports`` from what they
     hold (nothing is solved), then the manifest's verdicts and the index. For a report
     made by a newer ocdsl from the same runs."""
-    from ocdsl.report.build import make_comparison_report, make_report, read_study_table
-    from ocdsl.result import Result
+    from ocdsl.report.build import load_run, make_comparison_report, make_report, read_study_table
 
     outcomes = []
     for d in sorted(p for p in Path(reports).iterdir() if p.is_dir() and not p.name.startswith(".")):
@@ -363,10 +362,10 @@ def remake_reports(reports: Path = REPORTS, formats: Sequence[str] = ("html", "p
             if (d / "result.json").is_file():
                 files = make_report(d, formats)
                 try:
-                    res = Result.read(d)
+                    res, _ = load_run(d)
                     status, ok = res.status, res.ok
-                except Exception:  # noqa: BLE001  (a Pareto set's folder: its expect checks)
-                    status, ok = "pareto", _expect_ok(d)
+                except Exception:  # noqa: BLE001
+                    status, ok = "unreadable", False
                 kind = "run"
             elif (d / "study.csv").is_file() or (d / "study.json").is_file():
                 rows, meta = read_study_table(d)
@@ -457,6 +456,9 @@ def expect_numbers(run_dir: Path, study: str, link: Path) -> list[dict[str, Any]
     except (OSError, ValueError):
         return []
     ver = (data.get("verification") or {}).get("status") if isinstance(data.get("verification"), dict) else None
+    if ver is None:             # a Pareto set: its points' verdict
+        from ocdsl.report.build import points_verification
+        ver = (points_verification(Path(run_dir)) or {}).get("status")
     rows = []
     for c in data.get("expect") or []:
         paper, value = c.get("reference"), c.get("value")
