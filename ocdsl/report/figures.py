@@ -240,9 +240,14 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
             ax.set_xlabel(time_label(units))
             if (1 < len(labels_all) <= MAX_LEGEND) or drew_bound:
                 handles, labs = ax.get_legend_handles_labels()
+                if len(labels_all) > MAX_LEGEND:     # too many runs to name: only the bound
+                    handles, labs = [h for h, l in zip(handles, labs) if l == "bound"], ["bound"] * ("bound" in labs)
                 if labs:
-                    ax.legend(fontsize=7, loc="best", frameon=False)
+                    ax.legend(handles, labs, fontsize=7, loc="best", frameon=False)
         suffix = f" ({ci + 1} of {len(chunks)})" if len(chunks) > 1 else ""
+        if len(labels_all) > MAX_LEGEND:
+            suffix += (f" {len(labels_all)} runs, coloured in order from the first ({labels_all[0]}, dark "
+                       f"blue) to the last ({labels_all[-1]}, yellow).")
         out.append(Fig(f"{key}-{ci}", caption + suffix, fig))
     return out
 
