@@ -256,3 +256,15 @@ def test_pareto_set_takes_its_points_verification(tmp_path):
     assert res.verification["status"] == "failed" and "2 of 3 points verified" in res.verification["summary"]
     head = build_run_html(run).split("</header>")[0]
     assert re.search(r'verification <span class="badge fail"[^>]*>failed</span>', head)
+
+
+def test_a_table_wider_than_the_page_is_split_with_its_key_column(tmp_path):
+    cols = {"factor": np.array([0.5, 1.0, 2.0])}
+    for c in ("lqr", "sdre", "theta-d"):
+        for q in ("stable", "cost", "peak_control", "settling", "after60", "after150"):
+            cols[f"{c}.{q}"] = np.array([1.0, 2.0, 3.0])
+    res = Result(name="rob", status="stable", tables={"robustness": cols}, problem={"name": "rob"})
+    html = build_run_html(res.write(tmp_path / "r"))
+    heads = [_table(html, f"Table tables/robustness.csv (part {i} of 3")[0] for i in (1, 2, 3)]
+    assert all(h[0] == "factor" and len(h) == 7 for h in heads)
+    assert heads[0][1].startswith("lqr.") and heads[2][1].startswith("theta")

@@ -438,9 +438,28 @@ def _tables_sections(doc: Doc, res: Result) -> None:
     if other:
         b = doc.section("tables", "Other tables in the run folder")
         for n in other:
-            doc.table(b, doc.guard(f"table {n}", lambda n=n: T.column_table(
-                n, f"Table <code>tables/{n}.csv</code>.".replace("<code>", "").replace("</code>", ""),
-                res.tables[n])))
+            parts = split_columns(res.tables[n])
+            for i, cols in enumerate(parts):
+                part = f" (part {i + 1} of {len(parts)}: {', '.join(list(cols)[1:3])}, ...)" if len(parts) > 1 else ""
+                doc.table(b, doc.guard(f"table {n}", lambda n=n, cols=cols, part=part: T.column_table(
+                    n, f"Table tables/{n}.csv{part}.", cols)))
+
+
+def split_columns(cols: dict[str, Any], per: int = 9) -> list[dict[str, Any]]:
+    """A table too wide for the page as several, each with the first (key) column: by the
+    prefix before the first "." when the columns have one (``lqr.cost``, ``sdre.cost``),
+    else ``per`` columns at a time."""
+    names = list(cols)
+    if len(names) <= per + 1:
+        return [cols]
+    key, rest = names[0], names[1:]
+    groups: dict[str, list[str]] = {}
+    if all("." in n for n in rest):
+        for n in rest:
+            groups.setdefault(n.split(".", 1)[0], []).append(n)
+    if not groups or any(len(g) > per for g in groups.values()):
+        groups = {str(i): rest[i:i + per] for i in range(0, len(rest), per)}
+    return [{key: cols[key], **{n: cols[n] for n in g}} for g in groups.values()]
 
 
 def _rows_of(cols: dict[str, np.ndarray]) -> list[dict[str, Any]]:
