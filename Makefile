@@ -39,8 +39,8 @@ fuzz: setup
 	$(PY) tests/fuzzing.py --files 10000 --log runs/fuzz
 
 reproduce: setup
-	$(PY) -m pytest -q -m slow --timeout 3600
 	$(PY) -m ocdsl.report.reproduce
+	$(PY) -m pytest -q -m slow --timeout 3600
 
 clean:
 	rm -rf runs .pytest_cache
