@@ -309,7 +309,6 @@ def _path_scales(funcs, t, X, U, scale_x, ubounds, G) -> np.ndarray:
 def _d_dtf(expr: sp.Expr, ph, run: _PhaseRun, problem, point) -> float:
     """d expr / d t_f of phase ``ph`` with everything else held: through x(t_f) (its rate
     f(x(t_f), u(t_f))), the phase's integrals (their integrands at t_f) and t_f itself."""
-    subs = {k: sp.Float(v) for k, v in point.items()}
     n = len(ph.states)
     total = 0.0
     for s in expr.free_symbols:
@@ -322,7 +321,7 @@ def _d_dtf(expr: sp.Expr, ph, run: _PhaseRun, problem, point) -> float:
             rate = float(run.end_rate[list(ph.states).index(problem.boundary_values[s].var)])
         else:
             continue
-        total += float(sp.diff(expr, s).xreplace(subs)) * rate
+        total += evaluate(sp.diff(expr, s), point) * rate
     return total
 
 
