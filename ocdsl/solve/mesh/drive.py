@@ -52,6 +52,13 @@ def _dense_trajectory(pb, samples: int = 4) -> PhaseTrajectory:
                            {c.name: Ud[:, j] for j, c in enumerate(ph.controls)})
 
 
+def _close_mesh(a, b, tol: float) -> bool:
+    """Same scheme and degrees, breakpoints within ``tol`` (normalised time)."""
+    return (a.scheme_name == b.scheme_name and tuple(a.degrees) == tuple(b.degrees)
+            and len(a.breakpoints) == len(b.breakpoints)
+            and bool(np.all(np.abs(np.asarray(a.breakpoints) - np.asarray(b.breakpoints)) <= tol)))
+
+
 def initial_meshes(file) -> dict:
     from ...transcribe.mesh import Mesh
 
@@ -106,6 +113,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     last = None
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
+    tried: list = []     # the coarsened meshes tried so far (each is tried once)
     junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
     chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
     reg_weight = spec.regularise
@@ -223,10 +231,16 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     except Exception as exc:  # locating is an aid; the estimate still decides
                         _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
                         features[pb.phase.name] = []
+                # the bound-to-bound switches on their own (``refine`` moves a breakpoint near one onto it)
+                bang = {}
+                for pb in tr.phases:
+                    try:
+                        bang[pb.phase.name] = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
+                    except Exception:   # an aid, as the locators
+                        bang[pb.phase.name] = []
                 if spec.move_switches:
                     try:
-                        pinned = {pb.phase.name: locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
-                                  for pb in tr.phases}
+                        pinned = bang
                         here = ws.take(tr) if spec.warm_start == "multipliers" else None
 
                         def resolve(ms, here=here, rebuild=rebuild):
@@ -256,8 +270,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                 for pb in tr.phases}
                     size = lambda ms: sum(nlp_size(ms[pb.phase.name], len(pb.phase.states),  # noqa: E731
                                                     len(pb.phase.controls)) for pb in tr.phases)
-                    if size(cand) < size(meshes):
+                    # a coarsening that was tried and missed the tolerance is not tried again (the
+                    # bang-off-bang arc mesh (2, 1, 2) missed it, was refined back to 9 segments,
+                    # coarsened to (2, 1, 2) again, ... to max_iterations)
+                    if size(cand) < size(meshes) and not any(
+                            all(_close_mesh(cand[k], r[k], spec.corner_tolerance) for k in cand) for r in tried):
                         smaller = cand
+                        tried.append(cand)
                 if smaller is None:
                     break
                 coarsening = True
@@ -282,7 +301,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     update={"tolerance": spec.tolerance * min(1.0, local_err / term.error)})
                 with timer.measure("mesh"):
                     new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec_r,
-                                                        features=features[pb.phase.name]) for pb in tr.phases}
+                                                        features=features[pb.phase.name],
+                                                        switches=bang.get(pb.phase.name, []))
+                                  for pb in tr.phases}
             except MeshStalled as exc:
                 stalled = f"mesh iteration {it}: refinement stalled: {exc}"
                 rec["stalled"] = str(exc)
