@@ -1,0 +1,62 @@
+"""Issue 26, adaptive meshes: from the coarse start of configs/mesh_*.yaml the refinement
+reaches the published (or derived) optimum and never ends farther from it than a uniform mesh
+of the same size (docs/mesh.md, adaptive-mesh table)."""
+import math
+
+import pytest
+
+import ocdsl
+from ocdsl.api import Timer, compile_file
+
+pytestmark = pytest.mark.ipopt
+
+BANG_OFF_BANG = 3.0 - math.sqrt(5.0)   # J = 2 t1, t1 (3 - t1) = 1 (configs/mesh_bang_off_bang.yaml)
+
+
+def _solve(configs, name):
+    return ocdsl.load(configs / name).solve()
+
+
+def _uniform(configs, name, variables: int, degree: int = 4):
+    """The solve on the smallest uniform LGR mesh of ``degree`` with at least ``variables``
+    NLP variables, with the Ipopt settings the adaptive run uses (a fair comparison)."""
+    from ocdsl.run import solve_pseudospectral
+    from ocdsl.solve.mesh.coarsen import nlp_size
+    from ocdsl.transcribe.mesh import Mesh
+
+    f = compile_file(configs / name)
+    tol = f.method.mesh.tolerance
+    f.spec.solver.options.setdefault("tol", min(1e-8, 1e-2 * tol))
+    f.spec.solver.options.setdefault("bound_relax_factor", min(1e-8, 1e-3 * tol))
+    n = 1
+    while sum(nlp_size(Mesh.uniform("LGR", n, degree), len(ph.states), len(ph.controls))
+              for ph in f.problem.phases) < variables:
+        n += 1
+    meshes = {ph.name: Mesh.uniform("LGR", n, degree) for ph in f.problem.phases}
+    return solve_pseudospectral(f, Timer(), meshes=meshes)
+
+
+def _not_above_uniform(configs, name, res, reference: float, floor: float = 1e-10):
+    """The adaptive objective is at least as close to ``reference`` as a uniform mesh of the
+    same size (relative errors; ``floor``: Ipopt's noise, counted as exact)."""
+    uni = _uniform(configs, name, res.nlp["variables"])
+    assert uni.status in ("optimal", "acceptable"), uni.message
+    err = abs(res.objective - reference) / abs(reference)
+    err_u = abs(uni.objective - reference) / abs(reference)
+    assert max(err, floor) <= max(err_u, floor), (err, err_u, res.nlp["variables"], uni.nlp["variables"])
+
+
+def test_bang_off_bang_converges_to_the_optimum(configs):
+    """Before: mesh_not_converged after 20 iterations, chasing corners located next to the
+    switch (0.12531, 0.12528, ... against 0.127322) while the breakpoint sat 4.6e-7 after it."""
+    res = _solve(configs, "mesh_bang_off_bang.yaml")
+    assert res.status == "optimal", res.message
+    assert res.verification["status"] == "verified", res.verification.get("summary")
+    assert abs(res.objective - BANG_OFF_BANG) / BANG_OFF_BANG <= 1e-7
+    assert len(res.extra["mesh_history"]) <= 8
+    # both switches (s = t1 / 3 and 1 - t1 / 3) on breakpoints
+    bps = res.method["meshes"]["main"]["breakpoints"]
+    t1 = (3.0 - math.sqrt(5.0)) / 2.0
+    for s in (t1 / 3.0, 1.0 - t1 / 3.0):
+        assert min(abs(b - s) for b in bps) <= 1e-7, (s, bps)
+    _not_above_uniform(configs, "mesh_bang_off_bang.yaml", res, BANG_OFF_BANG)
