@@ -170,8 +170,6 @@ def verify(file, result: Result, timer: Timer) -> None:
     the back end already verified this result at the file's settings."""
     from .verify import VerifySettings, attach_verification
 
-    # the integrator's import is start-up (as the solver's is, check_available), not verification
-    import scipy.integrate  # noqa: F401
     settings = VerifySettings.of(file.spec.verify)
     done = result.verification
     if done and done.get("tolerance") == settings.tolerance and done.get("status") in ("verified", "failed"):

@@ -12,9 +12,10 @@ the control is smooth, so the integrator never steps over a kink):
 The integrals of the phase (cost, constraints, links) are integrated as extra states, so
 they are the integrals of the trajectory, not the transcription's quadrature of them.
 
-The integrator is SciPy's DOP853 (explicit, 8th order) at ``rtol`` with ``atol = rtol x``
-each quantity's scale; a stiff piece (|eigenvalue of df/dx| x piece length above
-:data:`STIFF`) or a failed DOP853 run takes Radau IIA instead.
+The integrator is DOP853 (explicit, 8th order; ``ocdsl/verify/dop853.py``, SciPy's stepping
+in NumPy alone, so that a run does not import scipy.integrate) at ``rtol`` with ``atol = rtol
+x`` each quantity's scale; a stiff piece (|eigenvalue of df/dx| x piece length above
+:data:`STIFF`) or a failed DOP853 run takes SciPy's Radau IIA (then LSODA) instead.
 """
 from __future__ import annotations
 
@@ -25,6 +26,8 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from . import dop853
 
 STIFF = 200.0          # |lambda| * piece length above which a piece is integrated by Radau
 
@@ -85,15 +88,18 @@ def _stiff(funcs, uf, t, X, scale) -> float:
 
 
 def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
-    from scipy.integrate import solve_ivp   # imported by the verification, not by importing ocdsl.verify
-
     u_of = uf.piece(0.5 * (a + b))
 
     def fun(tt, y):
         _check_deadline(tt)
         return funcs.augmented_point(tt, y, u_of(tt))
 
-    sol = solve_ivp(fun, (a, b), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol)
+    if method == "DOP853":
+        sol = dop853.solve(fun, (a, b), y0, t_eval, rtol, atol)
+    else:   # the stiff fallbacks; scipy.integrate is imported only by a run that needs them
+        from scipy.integrate import solve_ivp
+
+        sol = solve_ivp(fun, (a, b), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol)
     ok = sol.success and sol.y.shape[1] == len(t_eval) and np.all(np.isfinite(sol.y))
     return sol, ok
 
@@ -115,7 +121,8 @@ def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:
             if ok:
                 break
         else:
-            raise IntegrationFailure(f"the integrators stop at t = {sol.t[-1]:.6g} in [{a:.6g}, {b:.6g}]: "
+            stop = sol.t_end if method == "DOP853" else (sol.t[-1] if len(sol.t) else a)
+            raise IntegrationFailure(f"the integrators stop at t = {stop:.6g} in [{a:.6g}, {b:.6g}]: "
                                      f"{sol.message}")
         out.methods.add(method)
         out.steps += len(sol.t) if sol.t is not None else 0
@@ -159,12 +166,9 @@ def batched_local_pass(funcs, uf, grid, t_rows, X_rows, per_interval, rtol, scal
             F = np.concatenate([F, funcs.q(tt, Y[:, :n], U)], axis=1)
         return (F * h[:, None]).ravel()
 
-    from scipy.integrate import solve_ivp   # as in _piece: imported by the verification only
-
     tight = max(rtol / np.sqrt(P * width), 1e-13)
     y0 = np.concatenate([X_rows[:-1], np.zeros((P, nq))], axis=1).ravel()
-    sol = solve_ivp(rhs, (0.0, 1.0), y0, method="DOP853", t_eval=frac, rtol=tight,
-                    atol=np.tile(tight * scale, P))
+    sol = dop853.solve(rhs, (0.0, 1.0), y0, frac, tight, np.tile(tight * scale, P))
     if not sol.success or sol.y.shape[1] != len(frac) or not np.all(np.isfinite(sol.y)):
         return None
     S = sol.y.T.reshape(len(frac), P, width)          # (point in piece, piece, quantity)

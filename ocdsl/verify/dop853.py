@@ -1,0 +1,203 @@
+"""DOP853 (Dormand-Prince 8(5,3), Hairer's ``dop853``) with dense output, in NumPy alone.
+
+Why not ``scipy.integrate.solve_ivp``: importing ``scipy.integrate`` pulls in
+scipy.optimize, linalg, special and sparse, about 0.35-0.8 s of CPU, more than the whole
+verification of a small problem. The stepping here is the one ``solve_ivp(method="DOP853")``
+does (same initial step, error norm, step-size control and 7th-degree interpolant), so the
+two agree to round-off (``tests/test_dop853.py`` checks that against SciPy on smooth and
+stiff-ish systems). The coefficient table is SciPy's own file
+(``scipy/integrate/_ivp/dop853_coefficients.py``, which needs only NumPy), read from where
+SciPy is installed without importing the ``scipy.integrate`` package.
+"""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+ERROR_EXPONENT = -1.0 / 8.0      # error estimator of order 7
+N_STAGES = 12
+
+
+def _coefficients():
+    name = "ocdsl.verify._dop853_coefficients"
+    mod = sys.modules.get(name)
+    if mod is not None:
+        return mod
+    spec = importlib.util.find_spec("scipy")    # locates SciPy; does not import it
+    path = None
+    if spec is not None and spec.submodule_search_locations:
+        from pathlib import Path
+
+        cand = Path(list(spec.submodule_search_locations)[0]) / "integrate" / "_ivp" / "dop853_coefficients.py"
+        path = cand if cand.is_file() else None
+    if path is None:                              # another layout: the ordinary import
+        from scipy.integrate._ivp import dop853_coefficients as mod
+        return mod
+    fspec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(fspec)
+    fspec.loader.exec_module(mod)
+    sys.modules[name] = mod
+    return mod
+
+
+class _Table:
+    def __init__(self):
+        c = _coefficients()
+        self.A = np.asarray(c.A, float)
+        self.B = np.asarray(c.B, float)
+        self.C = np.asarray(c.C, float)
+        self.D = np.asarray(c.D, float)
+        self.E3 = np.asarray(c.E3, float)
+        self.E5 = np.asarray(c.E5, float)
+        self.n_extended = int(c.N_STAGES_EXTENDED)
+        self.power = int(c.INTERPOLATOR_POWER)
+
+
+_TABLE: list[_Table] = []
+
+
+def _table() -> _Table:
+    if not _TABLE:
+        _TABLE.append(_Table())
+    return _TABLE[0]
+
+
+@dataclass
+class Solution:
+    """What the callers read of SciPy's OdeResult with ``t_eval``: the requested times reached
+    ``t`` and the solution there ``y`` (n, len(t)), ``success``, ``message``; besides, where
+    the integration stopped ``t_end``, the accepted steps ``steps`` and ``nfev``."""
+
+    t: np.ndarray
+    y: np.ndarray
+    success: bool
+    message: str
+    t_end: float
+    steps: int
+    nfev: int
+
+
+def _rms(x) -> float:
+    return float(np.linalg.norm(x) / np.sqrt(x.size)) if x.size else 0.0
+
+
+def _initial_step(fun, t0, y0, f0, t_bound, rtol, atol) -> float:
+    """Hairer, Norsett, Wanner, Solving ODEs I, sec. II.4 (as SciPy's ``select_initial_step``)."""
+    if y0.size == 0:
+        return np.inf
+    length = abs(t_bound - t0)
+    if length == 0.0:
+        return 0.0
+    direction = np.sign(t_bound - t0)
+    scale = atol + np.abs(y0) * rtol
+    d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, length)
+    f1 = fun(t0 + h0 * direction, y0 + h0 * direction * f0)
+    d2 = _rms((f1 - f0) / scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+    return min(100 * h0, h1, length)
+
+
+def solve(fun, t_span, y0, t_eval, rtol: float, atol) -> Solution:
+    """Integrate ``y' = fun(t, y)`` over ``t_span`` with DOP853 at ``rtol`` and ``atol``
+    (scalar or per component); the solution at the sorted times ``t_eval`` (inside the span)
+    from each step's dense output. A failed run (the step size too small, e.g. where the
+    right-hand side is not finite) returns ``success=False`` with the values reached so far."""
+    T = _table()
+    A, B, C = T.A[:N_STAGES, :N_STAGES], T.B, T.C[:N_STAGES]
+    t0, t_bound = float(t_span[0]), float(t_span[1])
+    direction = 1.0 if t_bound >= t0 else -1.0
+    rtol = max(float(rtol), 100 * np.finfo(float).eps)
+    y = np.array(y0, dtype=float)
+    n = y.size
+    atol = np.asarray(atol, float)
+    t_eval = np.asarray(t_eval, float)
+    out = np.full((n, len(t_eval)), np.nan)
+    nfev = [0]
+
+    def f(tt, yy):
+        nfev[0] += 1
+        return np.asarray(fun(tt, yy), dtype=float)
+
+    K = np.empty((T.n_extended, n))
+    fy = f(t0, y)
+    h_abs = _initial_step(f, t0, y, fy, t_bound, rtol, atol)
+    t = t0
+    ts = [t0]
+    i_eval = 0
+    if direction > 0:
+        seek = lambda tt: np.searchsorted(t_eval, tt, side="right")   # noqa: E731
+    else:
+        seek = lambda tt: np.searchsorted(-t_eval, -tt, side="right")   # noqa: E731
+
+    def result(ok: bool, message: str) -> Solution:
+        return Solution(t_eval[:i_eval], out[:, :i_eval], ok, message, t, len(ts) - 1, nfev[0])
+
+    if t0 == t_bound:
+        i_eval = int(np.sum(t_eval == t0))
+        out[:, :i_eval] = y[:, None]
+    while direction * (t - t_bound) < 0:
+        min_step = 10 * abs(np.nextafter(t, direction * np.inf) - t)
+        h_abs = max(h_abs, min_step)
+        rejected = False
+        while True:
+            if h_abs < min_step:
+                return result(False, "Required step size is less than spacing between numbers.")
+            t_new = t + h_abs * direction
+            if direction * (t_new - t_bound) > 0:
+                t_new = t_bound
+            h = t_new - t
+            h_abs = abs(h)
+            # the Runge-Kutta step: 12 stages, the 8th-order solution, f at its end
+            K[0] = fy
+            for s in range(1, N_STAGES):
+                K[s] = f(t + C[s] * h, y + (K[:s].T @ A[s, :s]) * h)
+            y_new = y + h * (K[:N_STAGES].T @ B)
+            f_new = f(t_new, y_new)
+            K[N_STAGES] = f_new
+            scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
+            Kh = K[:N_STAGES + 1].T
+            err5 = (Kh @ T.E5) / scale
+            err3 = (Kh @ T.E3) / scale
+            e5, e3 = np.linalg.norm(err5) ** 2, np.linalg.norm(err3) ** 2
+            # a non-finite step gives err = nan: rejected and shrunk by MIN_FACTOR, as in SciPy
+            err = 0.0 if e5 == 0 and e3 == 0 else abs(h) * e5 / np.sqrt((e5 + 0.01 * e3) * n)
+            if err < 1:
+                factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** ERROR_EXPONENT)
+                if rejected:
+                    factor = min(1.0, factor)
+                h_abs *= factor
+                break
+            h_abs *= max(MIN_FACTOR, SAFETY * err ** ERROR_EXPONENT)
+            rejected = True
+        j = seek(t_new)
+        if j > i_eval:     # requested times in this step: the 7th-degree dense output
+            for s in range(N_STAGES + 1, T.n_extended):
+                a = T.A[s]
+                K[s] = f(t + T.C[s] * h, y + (K[:s].T @ a[:s]) * h)
+            F = np.empty((T.power, n))
+            dy = y_new - y
+            F[0] = dy
+            F[1] = h * K[0] - dy
+            F[2] = 2 * dy - h * (f_new + K[0])
+            F[3:] = h * (T.D @ K)
+            x = ((t_eval[i_eval:j] - t) / h)[:, None]
+            Y = np.zeros((len(x), n))
+            for i, Fi in enumerate(F[::-1]):
+                Y += Fi
+                Y *= x if i % 2 == 0 else 1 - x
+            out[:, i_eval:j] = (Y + y).T
+            i_eval = j
+        t, y, fy = t_new, y_new, f_new
+        ts.append(t)
+    return result(True, "The solver successfully reached the end of the integration interval.")
