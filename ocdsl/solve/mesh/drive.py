@@ -13,6 +13,7 @@ from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, phase_end
 from .junction import limit_junction_controls
 from .locate import locate_features, locate_switches, misplaced
+from .mixed import locate_mixed_junctions
 from .refine import MeshStalled, refine, same_mesh
 from .regularise import chattering_segments, merge_intervals, regularise
 from .segments import control_polys, seg_polys, solution_arrays
@@ -114,6 +115,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
     tried: list = []     # the coarsened meshes tried so far (each is tried once)
+    nudged: dict = {}    # per phase: the switches ``refine`` moved a breakpoint onto last time
     junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
     chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
     reg_weight = spec.regularise
@@ -238,6 +240,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         bang[pb.phase.name] = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
                     except Exception:   # an aid, as the locators
                         bang[pb.phase.name] = []
+                # and the junctions of mixed constraints (accurate as the switches: docs/mesh.md)
+                exact = {k: list(v) for k, v in bang.items()}
+                for pb in tr.phases:
+                    try:
+                        exact[pb.phase.name] += locate_mixed_junctions(pb, params)
+                    except Exception:   # an aid, as the locators
+                        pass
                 if spec.move_switches:
                     try:
                         pinned = bang
@@ -302,7 +311,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 with timer.measure("mesh"):
                     new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec_r,
                                                         features=features[pb.phase.name],
-                                                        switches=bang.get(pb.phase.name, []))
+                                                        switches=bang.get(pb.phase.name, []),
+                                                        nudged=nudged.setdefault(pb.phase.name, []))
                                   for pb in tr.phases}
             except MeshStalled as exc:
                 stalled = f"mesh iteration {it}: refinement stalled: {exc}"

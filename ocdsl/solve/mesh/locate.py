@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from .boundary import boundary_controls
+from .mixed import locate_mixed_junctions
 from .segments import activity, control_polys, seg_polys, solution_arrays, state_at
 
 
@@ -299,6 +300,10 @@ def locate_features(tr, pb, errors, params, spec, controls, memory: dict | None 
     try:
         junctions = locate_junctions(pb, params, max(1e-9, 0.1 * spec.tolerance), memory, budget)
     except Exception:   # an aid only: the other locators and the estimate still work
+        pass
+    try:
+        junctions += locate_mixed_junctions(pb, params)
+    except Exception:   # an aid only, as above
         pass
     for f in junctions:
         if all(abs(f - g) > spec.corner_tolerance for g in feats):

@@ -84,7 +84,8 @@ def _switch_moves(mesh, spec, features, switches) -> dict[int, float]:
     return moves
 
 
-def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None, switches=()) -> Any:
+def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None, switches=(),
+           nudged: list | None = None) -> Any:
     """The next mesh of one phase (see the module docstring).
 
     ``features``: located switches and corners (normalised time); each one not already on a
@@ -100,9 +101,19 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
         features = corners_to_place(mesh, errors, spec, controls)
     todo = misplaced(mesh, features, spec)
     moves = _arc_mesh_moves(mesh, errors, spec, features, todo)
-    for q, f in _switch_moves(mesh, spec, features, switches).items():
-        moves.setdefault(q, f)
     still = {k for q in moves for k in (q - 1, q)}
+    # a switch moved onto last time as well: its neighbours are refined as usual this time (a
+    # located switch that still moves by a little must not hold them back forever)
+    before = list(nudged or [])
+    nudges = _switch_moves(mesh, spec, features, switches)
+    for q, f in nudges.items():
+        if q in moves:
+            continue
+        moves[q] = f
+        if not any(abs(f - p) <= spec.corner_tolerance for p in before):
+            still |= {q - 1, q}
+    if nudged is not None:
+        nudged[:] = list(nudges.values())
     proposals: list[list[list]] = []
     for e in errors:
         k = e.segment
