@@ -6,13 +6,16 @@
 """
 from __future__ import annotations
 
+import tempfile
 import time
 import traceback
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 
 from . import run_folder
+from .chain import stages as chain_stages
 from .result import Result
 from .spec import compile as spec_compile
 from .spec.errors import SpecError
@@ -107,8 +110,13 @@ class Loaded:
             if result is not None:
                 verify(file, result, timer)
         if result is None:
-            result = execute(file, timer, seed=seed, warm_start=warm_start, verbose=verbose, progress=progress)
-        if out is not None:
+            with _chain(file, out, warm_start, quiet=not progress, verbose=verbose) as (started, stages):
+                result = execute(started, timer, seed=seed, warm_start=warm_start, verbose=verbose,
+                                 progress=progress)
+                chain_stages.finish(result, file, stages)
+                if out is not None:
+                    write_run(result, out, self.path, force=force, extra_dirs=chain_stages.entries(stages))
+        elif out is not None:
             write_run(result, out, self.path, force=force)
         return result
 
@@ -179,11 +187,25 @@ def verify(file, result: Result, timer: Timer) -> None:
     result.wall_time_s = {**result.wall_time_s, **timer.breakdown()}
 
 
-def write_run(result: Result, out: str | Path, source: Path | None, force: bool = False) -> Path:
+def write_run(result: Result, out: str | Path, source: Path | None, force: bool = False,
+              extra_dirs: dict[str, Path] | None = None) -> Path:
     extra = {}
     if source is not None and source.exists():
         extra["problem.yaml"] = source.read_text()
-    return result.write(out, extra_files=extra, force=force)
+    return result.write(out, extra_files=extra, force=force, extra_dirs=extra_dirs)
+
+
+@contextmanager
+def _chain(file, out, warm_start, *, quiet: bool, verbose: bool):
+    """``(file to solve, stages)``: a chained file's sources solved first (ocdsl/chain) in a
+    scratch folder that lives until the run folder is written; a ``warm_start`` folder
+    replaces every guess, the chain's too."""
+    if warm_start is not None or not chain_stages.chained(file):
+        yield file, []
+        return
+    with tempfile.TemporaryDirectory(prefix="ocdsl-stages-") as work:
+        yield chain_stages.prepare(file, Path(out) if out is not None else None, Path(work),
+                                   quiet=quiet, verbose=verbose)
 
 
 def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str, float] | None = None,
@@ -200,17 +222,21 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     file = compile_file(path, parameters, timer)
     if out_dir is not None:
         run_folder.check_destination(out_dir, "run", force=force)
-    try:
-        result = execute(file, timer, time_limit, seed=seed, warm_start=warm_start, verbose=verbose,
-                         progress=not quiet)
-    except SpecError:
-        raise
-    except Exception as e:  # a crash in a back end still leaves a diagnosed run folder
-        result = Result(name=file.spec.name, status="error",
-                        message=f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=6)}",
-                        wall_time_s=timer.breakdown(), method=dict(file.spec.method),
-                        parameters=file.parameters,
-                        problem=file.problem.description if file.problem else {})
-    if out_dir is not None:
-        write_run(result, out_dir, Path(path), force=force)
+    with ExitStack() as scope:
+        stages = []
+        try:
+            started, stages = scope.enter_context(_chain(file, out_dir, warm_start, quiet=quiet, verbose=verbose))
+            result = execute(started, timer, time_limit, seed=seed, warm_start=warm_start, verbose=verbose,
+                             progress=not quiet)
+            chain_stages.finish(result, file, stages)
+        except SpecError:
+            raise
+        except Exception as e:  # a crash in a back end (or a stage) still leaves a diagnosed run folder
+            result = Result(name=file.spec.name, status="error",
+                            message=f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=6)}",
+                            wall_time_s=timer.breakdown(), method=dict(file.spec.method),
+                            parameters=file.parameters,
+                            problem=file.problem.description if file.problem else {})
+        if out_dir is not None:
+            write_run(result, out_dir, Path(path), force=force, extra_dirs=chain_stages.entries(stages))
     return result

@@ -240,6 +240,15 @@ def models():
 
 
 @main.command()
+def transforms():
+    """List the registered guess transforms (`guess: {from: ..., transform: NAME}`)."""
+    from .chain.registry import get_transform, transform_names
+
+    for name in transform_names():
+        click.echo(f"{name}: {get_transform(name).description}")
+
+
+@main.command()
 def schema():
     """Print the JSON Schema of the problem language (for editors)."""
     import json

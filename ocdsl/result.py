@@ -16,6 +16,7 @@ import csv
 import json
 import math
 import os
+import shutil
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -130,12 +131,16 @@ class Result(ResultViews):
         return _jsonable(data)
 
     def write(self, run_dir: str | os.PathLike, extra_files: dict[str, str] | None = None, *,
-              force: bool = False, kind: str = "run") -> Path:
+              force: bool = False, kind: str = "run", extra_dirs: dict[str, Path] | None = None) -> Path:
         """Write the run folder in one step (ocdsl/run_folder.py: a folder ocdsl did not
-        write is refused, an earlier run folder replaced); ``extra_files`` maps file name -> text."""
+        write is refused, an earlier run folder replaced); ``extra_files`` maps file name -> text,
+        ``extra_dirs`` relative name -> an ocdsl folder copied there (a chain's stages)."""
         run_dir = Path(run_dir)
         with run_folder.assemble(run_dir, kind, force=force) as tmp:
             self.write_contents(tmp, extra_files)
+            for name, src in (extra_dirs or {}).items():
+                (tmp / name).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copytree(src, tmp / name, ignore=shutil.ignore_patterns(".*.ocdsl-*"))
         return run_dir
 
     def write_contents(self, folder: Path, extra_files: dict[str, str] | None = None) -> None:

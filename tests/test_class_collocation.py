@@ -278,12 +278,10 @@ def test_10N_class_mode_homotopy(tmp_path):
     from weight 60 converged once to 1.93943 (tests/data) and once did not (see
     HARD_ATTEMPTS). Session 5, the paper's terminal box (default): T 1.5457 -> 1.7710, both
     hard attempts at the cap."""
-    import ocdsl
-    from ocdsl.search.refine_optimal import refine
+    from ocdsl.api import run_file
 
-    paper_run = tmp_path / "p10"
-    ocdsl.load(CONFIGS / "seed1_10N_paper.yaml").solve(paper_run)
-    opt = refine(CONFIGS / "seed1_10N_optimal.yaml", paper_run, tmp_path / "o10")
+    # the optimal-mode file alone: its chain solves the paper-mode file first (or reuses its run)
+    opt = run_file(CONFIGS / "seed1_10N_optimal.yaml", tmp_path / "o10")
     assert abs(opt.extra["tf_physical"] - 1.54475) < 1e-3
     res = cc.refine_class(CONFIGS / "seed1_10N_paper.yaml", tmp_path / "o10", tmp_path / "c10",
                           progress=False)

@@ -1,6 +1,7 @@
 """docs/problem-language.md runs: each ```yaml block that starts with `name:` is a whole
-problem file, each ```csv block that starts with `# file: NAME` a file beside it; every
-problem file solves, is verified and meets its `expect` values."""
+problem file, each ```csv or ```yaml block that starts with `# file: NAME` a file beside it
+(a table's data, a chain's source); every problem file solves, is verified and meets its
+`expect` values."""
 import re
 from pathlib import Path
 
@@ -23,7 +24,7 @@ def _problems():
 def _write_files(folder: Path) -> None:
     for lang, body in _blocks():
         m = re.match(r"# file: (\S+)\n", body)
-        if lang == "csv" and m:
+        if lang in ("csv", "yaml") and m:
             (folder / m.group(1)).write_text(body)
 
 

@@ -169,22 +169,56 @@ def test_index_only_and_paper_tables(tmp_path):
     assert re.search(r'not reproduced <span class="badge fail">3</span>', html)
 
 
-def test_optimal_mode_files_run_after_their_paper_run(tmp_path):
-    """`# reproduce: refine <stem>`: the seed-1 optimal-mode files are warm-started from the
-    paper-mode example's run folder, so they run after it, and without it they fail with a
-    message naming what to run first (not a solve from a cold guess)."""
+def test_optimal_mode_files_run_after_their_paper_run():
+    """The seed-1 optimal-mode files take their guess from the paper-mode file (``guess:
+    {from: seed1_<n>N_paper.yaml}``, ocdsl/chain): they are plain problem files run after
+    it (so they reuse its fresh run folder), and slow as it is."""
     examples = R.find_examples(ROOT / "configs")
     order = [e.stem for e in examples]
     for n in (10, 5, 2):
         opt = examples[order.index(f"seed1_{n}N_optimal")]
-        assert opt.kind == "refine" and opt.slow and opt.after == f"seed1_{n}N_paper"
+        assert opt.kind == "problem" and opt.slow and opt.after == (f"seed1_{n}N_paper",)
         assert order.index(f"seed1_{n}N_optimal") > order.index(f"seed1_{n}N_paper")
     assert "seed1_10N_optimal" not in {e.stem for e in R.find_examples(ROOT / "configs", skip_slow=True)}
-    opt = examples[order.index("seed1_10N_optimal")]
-    (out,) = R.reproduce([opt], tmp_path / "reports", formats=(), log=lambda *_: None)
-    assert out.status == "error" and not out.ok
-    assert "reproduce seed1_10N_paper first" in out.message
-    assert not (tmp_path / "reports" / "seed1_10N_optimal").exists()
+
+
+CHAIN_SOURCE = """name: Double integrator, minimum energy
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: 2.5}
+  constraints: [x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, -1 <= u <= 1]
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 6, degree: 4}
+"""
+CHAIN_TARGET = """name: Double integrator, minimum time from the minimum-energy run
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: free}
+  guess: {from: a_energy.yaml, reuse: ../reports/a_energy, tf: 2.5}
+  constraints: [x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, -1 <= u <= 1, 0.1 <= tf <= 10]
+  objective: minimize tf
+method: {transcription: LGR, segments: 6, degree: 4}
+expect:
+  tf: {value: 2.0, rtol: 1.0e-4}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_chain_runs_after_its_source_and_reuses_its_report_folder(tmp_path):
+    """A file whose guess comes from another example (named so that it sorts first) runs
+    after it and reuses that example's fresh run folder instead of solving it again."""
+    cfg = tmp_path / "configs"
+    cfg.mkdir()
+    (cfg / "0_mintime.yaml").write_text(CHAIN_TARGET)
+    (cfg / "a_energy.yaml").write_text(CHAIN_SOURCE)
+    examples = R.find_examples(cfg)
+    assert [e.stem for e in examples] == ["a_energy", "0_mintime"]
+    outs = R.reproduce(examples, tmp_path / "reports", formats=(), log=lambda *_: None)
+    assert [o.ok for o in outs] == [True, True], [o.message for o in outs]
+    data = json.loads((tmp_path / "reports" / "0_mintime" / "result.json").read_text())
+    (stage,) = data["extra"]["chain"]
+    assert Path(stage["reused"]).resolve() == (tmp_path / "reports" / "a_energy").resolve()
+    assert (tmp_path / "reports" / "0_mintime" / "stages" / "a_energy" / "result.json").is_file()
 
 
 def test_reports_only_remakes_reports_from_the_run_folders(repro):

@@ -1,10 +1,12 @@
 """Seed 1 optimal mode: a paper-mode trajectory warm-starts LGR collocation (Cartesian, Sundman
-variable) through ocdsl.search.refine_optimal.
+variable) through the registered transform cr3bp_polar_to_sundman (ocdsl.search.refine_optimal,
+declared in the file: ``guess: {from: ..., transform: ...}``, ocdsl/chain).
 
 The fast test builds its own short "paper-mode" run (transverse thrust for 0.05 TU from the
 GTO perigee), aims the optimal-mode file at that run's end point on a coarse mesh and checks
 the conversion, the solve, the re-integration and the side-by-side table. The slow tests run
-the paper-mode files first (``ocdsl.api.run_file``) and refine their best particle.
+the optimal-mode files alone (``ocdsl.api.run_file``, what ``ocdsl run`` does): the chain
+solves the paper-mode file first (or reuses its current run under reports/).
 """
 from pathlib import Path
 
@@ -53,8 +55,9 @@ def _short_paper_run(folder: Path, horizon: float) -> Result:
     return res
 
 
-def _retarget(text: str, end: dict, segments: int, degree: int) -> str:
-    """The 10 N optimal-mode file aimed at ``end`` (synodic state) on a coarse mesh."""
+def _retarget(text: str, end: dict, segments: int, degree: int, paper: Path) -> str:
+    """The 10 N optimal-mode file aimed at ``end`` (synodic state) on a coarse mesh, its guess
+    from the run folder ``paper``."""
     out = []
     for line in text.splitlines():
         s = line.strip()
@@ -69,6 +72,10 @@ def _retarget(text: str, end: dict, segments: int, degree: int) -> str:
             line = "    - 0.01 <= tf <= 1000"
         if s.startswith("time(tf):") or s == "expect:":
             continue
+        if s.startswith("from: seed1_10N_paper.yaml"):
+            line = f"    from: {paper}"
+        if s.startswith("reuse:"):
+            continue
         out.append(line)
     return "\n".join(out) + "\n"
 
@@ -81,7 +88,7 @@ def test_refine_machinery_short_horizon(tmp_path):
     end = dict(zip(("x", "y", "z", "vx", "vy", "vz"),
                    frames.ecrf_to_synodic(*(fin[n] for n in POLAR[:6]), MU)))
     cfg = tmp_path / "short_optimal.yaml"
-    cfg.write_text(_retarget((CONFIGS / "seed1_10N_optimal.yaml").read_text(), end, 12, 5))
+    cfg.write_text(_retarget((CONFIGS / "seed1_10N_optimal.yaml").read_text(), end, 12, 5, tmp_path / "paper"))
 
     # conversion: the warm start starts at the initial state, ends at the paper's end at its tf
     import ocdsl
@@ -100,8 +107,11 @@ def test_refine_machinery_short_horizon(tmp_path):
     u = np.sqrt(w.controls["ux"] ** 2 + w.controls["uy"] ** 2 + w.controls["uz"] ** 2)
     assert np.allclose(u, 1.0, atol=1e-12)
 
-    res = R.refine(cfg, tmp_path / "paper", tmp_path / "opt")
+    from ocdsl.api import run_file
+
+    res = run_file(cfg, tmp_path / "opt")
     assert res.status == "optimal", res.message
+    assert res.extra["chain"][0]["transform"] == "cr3bp_polar_to_sundman"
     tr = res.phase()
     t_opt = res.extra["tf_physical"]
     # the paper trajectory is feasible, so the minimum time is not later than its t_f
@@ -171,12 +181,15 @@ def test_optimal_mode_counts_revolutions_against_the_paper_runs_target(end_offse
 # ---------------------------------------------------------------------------------------
 # the full cases: paper mode first, then optimal mode from its best particle
 def _paper_then_optimal(n: int, tmp_path: Path) -> tuple[Result, Result]:
+    """``ocdsl run configs/seed1_<n>N_optimal.yaml`` alone: the chain runs the paper-mode file
+    first (or reuses its current run under reports/)."""
     from ocdsl.api import run_file
 
-    paper = run_file(CONFIGS / f"seed1_{n}N_paper.yaml", tmp_path / "paper")
-    assert paper.phases, paper.message
-    opt = R.refine(CONFIGS / f"seed1_{n}N_optimal.yaml", tmp_path / "paper", tmp_path / "optimal")
+    opt = run_file(CONFIGS / f"seed1_{n}N_optimal.yaml", tmp_path / "optimal")
     assert opt.status == "optimal", opt.message
+    stage = opt.extra["chain"][0]
+    paper = Result.read(stage["reused"] or tmp_path / "optimal" / "stages" / f"seed1_{n}N_paper")
+    assert paper.phases
     tf = opt.extra["tf_physical"]
     assert opt.extra["m_p"] == pytest.approx(T_MAX[n] * tf / C, abs=1e-8)
     reint = opt.extra["reintegration"]

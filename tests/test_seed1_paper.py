@@ -360,8 +360,8 @@ def test_printed_tf_is_below_the_class_optimum_under_the_atan2_count(tmp_path, n
     reading makes every printed value attainable and Table 5's N_rev comparison true at once."""
     import yaml
 
+    from ocdsl.api import run_file
     from ocdsl.search import class_collocation as cc
-    from ocdsl.search import refine_optimal as R
 
     case = ATAN2[f"{n}N"]
     paper_file = load(_atan2_file(n, tmp_path))
@@ -372,9 +372,10 @@ def test_printed_tf_is_below_the_class_optimum_under_the_atan2_count(tmp_path, n
     doc["problem"]["constraints"] = cc.with_terminal_box(doc["problem"]["constraints"], doc,
                                                          cc.paper_tolerances(paper_file)[0], 1.0)
     doc.pop("expect")
+    doc["problem"]["guess"] = {"from": str(tmp_path / "member"), "transform": "cr3bp_polar_to_sundman"}
     boxed = tmp_path / "optimal_box.yaml"
     boxed.write_text(yaml.safe_dump(doc, sort_keys=False, width=100000))
-    res = R.refine(boxed, tmp_path / "member", tmp_path / "optimal")
+    res = run_file(boxed, tmp_path / "optimal")
     assert res.status in ("optimal", "acceptable") and res.extra["reintegration"]["passed"]
     assert res.extra["side_by_side"]["optimal"]["N_rev"] == PAPER[n][0]
     assert res.extra["tf_physical"] == pytest.approx(class_optimum, abs=5e-4)

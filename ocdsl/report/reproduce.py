@@ -5,9 +5,11 @@
 
 For every configuration file ``configs/<stem>.yaml`` (by kind):
 
-* problem files and controller files (``controller:`` block): ``ocdsl.api.run_file`` into
-  the run folder ``reports/<stem>/``, then ``report.html``/``report.pdf`` in it
-  (:func:`ocdsl.report.make_report`);
+* problem files and controller files (``controller:`` block): ``ocdsl.api.run_file`` (what
+  ``ocdsl run`` does) into the run folder ``reports/<stem>/``, then ``report.html``/``report.pdf``
+  in it (:func:`ocdsl.report.make_report`); a file whose guess comes from another example's
+  file (``guess: {from: other.yaml, reuse: ../reports/other}``, ocdsl/chain) runs after it,
+  and reuses its fresh run folder;
 * ``pareto:`` files: ``ocdsl.study.pareto_run.run_pareto`` into the study folder
   ``reports/<stem>/`` (its own ``result.json`` with the set, one run folder per solution),
   then its report;
@@ -44,6 +46,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+from ocdsl.chain.check import sources_of
+
 CONFIGS = Path("configs")      # relative to the working directory (the repository root under make)
 REPORTS = Path("reports")
 
@@ -53,9 +57,6 @@ SLOW = frozenset({"seed0_rendezvous", "seed0_exact_euler", "seed0_table4",
 #: Every seed-0 file is a multi-start 6-DOF collocation (minutes), whatever its name.
 SLOW_PREFIXES = ("seed0_",)
 SLOW_MARK = re.compile(r"^#\s*reproduce:\s*slow\b", re.M | re.I)
-#: ``# reproduce: refine <paper stem>``: an optimal-mode file warm-started from another
-#: example's run folder (``ocdsl.search.refine_optimal``); it runs after that example.
-REFINE_MARK = re.compile(r"^#\s*reproduce:\s*refine\s+(\S+)", re.M | re.I)
 GOOD = ("optimal", "acceptable", "feasible", "stable")
 
 #: Where each reference value of the index comes from, per (report folder, expect check).
@@ -165,10 +166,10 @@ AGREES, DIFFERS = "agrees", "differs"
 @dataclass
 class Example:
     path: Path
-    kind: str            # "problem" | "controller" | "pareto" | "study" | "refine"
+    kind: str            # "problem" | "controller" | "pareto" | "study"
     slow: bool
     name: str = ""
-    after: str = ""      # refine: the example whose run folder warm-starts this one
+    after: tuple[str, ...] = ()   # the examples whose solutions its guess comes from (ocdsl/chain)
 
     @property
     def stem(self) -> str:
@@ -186,7 +187,7 @@ class Outcome:
     message: str = ""
 
 
-def classify(path: Path) -> Example:
+def classify(path: Path, _seen: tuple[str, ...] = ()) -> Example:
     """Kind of a configuration file (from its top-level blocks) and whether it is slow."""
     from ocdsl.spec.loader import load_yaml
 
@@ -201,10 +202,11 @@ def classify(path: Path) -> Example:
     else:
         kind = "problem"
     slow = path.stem in SLOW or path.stem.startswith(SLOW_PREFIXES) or bool(SLOW_MARK.search(text))
-    after = REFINE_MARK.search(text)
-    if after:           # minutes of collocation after a paper-mode run
-        return Example(path, "refine", True, str(data.get("name") or path.stem), after.group(1))
-    return Example(path, kind, slow, str(data.get("name") or path.stem))
+    after = tuple(p.stem for p in sources_of(path) if p.resolve().parent == path.resolve().parent)
+    # a chain runs its sources first when their runs under reports/ are not current
+    slow = slow or any(classify(path.with_name(a + ".yaml"), _seen + (path.stem,)).slow for a in after
+                       if path.with_name(a + ".yaml").is_file() and a not in _seen)
+    return Example(path, kind, slow, str(data.get("name") or path.stem), after)
 
 
 def find_examples(configs: Path = CONFIGS, only: Sequence[str] | None = None,
@@ -218,9 +220,26 @@ def find_examples(configs: Path = CONFIGS, only: Sequence[str] | None = None,
         if unknown:
             raise SystemExit(f"reproduce: no such example in {configs}: {', '.join(sorted(unknown))}")
         files = [f for f in files if f.stem in wanted]
-    out = [classify(f) for f in files]
-    out.sort(key=lambda e: e.kind == "refine")     # after the runs they start from
+    out = _sources_first([classify(f) for f in files])
     return [e for e in out if not (skip_slow and e.slow)]
+
+
+def _sources_first(examples: list[Example]) -> list[Example]:
+    """``examples`` in their order, each moved after the examples its guess comes from (so
+    a chain reuses their fresh run folders instead of solving them again)."""
+    by_stem = {e.stem: e for e in examples}
+    done: dict[str, Example] = {}
+
+    def place(e: Example, seen: tuple = ()) -> None:
+        if e.stem in done or e.stem in seen:      # cycles are refused by `ocdsl check`
+            return
+        for a in e.after:
+            if a in by_stem:
+                place(by_stem[a], seen + (e.stem,))
+        done[e.stem] = e
+    for e in examples:
+        place(e)
+    return list(done.values())
 
 
 # ================================================================================== runs
@@ -239,19 +258,7 @@ def run_example(ex: Example, out_dir: Path, formats: Sequence[str], *, workers: 
 
     t0 = time.perf_counter()
     status, ok = "error", False
-    if ex.kind == "refine":
-        from ocdsl.search.refine_optimal import refine
-
-        paper = Path(reports) / ex.after
-        if not (paper / "trajectory.csv").is_file():
-            raise FileNotFoundError(f"{ex.stem} starts from the run folder of {ex.after}: "
-                                    f"reproduce {ex.after} first (no {paper / 'trajectory.csv'})")
-        res = refine(ex.path, paper, out_dir, warm_dir=Path(out_dir).with_name(ex.stem + ".warm"))
-        shutil.rmtree(Path(out_dir).with_name(ex.stem + ".warm"), ignore_errors=True)
-        status = res.status
-        ok = res.ok         # the exit code's verdict: converged, expect checks and verification
-        files = make_report(out_dir, formats) if formats else []
-    elif ex.kind in ("problem", "controller"):
+    if ex.kind in ("problem", "controller"):
         from ocdsl.api import run_file
 
         res = run_file(ex.path, out_dir, quiet=quiet)

@@ -1,38 +1,35 @@
-"""Seed 1 "optimal mode": refine a paper-mode run (Fourier angles + discrete PSO) to a local
-optimum by pseudospectral collocation, and report both side by side.
+"""Seed 1 "optimal mode": the registered guess transform ``cr3bp_polar_to_sundman`` that
+starts the optimal-mode files (``configs/seed1_*_optimal.yaml``) from a paper-mode run
+(Fourier angles + discrete PSO), and the comparison of both (ocdsl/chain).
 
-Why a driver and not only a problem file: the optimal-mode files
-(``configs/seed1_*_optimal.yaml``) are written in the Sundman variable s (dt = c R^k ds,
-model option ``sundman_k``) and, optionally, in the synodic Cartesian frame, while a
+Why a transform: the optimal-mode files are written in the Sundman variable s (dt = c R^k
+ds, model option ``sundman_k``) and, optionally, in the synodic Cartesian frame, while a
 paper-mode run folder holds the polar ECRF trajectory against physical time t. The warm
-start of the pipeline interpolates a previous trajectory by *normalised* independent
-variable, so the paper trajectory must first be re-expressed against s; that needs the
-integral s(t) = int dt / (c R^k) along the trajectory, which the problem language cannot
-express. This module:
+start interpolates a previous trajectory by *normalised* independent variable, so the
+paper trajectory must first be re-expressed against s; that needs the integral
+s(t) = int dt / (c R^k) along the trajectory. A file declares it::
 
-1. :func:`paper_to_warm_start`: re-integrates the paper-mode trajectory (its thrust angles
-   interpolated against physical time) in the Sundman variable with SciPy's DOP853, maps
-   the polar states and angles onto the optimal-mode model's variables (polar: as they
-   are, plus the clock state ``time``; Cartesian: ``frames.ecrf_to_synodic`` and
-   ``frames.polar_direction_to_cartesian``) and writes a warm-start run folder;
-2. :func:`refine`: solves the optimal-mode file from it (``ocdsl.load(...).solve(warm_start=...)``);
-3. :func:`reintegrate`: integrates the collocated control (each segment's polynomial
-   through its collocation points) from the initial state with DOP853 at rtol 1e-12, and
-   measures the distance to the target in the synodic frame (position in LU, velocity in
-   VU), the physical-time and mass mismatch;
-4. writes the optimal-mode run folder with ``extra.side_by_side`` (paper vs optimal: t_f,
-   m_p, N_rev, terminal errors, wall time), ``extra.reintegration`` and the table
-   ``tables/paper_vs_optimal.csv`` (row 0 paper mode, row 1 optimal mode).
+    guess: {from: seed1_10N_paper.yaml, transform: cr3bp_polar_to_sundman}
 
-Command line::
+and ``ocdsl run`` solves the paper-mode file first (or reuses its run), then:
 
-    python -m ocdsl.search.refine_optimal configs/seed1_10N_optimal.yaml --paper RUN_DIR --out OUT
+1. :func:`paper_to_warm_start` (the conversion): re-integrates the paper-mode trajectory
+   (its thrust angles interpolated against physical time) in the Sundman variable with
+   SciPy's DOP853, maps the polar states and angles onto the optimal-mode model's variables
+   (polar: as they are, plus the clock state ``time``; Cartesian: ``frames.ecrf_to_synodic``
+   and ``frames.polar_direction_to_cartesian``);
+2. the optimal-mode file is solved from it;
+3. :func:`reintegrate` (after the solve): integrates the collocated control (each segment's
+   polynomial through its collocation points) from the initial state with DOP853 at rtol
+   1e-12, and measures the distance to the target in the synodic frame (position in LU,
+   velocity in VU), the physical-time and mass mismatch;
+4. the run folder gets ``extra.side_by_side`` (paper vs optimal: t_f, m_p, N_rev, terminal
+   errors, wall time), ``extra.reintegration`` and the table ``tables/paper_vs_optimal.csv``
+   (row 0 paper mode, row 1 optimal mode).
 """
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time as _time
 from pathlib import Path
 from typing import Any
@@ -42,6 +39,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 from scipy.interpolate import BarycentricInterpolator
 
+from ..chain.registry import register_transform
 from ..result import PhaseTrajectory, Result, single_phase_result
 from ..symbolic import frames
 
@@ -102,8 +100,10 @@ def _fixed_boundary(problem, ph) -> dict[tuple[str, str], float]:
 
 # ---------------------------------------------------------------------------------------
 # 1. paper-mode run -> warm-start run folder in the Sundman variable
-def paper_to_warm_start(paper_dir: str | Path, loaded, out: str | Path, points: int = 4000) -> Result:
-    """Write a warm-start run folder for ``loaded`` (an optimal-mode file) from a paper run.
+def paper_to_warm_start(paper_dir: str | Path, loaded, out: str | Path | None = None,
+                        points: int = 4000) -> Result:
+    """The warm start of ``loaded`` (an optimal-mode file) from a paper run (written to ``out``
+    when given).
 
     The paper trajectory's angles (delta, phi) are interpolated linearly against physical
     time and the polar dynamics are integrated again in s (DOP853, rtol 1e-11) from the
@@ -154,7 +154,8 @@ def paper_to_warm_start(paper_dir: str | Path, loaded, out: str | Path, points: 
                               PhaseTrajectory("main", s, states=states, controls=controls), tf=s_f,
                               extra={"source": str(paper_dir), "paper_tf": tf_paper, "s_f": s_f,
                                      "clock_error_at_end": float(X[-1, -1] - tf_paper)})
-    res.write(out)
+    if out is not None:
+        res.write(out)
     return res
 
 
@@ -318,34 +319,21 @@ def _num(v) -> float:
 
 
 # ---------------------------------------------------------------------------------------
-# 2 + 4. refine
-def refine(config: str | Path, paper_dir: str | Path, out: str | Path | None = None,
-           parameters: dict[str, float] | None = None, warm_dir: str | Path | None = None,
-           verbose: bool = False) -> Result:
-    """Warm-start ``config`` (optimal mode) from ``paper_dir`` (paper mode), solve, re-integrate,
-    attach the side-by-side comparison and write ``out`` (when given)."""
-    import ocdsl
-    from ..api import write_run
-
-    t_start = _time.perf_counter()
-    handle = ocdsl.load(config, parameters)
-    loaded = handle.file
-    if warm_dir is None:
-        warm_dir = Path(out).with_name(Path(out).name + "_warm") if out is not None \
-            else Path(paper_dir).with_name(Path(paper_dir).name + "_warm")
-    t0 = _time.perf_counter()
-    warm = paper_to_warm_start(paper_dir, loaded, warm_dir)
-    convert_s = _time.perf_counter() - t0
-    result = handle.solve(warm_start=warm_dir, verbose=verbose)
-    result.wall_time_s["convert_guess"] = round(convert_s, 6)
+# 2 + 4. the registered transform: conversion before the solve, comparison after it
+def _annotate(result: Result, paper_dir: Path, loaded) -> None:
+    """Re-integrate the solved optimal-mode trajectory and attach the side-by-side comparison
+    with the paper run (``extra.side_by_side``, ``tables/paper_vs_optimal``)."""
     num = _Numeric(loaded)
     ok = result.status in ("optimal", "acceptable")
     t0 = _time.perf_counter()
     reint = reintegrate(loaded, result) if ok else {"skipped": f"status {result.status}", "passed": False}
-    result.wall_time_s["reintegrate"] = round(_time.perf_counter() - t0, 6)
-    result.wall_time_s["total"] = round(_time.perf_counter() - t_start, 6)
+    seconds = round(_time.perf_counter() - t0, 6)
+    result.wall_time_s["reintegrate"] = seconds
+    if "total" in result.wall_time_s:
+        result.wall_time_s["total"] = round(result.wall_time_s["total"] + seconds, 6)
     result.extra["reintegration"] = reint
-    result.extra["warm_start"] = {"paper_run": str(paper_dir), "folder": str(warm_dir), **warm.extra}
+    if not result.phases:
+        return
     tr = result.phase()
     t_arr = float(tr.states[CLOCK][-1])
     paper_run = Result.read(paper_dir)
@@ -353,7 +341,7 @@ def refine(config: str | Path, paper_dir: str | Path, out: str | Path | None = N
     theta_f = float(unwrapped_angle(tr, num, float(paper_theta[0]))[-1])
     optimal = {"tf": t_arr, "m_p": float(1.0 - tr.states["m"][-1]), "status": result.status,
                "N_rev": _revolutions(theta_f, paper_run.extra.get("N_rev"), float(paper_theta[-1])),
-               "wall_time_s": result.wall_time_s["total"],
+               "wall_time_s": result.wall_time_s.get("total"),
                "position_error_LU": reint.get("position_error_LU"),
                "velocity_error_VU": reint.get("velocity_error_VU"),
                "s_f": result.tf, "iterations": result.iterations}
@@ -362,46 +350,12 @@ def refine(config: str | Path, paper_dir: str | Path, out: str | Path | None = N
     result.extra["tf_physical"] = t_arr
     result.extra["m_p"] = optimal["m_p"]
     result.extra["certificate_reintegration"] = (result.certificate or {}).get("reintegration")
-    if out is not None:
-        write_run(result, out, Path(config))
-    return result
 
 
-def format_table(result: Result) -> str:
-    sbs = result.extra["side_by_side"]
-    lines = [f"{'':22s}{'paper mode':>16s}{'optimal mode':>16s}"]
-    for key, label in [("tf", "t_f [TU]"), ("m_p", "m_p [m0]"), ("N_rev", "N_rev"),
-                       ("position_error_LU", "|dr(tf)| [LU]"), ("velocity_error_VU", "|dv(tf)| [VU]"),
-                       ("wall_time_s", "wall time [s]")]:
-        a, b = _num(sbs["paper"].get(key)), _num(sbs["optimal"].get(key))
-        lines.append(f"{label:22s}{a:16.6g}{b:16.6g}")
-    return "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m ocdsl.search.refine_optimal", description=__doc__.split("\n\n")[0])
-    ap.add_argument("config", help="optimal-mode problem file (configs/seed1_*_optimal.yaml)")
-    ap.add_argument("--paper", required=True, help="paper-mode run folder (ocdsl run configs/seed1_*_paper.yaml)")
-    ap.add_argument("--out", required=True, help="run folder to write")
-    ap.add_argument("--param", action="append", default=[], help="NAME=VALUE constant override")
-    ap.add_argument("--verbose", action="store_true")
-    a = ap.parse_args(argv)
-    params = {}
-    for p in a.param:
-        k, _, v = p.partition("=")
-        params[k] = float(v)
-    res = refine(a.config, a.paper, a.out, params or None, verbose=a.verbose)
-    print(f"{a.config}: {res.status}, {res.iterations} Ipopt iterations")
-    print(format_table(res))
-    r = res.extra["reintegration"]
-    if "position_error_km" in r:
-        print(f"re-integrated collocated control: |dr| = {r['position_error_km']:.3g} km, "
-              f"|dv| = {r['velocity_error_m_s']:.3g} m/s, passed = {r['passed']}")
-    v = res.verification or {}
-    print(f"verification: {v.get('status', 'none')} - {v.get('summary', '')}")
-    # the status contract: converged, every expect check passed and verified (Result.ok)
-    return 0 if res.ok and r.get("passed") else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+@register_transform("cr3bp_polar_to_sundman", annotate=_annotate,
+                    description="a polar CR3BP run against physical time (seed 1 paper mode) -> the "
+                    "target's Sundman variable s (option sundman_k), polar or synodic Cartesian "
+                    "states and thrust direction; after the solve: re-integration and the paper-vs-"
+                    "optimal table")
+def _to_sundman(source: Result, source_dir: Path, loaded) -> Result:
+    return paper_to_warm_start(source_dir, loaded)

@@ -21,6 +21,7 @@ from ..symbolic.problem import (INF, BoundaryValue, Constraint, FreeParameter, O
 from ..symbolic.registry import build_model
 from .errors import ExprError, Issue, SpecError
 from .expr import RESERVED, Scope, is_vector, parse_continuity, parse_expression, parse_relation
+from ..chain.check import check_guess, is_problem_file
 from .loader import Located, load_yaml
 from .schema import ModelSpec, ParameterSpec, ProblemFile, PseudospectralMethod, TimeSpec
 from .validate import (_issue_from_pydantic, _schema_issues, _source_line, validate,  # noqa: F401
@@ -500,13 +501,13 @@ class _Compiler:
             elif not _guess_value_ok(guess_items[k]):
                 self.issue(loc + ("guess", k), f"guess for '{k}': a finite number, a list of finite numbers "
                            "or {t: [...], values: [...]} of the same length")
-        if guess.from_ is not None:
-            folder = Path(guess.from_) if Path(guess.from_).is_absolute() else self.path.parent / guess.from_
-            if not (folder / "result.json").exists():
-                self.issue(loc + ("guess", "from"), f"guess from '{guess.from_}': no run folder there "
-                           f"(looked for {folder / 'result.json'})")
-        guess_dict = {"values": guess_items, "tf": guess.tf, "from": guess.from_, "random": guess.random,
-                      "seed": guess.seed}
+        check_guess(self.path, guess, loc, self.issue)
+        # a problem file, or a transform, is a chain (ocdsl/chain): its stages give `from` at run time
+        chained = guess.from_ is not None and (is_problem_file(guess.from_) or guess.transform is not None)
+        guess_dict = {"values": guess_items, "tf": guess.tf, "from": None if chained else guess.from_,
+                      "random": guess.random, "seed": guess.seed,
+                      "chain": {"from": guess.from_, "transform": guess.transform, "reuse": guess.reuse,
+                                "file": str(self.path)} if chained else None}
         return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
 
     def phase_values(self, phase: str, model: Model, top_params, values: dict, loc) -> dict[sp.Symbol, float]:

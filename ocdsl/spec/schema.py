@@ -79,7 +79,12 @@ class GuessSpec(Strict):
 
     model_config = ConfigDict(extra="allow")
     tf: float | None = None
-    from_: str | None = Field(None, alias="from", description="a previous run folder to start from")
+    from_: str | None = Field(None, alias="from", description="a previous run folder to start from, or a "
+                              "problem file solved first (docs/problem-language.md, \"Chains\")")
+    transform: str | None = Field(None, description="a registered change of variables from the source's "
+                                  "trajectory to this problem's (`ocdsl transforms`); default identity")
+    reuse: str | None = Field(None, description="a run folder of the `from` problem file used instead of "
+                              "solving it again when its problem.yaml is that file as it is now")
     random: bool = Field(False, description="seeded random controls inside their bounds")
     seed: int | None = None
 
