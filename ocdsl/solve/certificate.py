@@ -166,20 +166,26 @@ class _Numeric:
         if left:
             raise ValueError(f"certificate: no value for {sorted(s.name for s in left)}")
         self.time_dependent = TIME in (f.free_symbols | L.free_symbols | G.free_symbols)
-        args = (TIME, x, u)
-        mk = lambda e: sp.lambdify(args, list(e), "numpy", cse=True)  # noqa: E731  flat entries
-        self._f = mk(f)
-        self._fx = mk(f.jacobian(x))
-        self._fu = mk(_jacobian(f, u))
-        self._L = mk(L)
-        self._Lu = mk(_jacobian(L, u))
-        self._ft = mk(f.diff(TIME))
-        self._Lt = mk(L.diff(TIME))
         self.n, self.m, self.p = len(x), len(u), len(path)
+
+        def make():      # matrices as their flat (row-major) entries
+            d = {"f": f, "fx": f.jacobian(x), "fu": _jacobian(f, u), "L": L, "Lu": _jacobian(L, u),
+                 "ft": f.diff(TIME), "Lt": L.diff(TIME)}
+            if self.p:
+                d.update(g=G, gu=_jacobian(G, u), gt=G.diff(TIME))
+            return {k: (list(e), "numpy") for k, e in d.items()}
+
+        from ..symbolic.numeric import family   # printed once, then from the disk cache
+
+        fns = family([TIME, *x, *u], ("certificate", f, L, G), make)
+
+        def at(fn):
+            return lambda t, xs, us: fn(t, *xs, *us)
+
+        self._f, self._fx, self._fu = at(fns["f"]), at(fns["fx"]), at(fns["fu"])
+        self._L, self._Lu, self._ft, self._Lt = at(fns["L"]), at(fns["Lu"]), at(fns["ft"]), at(fns["Lt"])
         if self.p:
-            self._g = mk(G)
-            self._gu = mk(_jacobian(G, u))
-            self._gt = mk(G.diff(TIME))
+            self._g, self._gu, self._gt = at(fns["g"]), at(fns["gu"]), at(fns["gt"])
 
     @staticmethod
     def _nodes(fun, t, X, U, shape):

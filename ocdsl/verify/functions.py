@@ -10,6 +10,7 @@ import sympy as sp
 
 from ..symbolic.model import TIME
 from ..symbolic.numbers import substitute_numbers   # exp(885 - r/H) kept whole
+from ..symbolic.numeric import family                # printed once, then from the disk cache
 from ..symbolic.problem import Phase
 
 
@@ -17,9 +18,7 @@ class UnresolvedSymbols(ValueError):
     """An expression still holds symbols that neither the phase nor the result gives a value."""
 
 
-def _lambdify(args, exprs: list[sp.Expr]):
-    fn = sp.lambdify(args, exprs, "numpy", cse=True)
-
+def _vectorised(fn, exprs: list[sp.Expr]):
     def evaluate(t, X, U) -> np.ndarray:
         """(P,), (P, n), (P, m) -> (P, len(exprs))"""
         P = len(t)
@@ -61,13 +60,15 @@ class PhaseFunctions:
         if left:
             raise UnresolvedSymbols(f"phase {phase.name!r}: no value for {sorted(s.name for s in left)}")
         args = [TIME, *self.states, *self.controls]
-        self.f = _lambdify(args, f)
-        self.q = _lambdify(args, q) if q else None
-        self.g = _lambdify(args, g) if g else None
+        # ``point``: one point at a time (what an adaptive integrator asks for), plain floats
+        # through ``math``, ~50x cheaper per call than the array path at one point
+        fns = family(args, ("verify", f, q, g),
+                     lambda: {"f": (f, "numpy"), "q": (q, "numpy"), "g": (g, "numpy"), "point": (f + q, "math")})
+        self.f = _vectorised(fns["f"], f)
+        self.q = _vectorised(fns["q"], q) if q else None
+        self.g = _vectorised(fns["g"], g) if g else None
         self.time_dependent = any(TIME in e.free_symbols for e in f + q)
-        # one point at a time (what an adaptive integrator asks for): plain floats through
-        # ``math``, ~50x cheaper per call than the array path at one point
-        self._point = sp.lambdify(args, f + q, "math", cse=True)
+        self._point = fns["point"]
 
     def augmented_point(self, t: float, y, u) -> np.ndarray:
         """Right-hand side of ``[x; integrals]`` at one point (NaN where undefined)."""
