@@ -82,6 +82,7 @@ def solve_built(file: LoadedFile, tr, meshes, timer, *, verbose=False, progress=
 def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None, verbose=False,
                          progress=False, meshes=None) -> Result:
     from .solve import ipopt
+    from .solve.reuse import SolvedState, restart
     from .transcribe.guess import make_guess
     from .transcribe.mesh import Mesh
     from .transcribe.pseudospectral import build
@@ -92,21 +93,32 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
                         for ph in problem.phases}
     previous = previous_phases(file, warm_start)
     starts = method.starts
-    best = best_tr = None
+    best = best_tr = tr = saved = None
     records = []
+    # several starts solve one model, each from the values a fresh build would give it
+    # (solve/reuse.py restart), so the model and its NLP structure are made once; automatic
+    # scaling is computed from each start's guess, so it keeps a build per start
+    one_model = starts > 1 and file.spec.scaling.mode != "auto"
     for i in range(starts):
         s = seed if starts == 1 else (method.seed if seed is None else seed) + i
         with timer.measure("build"):
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=s) for ph in problem.phases}
-            tr = build(problem, meshes, guesses)
-            scaled = _scale(file, tr)
+            if tr is not None and one_model:
+                restart(tr, guesses, problem)
+            else:
+                tr = build(problem, meshes, guesses)
+                scaled = _scale(file, tr)
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[{i + 1}/{starts}]" if starts > 1 else "")
             info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose, progress=bar,
                                transcription=tr)
         records.append(_start_record(i, s, info))
         if _better(info, best, problem.objective.sense):
-            best, best_tr = info, tr      # each start builds its own model, which keeps its values
+            best, best_tr = info, tr
+            saved = SolvedState(tr.model) if one_model and i < starts - 1 else None
+    if saved is not None:
+        with timer.measure("build"):
+            saved.restore()       # the best start's solution back in the shared model
     if best.status == "infeasible":
         from .solve.diagnose import elastic
 

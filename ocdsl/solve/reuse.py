@@ -155,29 +155,8 @@ class _Entry:
         if self.used and START["from"] == "previous" and warm_start is None:
             return                  # keep the previous point's solution as the start
         if self.used or seed is not None or warm_start is not None:
-            self._initialize(_guesses(file, seed, warm_start), file.problem)
+            restart(self.tr, _guesses(file, seed, warm_start), file.problem)
         self.used = True
-
-    def _initialize(self, guesses, problem) -> None:
-        """The values a fresh build gives every variable that is not fixed."""
-        tr = self.tr
-        for pb in tr.phases:
-            g, lay, b = guesses[pb.phase.name], pb.layout, pb.block
-            xg, ug = g.states_at(lay.s_state), g.controls_at(lay.s_colloc)
-            for (n, j), v in b.X.items():
-                if not v.fixed:
-                    v.set_value(float(xg[n, j]), skip_validation=True)
-            for (i, j), v in b.U.items():
-                if not v.fixed:
-                    v.set_value(float(ug[i, j]), skip_validation=True)
-            for name, value in (("t0", g.t0), ("tf", g.tf)):
-                v = getattr(b, name)
-                if hasattr(v, "fixed") and not v.fixed:
-                    v.set_value(value, skip_validation=True)
-        for s, fp in problem.free_parameters.items():
-            v = tr.model.component(f"p_{s.name}")
-            if not v.fixed:
-                v.set_value(fp.guess, skip_validation=True)
 
     def view(self, problem):
         """The built transcription seen through the point's own (folded) problem, for the
@@ -189,6 +168,48 @@ class _Entry:
                              pb.integral_exprs) for pb in self.tr.phases]
         return Transcription(problem, self.tr.model, blocks, self.tr.scalars, self.tr.boundary_general,
                              defining=self.tr)
+
+
+def restart(tr, guesses, problem) -> None:
+    """Give every variable of a built transcription that is not fixed the value a fresh
+    ``build(problem, meshes, guesses)`` gives it (the guess is what sets them: states,
+    controls, t0/tf, free parameters; the fixed ones are the problem's, unchanged)."""
+    for pb in tr.phases:
+        g, lay, b = guesses[pb.phase.name], pb.layout, pb.block
+        xg, ug = g.states_at(lay.s_state), g.controls_at(lay.s_colloc)
+        for (n, j), v in b.X.items():
+            if not v.fixed:
+                v.set_value(float(xg[n, j]), skip_validation=True)
+        for (i, j), v in b.U.items():
+            if not v.fixed:
+                v.set_value(float(ug[i, j]), skip_validation=True)
+        for name, value in (("t0", g.t0), ("tf", g.tf)):
+            v = getattr(b, name)
+            if hasattr(v, "fixed") and not v.fixed:
+                v.set_value(value, skip_validation=True)
+    for s, fp in problem.free_parameters.items():
+        v = tr.model.component(f"p_{s.name}")
+        if not v.fixed:
+            v.set_value(fp.guess, skip_validation=True)
+
+
+class SolvedState:
+    """The values and imported suffixes (duals, bound multipliers) a solve left in a model,
+    to put back after later solves of the same model (the best of several starts)."""
+
+    def __init__(self, model):
+        import pyomo.core as pyo
+        from pyomo.core.base.suffix import active_import_suffix_generator
+
+        self.values = [(v, v.value) for v in model.component_data_objects(pyo.Var)]
+        self.suffixes = [(sfx, list(sfx.items())) for _, sfx in active_import_suffix_generator(model)]
+
+    def restore(self) -> None:
+        for v, x in self.values:
+            v.set_value(x, skip_validation=True)
+        for sfx, items in self.suffixes:
+            sfx.clear()
+            sfx.update(items)
 
 
 def _guesses(file, seed, warm_start):
