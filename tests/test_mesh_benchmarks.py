@@ -102,3 +102,23 @@ def test_rayleigh_mixed_converges(configs):
     for s in RAYLEIGH_JUNCTIONS:
         assert min(abs(b - s) for b in bps) <= 1e-5, (s, bps)
     _not_above_uniform(configs, "mesh_rayleigh_mixed.yaml", res, RAYLEIGH)
+
+
+TUMOUR = 7571.6700383826       # docs/mesh.md: the bang-off protocol integrated (GPOPS-II 7571.66986)
+TUMOUR_TF = 1.1963496531
+
+
+@pytest.mark.slow
+def test_tumour_converges_with_tf(configs):
+    """Before: mesh_not_converged after 16 iterations (the switch still moving by halves,
+    0.167181, 0.167178, ...), t_f 1.19745 (1.1e-3 off). Now the breakpoint follows the secant
+    of the switch's fixed-point map and the run converges with t_f to a few 1e-6."""
+    res = _solve(configs, "mesh_tumour.yaml")
+    assert res.status == "optimal", res.message
+    assert res.verification["status"] == "verified", res.verification.get("summary")
+    assert abs(res.objective - TUMOUR) / TUMOUR <= 1e-9
+    assert abs(res.tf - TUMOUR_TF) <= 1e-5, res.tf
+    # the dose arc ends on a breakpoint: u = 75 up to t = A / a = 0.2
+    bps = res.method["meshes"]["main"]["breakpoints"]
+    assert min(abs(b * res.tf - 0.2) for b in bps) <= 1e-6, (bps, res.tf)
+    _not_above_uniform(configs, "mesh_tumour.yaml", res, TUMOUR)

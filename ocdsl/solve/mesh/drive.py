@@ -115,7 +115,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
     tried: list = []     # the coarsened meshes tried so far (each is tried once)
-    nudged: dict = {}    # per phase: the switches ``refine`` moved a breakpoint onto last time
+    nudged: dict = {}    # per phase: the switches ``refine`` moved breakpoints onto last time, and their (b, f)
     junction_memory: dict = {}   # per phase: the previous junction estimates (locate_junctions' secant)
     chatter: dict = {}   # per phase: the chattering arcs found so far (regularise)
     reg_weight = spec.regularise
@@ -312,7 +312,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     new_meshes = {pb.phase.name: refine(meshes[pb.phase.name], errors[pb.phase.name], spec_r,
                                                         features=features[pb.phase.name],
                                                         switches=bang.get(pb.phase.name, []),
-                                                        nudged=nudged.setdefault(pb.phase.name, []))
+                                                        nudged=nudged.setdefault(pb.phase.name, {}))
                                   for pb in tr.phases}
             except MeshStalled as exc:
                 stalled = f"mesh iteration {it}: refinement stalled: {exc}"

@@ -58,34 +58,58 @@ def _arc_mesh_moves(mesh, errors, spec, features, todo) -> dict[int, float]:
     return moves
 
 
-def _switch_moves(mesh, spec, features, switches) -> dict[int, float]:
-    """Breakpoint index -> bound-to-bound switch (``locate_switches``, among ``features``)
-    within corner_tolerance of that breakpoint but not on it. ``refine`` (called only while the
-    tolerance is unmet) moves those breakpoints onto their switches and leaves the segments
-    next to them as they are: the error there is that of the switch's position, which neither
-    a higher degree nor a split removes. Measured on configs/mesh_bang_off_bang.yaml: the
-    breakpoint 4.6e-7 after the switch (within corner_tolerance 1e-5) left x(tf) missed by
-    2e-6 flown from x(t0); refining the segments around it split the smeared switch into
-    slivers whose corners (0.12531, 0.12528, ... against 0.127322) were chased for 17
-    iterations. The quadrature estimate is accurate to about active_tol times the segment
-    width (there 0.1273220053 against 0.1273220037)."""
+def _switch_moves(mesh, spec, features, switches, memory: dict) -> dict[int, float]:
+    """Breakpoint index -> bound-to-bound switch (``locate_switches``) within corner_tolerance
+    of that breakpoint but not on it, where ``features`` holds the switch or the breakpoint
+    itself (``switches.move_switches`` replaces a switch by the breakpoint when moving it would
+    not change J, and by a target when it moves it: left to that). ``refine`` (called only
+    while the tolerance is unmet) moves those breakpoints onto their switches and leaves the
+    segments next to them as they are: the error there is that of the switch's position,
+    which neither a higher degree nor a split removes. Measured on
+    configs/mesh_bang_off_bang.yaml: the breakpoint 4.6e-7 after the switch (within
+    corner_tolerance 1e-5) left x(tf) missed by 2e-6 flown from x(t0); refining the segments
+    around it split the smeared switch into slivers whose corners (0.12531, 0.12528, ...
+    against 0.127322) were chased for 17 iterations. The quadrature estimate is accurate to
+    about active_tol times the segment width (there 0.1273220053 against 0.1273220037).
+
+    With a free final time the estimate is a fixed-point map b -> f(b) of slope about 1/2 (the
+    NLP moves t_f with the breakpoint; configs/mesh_tumour.yaml: 0.167181, 0.167178,
+    0.1671763, ... against 0.1671743): with the previous (b, f) of the same switch in
+    ``memory`` the breakpoint goes to the secant root of f(b) - b instead, when the map's
+    slope is below 0.95 (as ``locate_junctions`` does for arc ends)."""
     bps = np.asarray(mesh.breakpoints, float)
     inner = bps[1:-1]
     moves: dict[int, float] = {}
+    maps = memory.setdefault("map", {})
+    seen = {}
     if not len(inner):
+        memory["map"] = seen
         return moves
-    for f in switches:
-        if not any(abs(f - g) <= 1e-15 for g in features):
-            continue    # replaced by a secant target (switches.move_switches) or dropped
+    for order, f in enumerate(sorted(switches)):
         q = 1 + int(np.argmin(np.abs(inner - f)))
-        d = abs(bps[q] - f)
-        if 1e-14 < d <= spec.corner_tolerance and bps[q - 1] < f < bps[q + 1] and q not in moves:
-            moves[q] = float(f)
+        b = float(bps[q])
+        if not any(abs(f - g) <= 1e-15 or abs(b - g) <= 1e-15 for g in features):
+            continue    # moved to a target by switches.move_switches, or dropped
+        d = abs(b - f)
+        if not (1e-14 < d <= spec.corner_tolerance and bps[q - 1] < f < bps[q + 1]) or q in moves:
+            continue
+        seen[order] = (b, float(f))
+        g = float(f)
+        prev = maps.get(order)
+        if prev is not None and abs(prev[0] - b) > 1e-15:
+            F0, F1 = prev[1] - prev[0], f - b
+            rho = 1.0 + (F1 - F0) / (b - prev[0])      # slope of the map b -> f(b)
+            if F1 != F0 and -1.0 < rho < 0.95:
+                cand = b - F1 * (b - prev[0]) / (F1 - F0)
+                if bps[q - 1] < cand < bps[q + 1] and abs(cand - b) <= 10.0 * d:
+                    g = float(cand)
+        moves[q] = g
+    memory["map"] = seen
     return moves
 
 
 def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None, switches=(),
-           nudged: list | None = None) -> Any:
+           nudged: dict | None = None) -> Any:
     """The next mesh of one phase (see the module docstring).
 
     ``features``: located switches and corners (normalised time); each one not already on a
@@ -104,16 +128,16 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
     still = {k for q in moves for k in (q - 1, q)}
     # a switch moved onto last time as well: its neighbours are refined as usual this time (a
     # located switch that still moves by a little must not hold them back forever)
-    before = list(nudged or [])
-    nudges = _switch_moves(mesh, spec, features, switches)
+    memory = nudged if nudged is not None else {}
+    before = list(memory.get("last", []))
+    nudges = _switch_moves(mesh, spec, features, switches, memory)
     for q, f in nudges.items():
         if q in moves:
             continue
         moves[q] = f
         if not any(abs(f - p) <= spec.corner_tolerance for p in before):
             still |= {q - 1, q}
-    if nudged is not None:
-        nudged[:] = list(nudges.values())
+    memory["last"] = list(nudges.values())
     proposals: list[list[list]] = []
     for e in errors:
         k = e.segment
