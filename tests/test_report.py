@@ -487,14 +487,14 @@ def test_chromium_pdf_engine(runs, tmp_path):
 def test_pareto_criteria_fall_back_to_the_first_numeric_columns():
     """Without criteria in study.json, the Pareto plot takes the first two columns that hold
     numbers in most rows (this path once called a helper that no longer existed)."""
-    from ocdsl.report.build import _criteria
+    from ocdsl.report.build.pareto import pareto_criteria
 
     rows = [{"label": "a", "fuel": "1.5", "time": "3.0", "note": "x"},
             {"label": "b", "fuel": "2.5", "time": "nan", "note": "y"},
             {"label": "c", "fuel": "0.5", "time": "4.0", "note": ""}]
-    assert _criteria(rows, {}) == ("fuel", "time")
-    assert _criteria(rows, {"pareto": {"criteria": ["time", "fuel"]}}) == ("time", "fuel")
-    assert _criteria(rows[:1], {}) == ("fuel", "time") and _criteria([], {}) is None
+    assert pareto_criteria(rows, {}) == ("fuel", "time")
+    assert pareto_criteria(rows, {"pareto": {"criteria": ["time", "fuel"]}}) == ("time", "fuel")
+    assert pareto_criteria(rows[:1], {}) == ("fuel", "time") and pareto_criteria([], {}) is None
 
 
 def test_figures_are_vector_files_written_0644(runs, solved_report):

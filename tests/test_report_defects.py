@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from ocdsl.report import make_comparison_report, make_index, make_report
-from ocdsl.report.build import build_run_html, _criteria
+from ocdsl.report.build import build_run_html
+from ocdsl.report.build.pareto import pareto_criteria
 from ocdsl.result import PhaseTrajectory, Result
 
 
@@ -41,7 +42,7 @@ def test_pareto_axes_are_the_results_objectives(tmp_path):
            "t_mot": np.linspace(0.5, 1.5, n), "t_sum": np.linspace(40, 20, n), "pareto": np.ones(n)}
     res = Result(name="front", status="optimal", extra={"objectives": ["t_mot", "t_sum"]},
                  tables={"pareto": tab}, problem={"name": "front"})
-    assert _criteria([{k: v[0] for k, v in tab.items()}], {}) == ("family_id", "label_major")  # the old guess
+    assert pareto_criteria([{k: v[0] for k, v in tab.items()}], {}) == ("family_id", "label_major")  # the old guess
     html = build_run_html(res.write(tmp_path / "p"))
     caps = [c for c in _captions(html) if "Pareto front" in c]
     assert caps and "(t_mot, t_sum)" in caps[0]

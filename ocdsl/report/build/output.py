@@ -1,0 +1,153 @@
+"""Writing a report: the HTML from the templates, the PDF (WeasyPrint or headless
+Chromium), the figure files, into an ocdsl folder only."""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from ocdsl import run_folder
+from ocdsl.report import status as S
+from ocdsl.report.build.document import Doc, ReportError
+
+
+TEMPLATES = Path(__file__).parent.parent / "templates"
+FORMATS = ("html", "pdf")
+CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+# ================================================================================ output
+_INNER_HYPHEN = re.compile(r"(?<=\w)-(?=\w)")
+
+
+def nobreak(text: Any) -> Any:
+    """Hyphens inside words as non-breaking hyphens: a table cell never breaks
+    "bang-bang" across lines."""
+    from markupsafe import Markup, escape
+
+    if isinstance(text, Markup):
+        return text
+    return Markup(_INNER_HYPHEN.sub("\u2011", str(escape(text))))
+
+
+def _env():
+    import jinja2
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), autoescape=True,
+                             trim_blocks=False, lstrip_blocks=False)
+    env.filters["nobreak"] = nobreak
+    return env
+
+
+def _render(doc: Doc, title: str, subtitle: str, meta: list[tuple[str, str]], badges: Sequence = ()) -> str:
+    if doc.warnings:
+        b = doc.section("warnings", "Notes on this report")
+        b.append({"type": "warnings", "entries": doc.warnings})
+    return _env().get_template("report.html.j2").render(
+        title=title, subtitle=subtitle, meta=meta, badges=list(badges), sections=doc.sections,
+        build=S.ocdsl_build())
+
+
+def _atomic_write(path: Path, data: bytes | str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    run_folder.atomic_write_text(path, data)
+
+
+def _output_folder(out_dir: Path, names: Sequence[str]) -> None:
+    """Reports go into an ocdsl folder (a run, a study) or a new one, never over files
+    ocdsl did not write (ocdsl/run_folder.py)."""
+    if out_dir.is_dir() and run_folder.read_marker(out_dir) is not None:
+        return
+    if (out_dir / "result.json").is_file():
+        return                  # a run folder of an ocdsl from before the marker: its reports are ocdsl's
+    try:
+        run_folder.check_destination(out_dir, "comparison")
+    except run_folder.FolderError as e:
+        raise ReportError(str(e)) from None
+    out_dir.mkdir(parents=True, exist_ok=True)
+    run_folder.write_marker(out_dir, "comparison", names)
+
+
+def chromium_binary() -> str | None:
+    for name in CHROMIUM_CANDIDATES:
+        p = shutil.which(name)
+        if p:
+            return p
+    return None
+
+
+def _pdf_weasyprint(html: str, pdf: Path) -> None:
+    import logging
+    import weasyprint  # noqa: PLC0415  (optional: needs Pango; raises OSError without it)
+    logging.getLogger("weasyprint").setLevel(logging.ERROR)
+    logging.getLogger("fontTools").setLevel(logging.ERROR)
+    data = weasyprint.HTML(string=html, base_url=str(pdf.parent)).write_pdf()
+    _atomic_write(pdf, data)
+
+
+def _pdf_chromium(html: str, pdf: Path) -> None:
+    exe = chromium_binary()
+    if exe is None:
+        raise FileNotFoundError("no chromium binary on PATH")
+    with tempfile.TemporaryDirectory(prefix="ocdsl-report-") as tmp:
+        src = Path(tmp) / "report.html"
+        src.write_text(html, encoding="utf-8")
+        out = Path(tmp) / "report.pdf"
+        cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+               "--disable-background-networking", "--disable-component-update", "--disable-sync",
+               f"--user-data-dir={tmp}/profile", "--no-pdf-header-footer",
+               f"--print-to-pdf={out}", src.as_uri()]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+        if not out.is_file() or out.stat().st_size == 0:
+            raise OSError(f"chromium made no PDF (exit {proc.returncode}): {proc.stderr[-500:]}")
+        _atomic_write(pdf, out.read_bytes())
+
+
+PDF_ENGINES: dict[str, Callable[[str, Path], None]] = {"weasyprint": _pdf_weasyprint, "chromium": _pdf_chromium}
+
+
+def write_pdf(html: str, pdf: Path, engine: str = "auto") -> str:
+    """Write ``pdf`` from ``html``; returns the engine used. ``auto`` tries WeasyPrint, then
+    Chromium."""
+    names = list(PDF_ENGINES) if engine == "auto" else [engine]
+    errors = []
+    for name in names:
+        if name not in PDF_ENGINES:
+            raise ReportError(f"unknown PDF engine {name!r}; choose from {sorted(PDF_ENGINES)} or 'auto'")
+        try:
+            PDF_ENGINES[name](html, pdf)
+            return name
+        except (ImportError, OSError, subprocess.SubprocessError) as exc:
+            errors.append(f"{name}: {type(exc).__name__}: {exc}")
+    raise ReportError("could not write the PDF report (" + "; ".join(errors) + "). Install WeasyPrint "
+                      "(pip install weasyprint; Debian packages libpango-1.0-0 libpangoft2-1.0-0) "
+                      "or Debian's chromium, or ask for formats=('html',).")
+
+
+def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str, stem: str = "report",
+                   files: dict[str, bytes] | None = None) -> list[Path]:
+    formats = tuple(formats)
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        raise ReportError(f"unknown report format(s) {bad}; choose from {list(FORMATS)}")
+    written: dict[str, Path] = {}
+    _output_folder(out_dir, [f"{stem}.{f}" for f in formats])
+    run_folder.claim(out_dir, [f"{stem}.{f}" for f in formats])
+    if files:       # each figure as SVG and PDF, for reuse in a paper
+        marker = run_folder.read_marker(out_dir)
+        if marker is not None:     # an earlier report's figures (ocdsl's own, listed) go
+            stale = [n for n in marker.get("entries", []) if n.startswith("figures/") and n not in files]
+            for name in stale:
+                (out_dir / name).unlink(missing_ok=True)
+            run_folder.write_marker(out_dir, marker["kind"], [n for n in marker.get("entries", []) if n not in stale],
+                                    partial=marker.get("partial", False))
+        run_folder.claim(out_dir, ["figures", *files])
+        for name, data in files.items():
+            _atomic_write(out_dir / name, data)
+    if "html" in formats:
+        written["html"] = out_dir / f"{stem}.html"
+        _atomic_write(written["html"], html)
+    if "pdf" in formats:
+        written["pdf"] = out_dir / f"{stem}.pdf"
+        write_pdf(html, written["pdf"], engine)
+    return [written[f] for f in formats if f in written]

@@ -1,0 +1,78 @@
+"""Tables of the solution: the summary with its badges, times, wall time."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ocdsl.result import Result
+from ocdsl.report.tables.cells import cell, finite_or_none, table
+
+
+# ----------------------------------------------------------------------- solution
+def badge_cell(b) -> dict[str, Any]:
+    return {"text": b.text, "cls": {"pass": "pass", "fail": "fail", "warn": "warn"}.get(b.cls, "")}
+
+
+def summary_table(res: Result) -> dict:
+    from ocdsl.report.status import badges
+
+    rows = []
+    for b in badges(res):
+        rows.append([cell(b.label, "name"), badge_cell(b)])
+        if b.title:
+            rows[-1][1] = {**rows[-1][1], "text": f"{b.text}: {b.title}"}
+    sense = ((res.problem or {}).get("objective") or {}).get("sense")
+    rows.append([cell("objective" + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
+    for label, v in time_rows(res):
+        rows.append([cell(label, "name"), cell(v, "num", 10)])
+    rows.append([cell("iterations", "name"), cell(res.iterations)])
+    for k in ("variables", "constraints", "nonzeros"):
+        if k in (res.nlp or {}):
+            rows.append([cell(f"NLP {k}", "name"), cell(res.nlp[k])])
+    for k, v in (res.nlp or {}).items():
+        if k not in ("variables", "constraints", "nonzeros"):
+            rows.append([cell(f"NLP {k}", "name"), cell(v)])
+    if "total" in (res.wall_time_s or {}):
+        rows.append([cell("wall time total [s]", "name"), cell(res.wall_time_s["total"], "num", 4)])
+    return table("summary", "Solution summary: the solver's status, the independent verification, the "
+                 "certificate and the expect checks; \"overall\" is the exit code of ocdsl run.",
+                 ["quantity", "value"], rows)
+
+
+def time_rows(res: Result) -> list[tuple[str, Any]]:
+    """Final times in physical time: a run whose independent variable is not time (a
+    Sundman-transformed problem) carries its physical time as the state or expression
+    ``problem.time_variable`` names; its end is the flight time."""
+    tvar = (res.problem or {}).get("time_variable")
+    unit = ((res.problem or {}).get("units") or {}).get("t")
+    u = f" [{unit}]" if unit else ""
+    if tvar:
+        ends = [(p.name, physical_time(p, tvar)) for p in res.phases]
+        ends = [(n, float(a[np.isfinite(a)][-1])) for n, a in ends if a is not None and np.isfinite(a).any()]
+        out = [(f"flight time ({tvar}(t_f)){u}" + (f" ({n})" if len(ends) > 1 else ""), v) for n, v in ends]
+        if isinstance(res.tf, (int, float)):
+            out.append(("final value of the independent variable", res.tf))
+        return out
+    if isinstance(res.tf, dict):
+        return [(f"final time t_f ({k}){u}", v) for k, v in res.tf.items()]
+    return [(f"final time t_f{u}", res.tf)]
+
+
+def physical_time(p, tvar: str) -> np.ndarray | None:
+    for group in (p.states, p.extra, p.controls):
+        if tvar in group:
+            return np.asarray(group[tvar], float)
+    return None
+
+
+def wall_time_table(res: Result) -> dict | None:
+    wt = {k: v for k, v in (res.wall_time_s or {}).items() if finite_or_none(v) is not None}
+    stages = [(k, float(v)) for k, v in wt.items() if k != "total"]
+    if not stages:
+        return None
+    total = float(wt.get("total", sum(v for _, v in stages)))
+    rows = [[cell(k, "name"), cell(v, "num", 4), cell(100 * v / total if total > 0 else None, "num", 3)]
+            for k, v in stages]
+    rows.append([cell("total", "name total"), cell(total, "num total", 4), cell(100.0 if total > 0 else None, "num total", 3)])
+    return table("wall_time", "Wall-time breakdown by stage.", ["stage", "time [s]", "share [%]"], rows)

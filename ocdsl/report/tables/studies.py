@@ -1,0 +1,44 @@
+"""Tables over several runs: one row per run, the expect checks side by side."""
+from __future__ import annotations
+
+from ocdsl.result import Result
+from ocdsl.report.tables.cells import cell, finite_or_none, fmt, status_cell, table, verdict
+
+
+# ----------------------------------------------------------------------- studies
+def runs_table(results: list[Result], labels: list[str] | None = None) -> dict | None:
+    """One row per run: status, objective, t_f, iterations, NLP size, wall time, checks,
+    and the parameters that differ between runs."""
+    if not results:
+        return None
+    labels = labels or [r.name for r in results]
+    pnames: list[str] = []
+    for r in results:
+        pnames += [k for k in r.parameters if k not in pnames]
+    varying = [k for k in pnames
+               if len({fmt(r.parameters.get(k)) for r in results}) > 1]
+    rows = []
+    for lab, r in zip(labels, results):
+        tf = r.tf
+        if isinstance(tf, dict):
+            tf = sum(v for v in tf.values() if finite_or_none(v) is not None) if tf else None
+        n_ok = sum(bool(c.get("passed")) for c in r.expect)
+        row = [cell(lab, "name"), status_cell(r.status), cell(r.objective, "num", 8), cell(tf, "num", 8),
+               cell(r.iterations), cell((r.nlp or {}).get("variables")),
+               cell((r.wall_time_s or {}).get("total"), "num", 4),
+               ({"text": f"{n_ok}/{len(r.expect)}", "cls": "pass" if n_ok == len(r.expect) else "fail"}
+                if r.expect else cell(None))]
+        row += [cell(r.parameters.get(k)) for k in varying]
+        rows.append(row)
+    return table("runs", "Compared runs.", ["run", "status", "objective", "t_f", "iterations",
+                                            "NLP variables", "wall time [s]", "checks"] + varying, rows)
+
+
+def expect_comparison_table(results: list[Result], labels: list[str]) -> dict | None:
+    rows = []
+    for lab, r in zip(labels, results):
+        for c in r.expect or []:
+            rows.append([cell(lab, "name"), cell(c.get("name", "?"), ""), cell(c.get("reference"), "num", 10),
+                         cell(c.get("value"), "num", 10), cell(c.get("error"), "num", 3), verdict(c.get("passed"))])
+    return table("expect_all", "Expected values of every run.",
+                 ["run", "check", "reference", "ocdsl", "error", "result"], rows)
