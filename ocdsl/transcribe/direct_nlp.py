@@ -759,13 +759,13 @@ def _families(ph, wsyms, times):
     duration = TF - T0
     rhs = list(ph.rhs())
     _check_smooth(rhs, "the dynamics")
-    G = _Family.compile([duration * sp.sympify(e).subs(t_sub) for e in rhs], wsyms, S)
+    G = _Family.compile([duration * sp.sympify(e).xreplace(t_sub) for e in rhs], wsyms, S)
     path_exprs = [c.expr for c in ph.path]
     _check_smooth(path_exprs, "a path constraint")
-    g = _Family.compile([sp.sympify(e).subs(t_sub) for e in path_exprs], wsyms, S) if path_exprs else None
+    g = _Family.compile([sp.sympify(e).xreplace(t_sub) for e in path_exprs], wsyms, S) if path_exprs else None
     integrands = list(ph.integrals.values())
     _check_smooth(integrands, "an integral")
-    H = _Family.compile([duration * sp.sympify(e).subs(t_sub) for e in integrands], wsyms, S) if integrands else None
+    H = _Family.compile([duration * sp.sympify(e).xreplace(t_sub) for e in integrands], wsyms, S) if integrands else None
     ph._direct_families = (key, (G, g, H))
     return G, g, H
 
