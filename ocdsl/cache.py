@@ -6,6 +6,8 @@ One folder, ``$OCDSL_CACHE`` (default ``~/.cache/ocdsl``), with a subfolder per 
   the derivatives SymPy found, as NumPy source, and their sparsity, one JSON file per
   family of expressions (a phase's dynamics, path constraints or integrands; the
   objective and boundary conditions);
+* ``numeric/``: the certificate's and the verification's NumPy/``math`` functions of a
+  phase (``ocdsl.symbolic.numeric``), one JSON file per family;
 * ``simulate/``: the Numba modules of ``ocdsl.simulate``.
 
 An entry's name is a hash of everything it is computed from (the expressions themselves,
