@@ -1,0 +1,208 @@
+"""The compiler of a validated problem file: top level, tables, method, the problem's
+assembly and its description for the report; models, phases and constraints in their
+own modules (mixed in)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pydantic
+import sympy as sp
+
+from ...symbolic.problem import BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
+from ..errors import ExprError, Issue, SpecError
+from ..expr import RESERVED, parse_continuity
+from ..loader import Located
+from ..schema import ProblemFile
+from ..validate import _issue_from_pydantic, _schema_issues, _source_line
+from .common import MAX_CONSTRAINTS, NAME_RE, _broken_table, _num, _validate_method
+from .loaded import LoadedFile
+from .constraints import ConstraintCompiler
+from .models import ModelCompiler
+from .phases import PhaseCompiler
+
+
+class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
+    def __init__(self, path: Path, located: Located, spec: ProblemFile, overrides: dict[str, float]):
+        self.path, self.located, self.spec = path, located, spec
+        self.overrides = dict(overrides)
+        self.issues: list[Issue] = []
+        self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
+        self.free: dict[sp.Symbol, FreeParameter] = {}
+        self.integral_count = 0
+        self.tables: dict = {}
+        self.table_calls: dict = {}
+
+    def issue(self, loc: tuple, message: str, text: str | None = None) -> None:
+        if text is None:
+            text = _source_line(self.located, loc)
+        self.issues.append(self.located.issue(loc, message, text))
+
+    def guarded(self, loc: tuple, fn, *args):
+        """Run fn; turn ExprError/ValueError into an issue at ``loc`` and return None."""
+        try:
+            return fn(*args)
+        except ExprError as e:
+            self.issue(loc, e.message, e.text or None)
+        except (ValueError, KeyError) as e:
+            self.issue(loc, str(e).strip("'\""))
+        except RecursionError:     # SymPy on expressions nested inside others past its depth
+            self.issue(loc, "expressions nested too deeply (named expressions inside each other)")
+        return None
+
+    def compile(self) -> LoadedFile:
+        spec = self.spec
+        method = self.validated_method(spec.method)
+        self.tables = self.build_tables()
+        problem = None
+        if spec.problem is not None or spec.phases is not None:
+            problem = self.build_problem()
+        expect = {}
+        if problem is not None:
+            for key in spec.expect:
+                e = self.guarded(("expect", key), self.parse_expect, key, problem)
+                if e is not None:
+                    expect[key] = e
+        model = controller = None
+        if spec.controller is not None and problem is None:
+            self.used_overrides = set()
+            self.constants_in_force = {}
+            model = self.model(spec.model, ("model",)) if spec.model else None
+            controller = self.guarded_pydantic(("controller",), "ocdsl.spec.controller", "ControllerSpec",
+                                               spec.controller)
+        unused = set(self.overrides) - self.used_overrides if hasattr(self, "used_overrides") else set()
+        if unused:
+            self.issue((), f"parameters given on the command line or by a study are not in the file: {sorted(unused)}", "")
+        if self.issues:
+            raise SpecError(self.issues)
+        return LoadedFile(self.path, self.located, spec, problem, method, expect,
+                          getattr(self, "constants_in_force", {}), model, controller)
+
+    def build_tables(self) -> dict:
+        """The file's ``tables:``, each a function for expressions; a call is shown as
+        ``NAME(args)`` in the report (``self.table_calls``), not as its spline expansion."""
+        from ..tables import TableError, build_table
+
+        out, self.table_calls = {}, {}
+        for name, tspec in self.spec.tables.items():
+            if not NAME_RE.match(name) or name in RESERVED:
+                self.issue(("tables", name), f"'{name}' cannot name a table (reserved or not an identifier)")
+                continue
+            try:
+                table = build_table(name, tspec, self.path.parent)
+            except TableError as e:
+                self.issue(("tables", name) + ((e.key,) if e.key else ()), str(e))
+                out[name] = _broken_table(name)
+                continue
+
+            def call(*args, _table=table):
+                value = _table(*args)
+                self.table_calls[value] = sp.Function(_table.name)(*args)
+                return value
+            out[name] = call
+        return out
+
+    def validated_method(self, data: dict):
+        """The method block, validated by its back end's spec; errors at their own lines."""
+        try:
+            return _validate_method(data)
+        except pydantic.ValidationError as e:
+            self.issues += _schema_issues(self.located, [dict(err, loc=("method",) + tuple(err["loc"]))
+                                                         for err in e.errors()])
+        except (ValueError, KeyError) as e:
+            self.issue(("method", "transcription") if "transcription" in data else ("method",), str(e).strip("'\""))
+        return None
+
+    def guarded_pydantic(self, loc: tuple, module: str, cls: str, data):
+        """Validate a block with a back end's pydantic class, errors at their file lines."""
+        import importlib
+
+        klass = getattr(importlib.import_module(module), cls)
+        try:
+            return klass.model_validate(data)
+        except pydantic.ValidationError as e:
+            for err in e.errors():
+                err = dict(err, loc=loc + tuple(err["loc"]))
+                self.issues.append(_issue_from_pydantic(self.located, err))
+        return None
+
+    def build_problem(self) -> Problem:
+        spec = self.spec
+        before = len(self.issues)     # the method's issues do not stop the problem's checks
+        self.used_overrides: set[str] = set()
+        self.constants_in_force: dict[str, float] = {}
+        top_params = self.parameters(spec.parameters, ("parameters",))
+        # links, a multi-phase objective and expectations belong to no phase: the file's own
+        # constants are substituted in them (a phase's constants are substituted in its own)
+        self.top_constants = {s: v for s, v in top_params.items()
+                              if v is not None and s.name not in getattr(self, "symbolic", ())}
+        base_model = self.model(spec.model, ("model",)) if spec.model else None
+        phases: list[Phase] = []
+        if spec.problem is not None:
+            p = spec.problem
+            phases.append(self.phase("main", base_model, p.time, p.constraints, p.guess, ("problem",), top_params, {}))
+        else:
+            for name, ph in spec.phases.items():
+                if not NAME_RE.match(name) or name in RESERVED:
+                    self.issue(("phases", name), f"'{name}' is not a valid phase name")
+                    continue
+                mdl = self.model(ph.model, ("phases", name, "model")) if ph.model else base_model
+                phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params,
+                                         ph.parameters))
+        phases = [p for p in phases if p is not None]
+        if len(self.issues) > before:
+            raise SpecError(self.issues)
+        boundary: list[Constraint] = []
+        for ph, (phase_spec_loc, texts) in zip(phases, self._phase_constraint_texts()):
+            boundary += self.constraints(ph, phases, texts, phase_spec_loc)
+        multi = len(phases) > 1
+        if len(spec.links) > MAX_CONSTRAINTS:
+            self.issue(("links",), f"{len(spec.links)} links: more than the limit of {MAX_CONSTRAINTS}")
+        for i, text in enumerate(spec.links[:MAX_CONSTRAINTS]):
+            joined = self.guarded(("links", i), parse_continuity, text)
+            if joined is None:
+                boundary += self.relations(None, phases, text, ("links", i), link=True)
+            else:
+                boundary += self.continuity(phases, *joined, text, ("links", i))
+        if spec.problem is not None:
+            obj = self.guarded(("problem", "objective"), self.objective, spec.problem.objective, phases[0], phases)
+        else:
+            obj = self.guarded(("objective",), self.objective, spec.objective, None, phases)
+            for ph in phases:
+                extra = spec.phases[ph.name].objective
+                if extra and obj is not None:
+                    part = self.guarded(("phases", ph.name, "objective"), self.expression, extra, ph, phases)
+                    if part is not None:
+                        obj.expr = obj.expr + (part if obj.sense == "minimize" else -part)
+        self.check_resolved(phases, boundary, obj)
+        self.check_contradictions(boundary)
+        if self.issues:
+            raise SpecError(self.issues)
+        desc = self.describe(phases, obj, multi)
+        return Problem(spec.name, phases, obj, boundary, self.free, self.boundary_values, desc)
+
+    def describe(self, phases: list[Phase], obj: Objective, multi: bool) -> dict:
+        desc: dict[str, Any] = {"name": self.spec.name, "description": self.spec.description, "phases": {},
+                                "parameters": {}, "units": {}, "positions": [], "links": list(self.spec.links)}
+        for ph in phases:
+            f = ph.model
+            shown = lambda e: sp.latex(e.xreplace(self.table_calls))  # noqa: E731  tables by name
+            dyn = {s.name: shown(f.dynamics[s]) for s in f.states}
+            bounds = {s.name: [_num(b[0]), _num(b[1])] for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
+            texts = self.spec.problem.constraints if self.spec.phases is None else self.spec.phases[ph.name].constraints
+            desc["phases"][ph.name] = {
+                "states": [s.name for s in f.states], "controls": [c.name for c in f.controls],
+                "dynamics_latex": dyn,
+                "expressions_latex": {s.name: shown(e) for s, e in f.expressions.items()},
+                "bounds": bounds, "constraints": list(texts),
+                "t0": ph.t0 if ph.t0 is not None else "free", "tf": ph.tf if ph.tf is not None else "free"}
+            desc["units"].update(f.units)
+            desc["positions"] = list(f.positions) or desc["positions"]
+            if f.time_state:        # the independent variable is not time: reports plot against this
+                desc["time_variable"] = f.time_state
+            for s, v in ph.constants.items():
+                desc["parameters"][s.name] = {"value": v, "free": False}
+        for s, fp in self.free.items():
+            desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
+        desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(obj.expr)}
+        return desc

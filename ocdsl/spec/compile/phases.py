@@ -1,0 +1,179 @@
+"""Phases of a problem file: times, guesses (and chains), per-phase constants, and the
+scope in which a phase's expressions, boundary values and integrals are read."""
+from __future__ import annotations
+
+import math
+import re
+
+import sympy as sp
+
+from ...chain.check import check_guess, is_problem_file
+from ...hints import did_you_mean
+from ...symbolic.model import TIME, Model, sym
+from ...symbolic.problem import BoundaryValue, Objective, Phase, Problem
+from ..errors import ExprError
+from ..expr import Scope, is_vector, parse_expression
+from ..schema import TimeSpec
+from .common import _guess_value_ok
+
+
+class PhaseCompiler:
+    """The compiler's phase part (mixed into :class:`~.compiler.Compiler`)."""
+
+    def phase(self, name, model, time: TimeSpec, constraints, guess, loc, top_params, values) -> Phase | None:
+        if model is None:
+            return None
+        multi = self.spec.phases is not None
+        prefix = f"{name}." if multi else ""
+        constants = {s: v for s, v in model.parameters.items() if v is not None and s not in self.free}
+        constants.update({s: v for s, v in top_params.items() if v is not None})
+        constants.update(self.phase_values(name, model, top_params, values, loc))
+        # ``symbolic``: constants left as symbols (not folded), for a model built once with
+        # them as mutable Pyomo Params and re-solved at each study point (ocdsl/solve/reuse.py)
+        for s in [s for s in constants if s.name in getattr(self, "symbolic", ())]:
+            del constants[s]
+        for s, v in model.parameters.items():
+            if v is None and s not in self.free:
+                self.issue(loc, f"model parameter '{s}' has no value; give it under model: parameters:")
+        t0s, tfs = sym(prefix + "t0"), sym(prefix + "tf")
+        tf = None if time.tf == "free" else float(time.tf)
+        t0 = None if time.t0 == "free" else float(time.t0)
+        if tf is not None and t0 is not None and tf <= t0:
+            self.issue(loc + ("time", "tf"), f"tf = {tf} must be greater than t0 = {t0}")
+        guess_items = dict(guess.model_extra or {})
+        known = {s.name for s in model.states + model.controls} | {p.name for p in self.free}
+        for k in guess_items:
+            if k not in known:
+                self.issue(loc + ("guess", k), f"guess for unknown variable '{k}'" + did_you_mean(k, known))
+            elif not _guess_value_ok(guess_items[k]):
+                self.issue(loc + ("guess", k), f"guess for '{k}': a finite number, a list of finite numbers "
+                           "or {t: [...], values: [...]} of the same length")
+        check_guess(self.path, guess, loc, self.issue)
+        # a problem file, or a transform, is a chain (ocdsl/chain): its stages give `from` at run time
+        chained = guess.from_ is not None and (is_problem_file(guess.from_) or guess.transform is not None)
+        guess_dict = {"values": guess_items, "tf": guess.tf, "from": None if chained else guess.from_,
+                      "random": guess.random, "seed": guess.seed,
+                      "chain": {"from": guess.from_, "transform": guess.transform, "reuse": guess.reuse,
+                                "file": str(self.path)} if chained else None}
+        return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
+
+    def phase_values(self, phase: str, model: Model, top_params, values: dict, loc) -> dict[sp.Symbol, float]:
+        """A phase's own values of constants of its model or of the file (``parameters:`` under
+        the phase); ``--param PHASE.NAME=VALUE`` overrides one."""
+        known = {s.name: s for s in model.parameters} | {s.name: s for s in top_params}
+        out = {}
+        for pname, value in values.items():
+            where = loc + ("parameters", pname)
+            s = known.get(pname)
+            if s is None:
+                self.issue(where, f"'{pname}' is not a parameter of phase '{phase}''s model nor of the file"
+                           + did_you_mean(pname, known))
+                continue
+            if s in self.free:
+                self.issue(where, f"'{pname}' is a free parameter: it takes one value for the whole problem")
+                continue
+            key = f"{phase}.{pname}"
+            if key in self.overrides:
+                value = float(self.overrides[key])
+                self.used_overrides.add(key)
+            if not math.isfinite(value):
+                self.issue(where, f"parameter '{pname}' is not a finite number")
+                continue
+            out[s] = float(value)
+            self.constants_in_force[key] = float(value)
+        return out
+
+    def scope(self, ph: Phase | None, phases: list[Phase], link: bool = False) -> Scope:
+        names: dict[str, sp.Basic] = {}
+        if ph is not None:
+            names["t"] = TIME
+            for s in ph.states + ph.controls + tuple(ph.model.parameters) + tuple(ph.model.expressions):
+                names[s.name] = s
+            names.update(ph.model.vectors)
+            names["t0"], names["tf"] = ph.t0_symbol, ph.tf_symbol
+        for s in self.free:
+            names[s.name] = s
+        for pname in self.spec.parameters:
+            names.setdefault(pname, sym(pname))
+        phase_names = {p.name: {"t0": p.t0_symbol, "tf": p.tf_symbol, "phase": p} for p in phases} \
+            if self.spec.phases is not None else {}
+
+        def boundary(phase_name, var, which):
+            target = ph
+            if phase_name is not None:
+                target = phase_names[phase_name]["phase"]
+            elif target is None:
+                raise ExprError(f"name the phase of {var}({which}), e.g. {phases[0].name}.{var}({which})")
+            model = target.model
+            if var in {s.name for s in target.states}:
+                return state_at(target, var, which)
+            if var in model.vectors or var in {s.name for s in model.expressions}:
+                return expression_at(target, var, which)
+            raise ExprError(f"'{var}' is not a state (nor a named expression) of phase '{target.name}'" +
+                            did_you_mean(var, [s.name for s in target.states + tuple(model.expressions)]
+                                         + list(model.vectors)))
+
+        def state_at(target, var, which):
+            label = f"{target.name}.{var}({which})" if self.spec.phases is not None else f"{var}({which})"
+            s = sym(label)
+            self.boundary_values[s] = BoundaryValue(target.name, target.model.symbol(var), which)
+            return s
+
+        def expression_at(target, var, which):
+            """``E(tf)``: the named expression (or vector) of the states at that end."""
+            model = target.model
+            value = model.vectors[var] if var in model.vectors else model.symbol(var)
+            parts = [target.substitute(c) for c in (value if is_vector(value) else [value])]
+            used = set().union(*[p.free_symbols for p in parts])
+            controls = sorted(c.name for c in used & set(target.controls))
+            if controls:
+                raise ExprError(f"'{var}' uses the control{'s' * (len(controls) > 1)} {', '.join(controls)}, "
+                                f"which has no value at {which}: a boundary value uses states only")
+            subs = {s: state_at(target, s.name, which) for s in used & set(target.states)}
+            subs[TIME] = target.tf_symbol if which == "tf" else target.t0_symbol
+            parts = [p.xreplace(subs) for p in parts]
+            return sp.ImmutableMatrix(parts) if is_vector(value) else parts[0]
+
+        def integral(integrand):
+            target = ph
+            if target is None:
+                raise ExprError("integral(...) belongs to a phase; write it in the phase's objective or constraints")
+            if integrand.has(*[s for p in phases for s in (p.t0_symbol, p.tf_symbol)]) or \
+                    any(s in self.boundary_values for s in integrand.free_symbols):
+                raise ExprError("an integrand may use states, controls, t and parameters, not boundary values")
+            self.integral_count += 1
+            s = sym(f"integral{self.integral_count}_{target.name}")
+            target.integrals[s] = target.substitute(integrand)
+            return s
+
+        return Scope(names, boundary, integral, {k: {"t0": v["t0"], "tf": v["tf"]} for k, v in phase_names.items()},
+                     self.tables)
+
+    def expression(self, text, ph, phases) -> sp.Expr:
+        e = parse_expression(text, self.scope(ph, phases))
+        return ph.substitute(e) if ph is not None else self.substitute_top(e)
+
+    def substitute_top(self, e: sp.Expr) -> sp.Expr:
+        from ...symbolic.numbers import substitute_numbers
+
+        return substitute_numbers(e, {k: sp.Float(v) for k, v in getattr(self, "top_constants", {}).items()})
+
+    def objective(self, text: str, ph, phases) -> Objective:
+        m = re.match(r"^\s*(minimize|maximize)\s+(.+)$", str(text), re.S)
+        if not m:
+            raise ExprError("the objective is written `minimize EXPR` or `maximize EXPR`", str(text))
+        expr = self.expression(m.group(2), ph, phases)
+        if ph is not None:
+            bare = expr.free_symbols & set(ph.states + ph.controls + (TIME,))
+            if bare:
+                names = ", ".join(sorted(s.name for s in bare))
+                raise ExprError(f"the objective uses {names} without a time: write e.g. {sorted(bare, key=str)[0]}(tf), "
+                                f"or integral(...) for a running cost", str(text))
+        return Objective(m.group(1), expr, str(text))
+
+    def parse_expect(self, key: str, problem: Problem) -> sp.Expr:
+        if key == "objective":
+            return sym("objective")
+        multi = self.spec.phases is not None
+        ph = None if multi else problem.phases[0]
+        return self.expression(key, ph, problem.phases)
