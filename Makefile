@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 export PYOMO_CONFIG_DIR := $(CURDIR)/$(VENV)/share/pyomo
 export MPLBACKEND := Agg
 
-.PHONY: setup demo test bench bench-peers reproduce fuzz clean
+.PHONY: setup demo test bench bench-peers bench-mesh reproduce fuzz clean
 
 setup:
 	@./scripts/setup.sh
@@ -32,6 +32,10 @@ bench-peers: setup
 	  configs/seed0_rendezvous.yaml $(PEERS_LIT) \
 	  --scaling configs/brachistochrone.yaml --series-solve 100
 	$(PY) -m ocdsl.bench.derivatives configs > reports/bench/derivatives.md
+
+# the adaptive-mesh table of docs/mesh.md (whole processes, one file at a time)
+bench-mesh: setup
+	nice -n 10 $(PY) -m ocdsl.bench.mesh configs/mesh_*.yaml
 
 # 10,000 mutated configs/ files through the compile entry (tests/fuzzing.py): exit 1 on any
 # exception other than a SpecError with a line, or a case over 5 s of CPU

@@ -18,8 +18,9 @@ def _solve(configs, name):
 
 
 def _uniform(configs, name, variables: int, degree: int = 4):
-    """The solve on the smallest uniform LGR mesh of ``degree`` with at least ``variables``
-    NLP variables, with the Ipopt settings the adaptive run uses (a fair comparison)."""
+    """The solve on the smallest uniform LGR mesh of ``degree`` with about ``variables`` NLP
+    variables or more (``nlp_size``'s count of states and controls: the NLP's count differs by
+    a few), with the Ipopt settings the adaptive run uses (a fair comparison)."""
     from ocdsl.run import solve_pseudospectral
     from ocdsl.solve.mesh.coarsen import nlp_size
     from ocdsl.transcribe.mesh import Mesh
