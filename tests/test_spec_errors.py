@@ -98,3 +98,33 @@ def test_check_command(tmp_path):
     p.write_text(GOOD)
     proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "check", str(p)], capture_output=True, text=True)
     assert proc.returncode == 0 and "ok" in proc.stdout
+
+
+def _issues(tmp_path, text: str) -> list:
+    p = tmp_path / "f.yaml"
+    p.write_text(text)
+    with pytest.raises(SpecError) as e:
+        compile_file(p)
+    return e.value.issues
+
+
+def test_a_broken_named_expression_is_reported_once_not_at_each_use(tmp_path):
+    """`E` does not compile: F (which uses E) and the dynamics (which use E and F) get no
+    "unknown name 'E'" of their own; an independent mistake is still reported in the same pass."""
+    text = GOOD.replace("  dynamics:\n    x: v\n    v: u\n",
+                        "  expressions:\n    E: v**2 + sqrtt(x)\n    F: 2*E\n    G: cosh(u, v)\n"
+                        "  dynamics:\n    x: v + F\n    v: u + E + G + w\n")
+    issues = _issues(tmp_path, text)
+    assert [(i.line, i.message.split(" (")[0]) for i in issues] == [
+        (6, "unknown function 'sqrtt'"), (8, issues[1].message.split(" (")[0]), (11, "unknown name 'w'")], issues
+    assert "cosh" in issues[1].message
+    assert not any("'E'" in i.message or "'F'" in i.message or "'G'" in i.message for i in issues), issues
+
+
+def test_a_broken_table_is_reported_once_not_at_each_use(tmp_path):
+    text = GOOD.replace("  dynamics:\n    x: v\n    v: u\n",
+                        "  dynamics:\n    x: v + T(x)\n    v: u + T(v)\n").replace(
+        "problem:", "tables:\n  T: {x: [0, 1, 2], values: [1, 2]}\nproblem:")
+    issues = _issues(tmp_path, text)
+    assert len(issues) == 1 and issues[0].line is not None and "T" in str(issues[0]), issues
+    assert "has an error" not in str(issues[0])

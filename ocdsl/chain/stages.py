@@ -130,11 +130,9 @@ def finish(result: Result, file, stages: list[Stage]) -> None:
     """Record the stages in ``result`` and let each transform annotate it."""
     if not stages:
         return
-    for st in stages:
+    for st in stages:     # inside the run's timer: "total" already counts them
         for k, v in st.seconds.items():
             result.wall_time_s[k] = round(result.wall_time_s.get(k, 0.0) + v, 6)
-            if "total" in result.wall_time_s:
-                result.wall_time_s["total"] = round(result.wall_time_s["total"] + v, 6)
     result.extra["chain"] = [{"phases": st.phases, **st.record,
                               "folders": sorted(st.entries())} for st in stages]
     for st in stages:

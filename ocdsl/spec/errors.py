@@ -32,3 +32,8 @@ class ExprError(ValueError):
     def __init__(self, message: str, text: str = ""):
         self.message, self.text = message, text
         super().__init__(f"{message}: {text}" if text else message)
+
+
+class FollowOnError(ExprError):
+    """A use of something whose own error is already reported (a table or a named
+    expression that did not compile): not reported again at each use."""

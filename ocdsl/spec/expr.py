@@ -17,7 +17,7 @@ import sympy as sp
 
 from ..hints import did_you_mean
 from ..symbolic.numbers import exp_of
-from .errors import ExprError
+from .errors import ExprError, FollowOnError
 
 FUNCTIONS: dict[str, tuple[Callable, int]] = {
     "sin": (sp.sin, 1), "cos": (sp.cos, 1), "tan": (sp.tan, 1),
@@ -371,6 +371,8 @@ class _Builder:
                 raise self.fail(f"table {name} takes numbers, not vectors (use a component such as r[0])")
             try:
                 return self.scope.functions[name](*args)
+            except FollowOnError:      # a broken table: its own error is reported at its line
+                raise
             except ValueError as e:
                 raise self.fail(str(e)) from None
         if name in self.scope.names:

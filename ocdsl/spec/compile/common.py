@@ -7,7 +7,7 @@ from typing import Any
 
 import sympy as sp
 
-from ..errors import ExprError
+from ..errors import FollowOnError
 from ..schema import PseudospectralMethod
 
 PSEUDOSPECTRAL = ("LG", "LGR", "LGL", "LGR-start")
@@ -18,7 +18,7 @@ MAX_CONSTRAINTS = 1000  # constraints of a phase, and links (about 1 ms each to 
 
 def _broken_table(name: str):
     def call(*_):
-        raise ExprError(f"table '{name}' has an error (reported at its line)")
+        raise FollowOnError(f"table '{name}' has an error (reported at its line)")
     return call
 
 

@@ -10,7 +10,7 @@ import pydantic
 import sympy as sp
 
 from ...symbolic.problem import BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
-from ..errors import ExprError, Issue, SpecError
+from ..errors import ExprError, FollowOnError, Issue, SpecError
 from ..expr import RESERVED, parse_continuity
 from ..loader import Located
 from ..schema import ProblemFile
@@ -42,6 +42,8 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         """Run fn; turn ExprError/ValueError into an issue at ``loc`` and return None."""
         try:
             return fn(*args)
+        except FollowOnError:      # the root error is reported where it is
+            pass
         except ExprError as e:
             self.issue(loc, e.message, e.text or None)
         except (ValueError, KeyError) as e:
@@ -149,8 +151,9 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 mdl = self.model(ph.model, ("phases", name, "model")) if ph.model else base_model
                 phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params,
                                          ph.parameters))
+        dropped = None in phases      # its error may be a table's, reported before `before`
         phases = [p for p in phases if p is not None]
-        if len(self.issues) > before:
+        if len(self.issues) > before or (dropped and self.issues):
             raise SpecError(self.issues)
         boundary: list[Constraint] = []
         for ph, (phase_spec_loc, texts) in zip(phases, self._phase_constraint_texts()):

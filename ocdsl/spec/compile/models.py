@@ -105,14 +105,19 @@ class ModelCompiler:
         clash = sorted(set(names) & set(self.tables))
         for name in clash:
             self.issue(("tables", name), f"'{name}' names both a table and a declared name of the model")
+        # an expression that does not compile stands for a placeholder: its uses compile, and
+        # whatever uses one is dropped without an error of its own (the root error is reported)
+        failed: set[sp.Symbol] = set()
         for name, text in m.expressions.items():
             if not NAME_RE.match(name) or name in names or name in RESERVED:
                 self.issue(loc + ("expressions", name), f"'{name}' cannot name an expression (reserved, declared or not an identifier)")
                 ok = False
                 continue
             e = self.guarded(loc + ("expressions", name), parse_expression, text, scope, True)
-            if e is None:
+            if e is None or e.free_symbols & failed:
                 ok = False
+                names[name] = placeholder = sp.Dummy(name)
+                failed.add(placeholder)
                 continue
             if is_vector(e):            # a vector expression is kept whole, its components inline
                 vectors[name] = names[name] = sp.ImmutableMatrix(e)
@@ -132,7 +137,7 @@ class ModelCompiler:
                 continue
             covered.update(targets)
             e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope, len(targets) > 1)
-            if e is None:
+            if e is None or e.free_symbols & failed:
                 ok = False
                 continue
             values = list(e) if is_vector(e) else [e]
