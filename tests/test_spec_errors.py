@@ -128,3 +128,19 @@ def test_a_broken_table_is_reported_once_not_at_each_use(tmp_path):
     issues = _issues(tmp_path, text)
     assert len(issues) == 1 and issues[0].line is not None and "T" in str(issues[0]), issues
     assert "has an error" not in str(issues[0])
+
+
+@pytest.mark.parametrize("objective, line", [("minimize integral(abs(u))", 17),
+                                             ("minimize tf + integral(2*L)", 17)])
+def test_an_l1_integral_is_refused_with_the_split_as_hint(tmp_path, objective, line):
+    """integral(abs(u)) makes Ipopt stop with "error" (abs has no derivative at 0, where an
+    L1 optimum sits): `check` refuses it at the objective's line, also through a named
+    expression, and says how to write it smoothly."""
+    text = GOOD.replace("minimize tf", objective).replace("  dynamics:", "  expressions: {L: abs(u) + 1}\n  dynamics:")
+    issues = _issues(tmp_path, text)
+    assert len(issues) == 1, issues
+    assert issues[0].line == line + 1 and "abs() in an integral" in issues[0].message, issues
+    assert "integral(up + um)" in issues[0].message
+    p = subprocess.run([sys.executable, "-m", "ocdsl.cli", "check", str(tmp_path / "f.yaml")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "Traceback" not in p.stderr and "abs() in an integral" in p.stderr

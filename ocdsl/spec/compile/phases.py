@@ -17,6 +17,14 @@ from ..schema import TimeSpec
 from .common import _guess_value_ok
 
 
+#: an L1 cost sits where abs() has no derivative (Ipopt stops with "error" on the first iterate
+#: there, configs/mesh_bang_off_bang.yaml); refused with the smooth way to write it
+NONSMOOTH_INTEGRAL = ("abs() in an integral is not differentiable at 0, where an L1 cost's optimum "
+                      "sits (Ipopt stops with an error): split the control into its positive and "
+                      "negative parts, e.g. controls [up, um] with 0 <= up, 0 <= um, the dynamics "
+                      "in up - um and integral(up + um) (docs/problem-language.md, \"Non-smooth costs\")")
+
+
 class PhaseCompiler:
     """The compiler's phase part (mixed into :class:`~.compiler.Compiler`)."""
 
@@ -141,9 +149,12 @@ class PhaseCompiler:
             if integrand.has(*[s for p in phases for s in (p.t0_symbol, p.tf_symbol)]) or \
                     any(s in self.boundary_values for s in integrand.free_symbols):
                 raise ExprError("an integrand may use states, controls, t and parameters, not boundary values")
+            expanded = target.substitute(integrand)
+            if expanded.has(sp.Abs):
+                raise ExprError(NONSMOOTH_INTEGRAL)
             self.integral_count += 1
             s = sym(f"integral{self.integral_count}_{target.name}")
-            target.integrals[s] = target.substitute(integrand)
+            target.integrals[s] = expanded
             return s
 
         return Scope(names, boundary, integral, {k: {"t0": v["t0"], "tf": v["tf"]} for k, v in phase_names.items()},
