@@ -96,12 +96,12 @@ def _to_oldest_generation():
 
 
 @contextlib.contextmanager
-def _gc_paused():
+def _gc_paused(collect: bool = True):
     global _bypassed_since_collection
     if not FAST["no_gc"] or not gc.isenabled():
         yield
         return
-    if _bypassed_since_collection:
+    if _bypassed_since_collection and collect:
         gc.collect()
         _bypassed_since_collection = False
     gc.disable()
@@ -135,13 +135,18 @@ def gc_frozen():
 
 
 def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess],
-          mutable: dict[sp.Symbol, float] | None = None) -> Transcription:
+          mutable: dict[sp.Symbol, float] | None = None, collect: bool = True) -> Transcription:
     """Build the Pyomo model of ``problem`` on ``meshes`` (one per phase) from ``guesses``.
 
     ``mutable``: constant parameters the problem keeps as symbols (compiled with them not
     folded), each made a mutable Pyomo Param ``c_<name>`` with this value, so that the model
-    can be re-solved with other values (ocdsl/solve/reuse.py)."""
-    with _gc_paused():
+    can be re-solved with other values (ocdsl/solve/reuse.py).
+
+    ``collect``: first free what earlier builds left for the collector (a full collection,
+    which walks the whole heap: 0.34 s per build in a loaded mesh-refinement run); false for
+    the short-lived trial models of a mesh iteration (ocdsl/solve/mesh/switches.py), whose
+    garbage the next build that collects frees."""
+    with _gc_paused(collect):
         return _build(problem, meshes, guesses, mutable or {})
 
 

@@ -136,9 +136,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        for ph in problem.phases}
             built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
 
-            def rebuild(ms, guesses=guesses, built_with=built_with):
-                """The model on meshes ``ms``, built as this iteration's (switches.py)."""
-                t = build(problem, ms, guesses)
+            def rebuild(ms, guesses=guesses, built_with=built_with, collect=False):
+                """The model on meshes ``ms``, built as this iteration's (switches.py: trial
+                models, built without the collection that precedes the iteration's own)."""
+                t = build(problem, ms, guesses, collect=collect)
                 _scale(file, t)
                 if spec.regularise:
                     regularise(t, built_with[0], reg_weight)
@@ -146,7 +147,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     limit_junction_controls(t, built_with[1], spec.corner_tolerance)
                 return t
 
-            tr = rebuild(meshes)
+            tr = rebuild(meshes, collect=True)
             reg = getattr(tr.model, "mesh_regularisation", None)
             ws.prepare(tr.model)
             mult = ws.apply(snapshot, tr) if snapshot is not None else None

@@ -8,7 +8,7 @@ import numpy as np
 
 from .boundary import boundary_controls
 from .mixed import locate_mixed_junctions
-from .segments import activity, control_polys, seg_polys, solution_arrays, state_at
+from .segments import activity, control_polys, seg_polys, solution_arrays, state_evaluator
 
 
 def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
@@ -198,6 +198,7 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
     if not ubs:
         return []
     X, U, t0, tf = solution_arrays(pb)
+    x_at = state_evaluator(lay, X, U)
     bps = np.asarray(mesh.breakpoints)
     K = mesh.segments
     polys = control_polys(pb)
@@ -240,7 +241,7 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
                 a_o, b_o = bps[other], bps[other + 1]
 
                 def phi(s, other=other, i=i, ub=ub):
-                    x = state_at(lay, X, U, s)
+                    x = x_at(s)
                     return float(polys[other](np.array([s]))[0, i]
                                  - ub(*x, t0 + (tf - t0) * s, *pvals))
 

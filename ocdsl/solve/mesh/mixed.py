@@ -7,7 +7,7 @@ import math
 import numpy as np
 import sympy as sp
 
-from .segments import control_polys, phase_functions, solution_arrays, state_at
+from .segments import control_polys, phase_functions, solution_arrays, state_evaluator
 
 # a collocation point is on the constraint within this (relative to 1 + |bound|): looser than
 # the estimate's activity test, because the NLP meets a constraint whose multiplier is small
@@ -57,6 +57,7 @@ def locate_mixed_junctions(pb, params: dict) -> list[float]:
     pvals = [params[s] for s in free_syms]
     _, g = phase_functions(ph, free_syms)
     X, U, t0, tf = solution_arrays(pb)
+    x_at = state_evaluator(lay, X, U)
     mesh = lay.mesh
     bps = np.asarray(mesh.breakpoints, float)
     K = mesh.segments
@@ -103,7 +104,7 @@ def locate_mixed_junctions(pb, params: dict) -> list[float]:
                         lo_s, hi_s = 0.5 * (bps[edge] + bps[edge + 1]), 0.5 * (bps[other] + bps[other + 1])
 
                     def psi(s, other=other, q=q, bound=bound):
-                        x = state_at(lay, X, U, s)
+                        x = x_at(s)
                         u = polys[other](np.array([s]))[0]
                         return float(np.asarray(g(*x, *u, t0 + (tf - t0) * s, *pvals), float).reshape(-1)[q]
                                      - bound)
