@@ -50,6 +50,41 @@ def _parameters():
     return params, exprs, units, (mu, c, T_max)
 
 
+EARTH_RADIUS_KM = 6378.137
+MOON_RADIUS_KM = 1737.4
+
+
+def l1_distance(mu: float) -> float:
+    """Distance gamma of L1 from the Moon toward the Earth (Szebehely's quintic
+    gamma^5 - (3 - mu) gamma^4 + (3 - 2 mu) gamma^3 - mu gamma^2 + 2 mu gamma - mu = 0, by
+    Newton from Hill's approximation (mu/3)^(1/3))."""
+    g = (mu / 3.0) ** (1.0 / 3.0)
+    for _ in range(50):
+        f = g**5 - (3 - mu) * g**4 + (3 - 2 * mu) * g**3 - mu * g**2 + 2 * mu * g - mu
+        df = 5 * g**4 - 4 * (3 - mu) * g**3 + 3 * (3 - 2 * mu) * g**2 - 2 * mu * g + 2 * mu
+        step = f / df
+        g -= step
+        if abs(step) < 1e-15:
+            break
+    return g
+
+
+def _frame(earth_centred: bool):
+    """The synodic frame's Earth, Moon and L1 for the reports (positions in LU: barycentric
+    for the Cartesian form, Earth-centred for the polar one)."""
+    def frame(values) -> dict:
+        mu = float(values.get("mu", MU))
+        lu = float(values.get("LU", LU_KM))
+        shift = mu if earth_centred else 0.0        # barycentre -> Earth-centred
+        return {"name": "Earth-Moon synodic frame (rotating with the Moon; "
+                        + ("Earth-centred)" if earth_centred else "barycentric)"),
+                "coordinates": "cylindrical" if earth_centred else "cartesian",
+                "bodies": [{"name": "Earth", "at": [-mu + shift, 0.0, 0.0], "radius": EARTH_RADIUS_KM / lu},
+                           {"name": "Moon", "at": [1 - mu + shift, 0.0, 0.0], "radius": MOON_RADIUS_KM / lu}],
+                "points": [{"name": "L1", "at": [1 - mu - l1_distance(mu) + shift, 0.0, 0.0]}]}
+    return frame
+
+
 def _maybe_sundman(model: Model, options: dict, distance: sp.Expr) -> Model:
     k = options.get("sundman_k")
     if k is None:
@@ -83,7 +118,7 @@ def cartesian(options) -> Model:
     units.update({"m": "m0", "ux": "-", "uy": "-", "uz": "-", "t": "TU"})
     model = Model("cr3bp_cartesian", (x, y, z, vx, vy, vz, m), (ux, uy, uz), dyn, params,
                   exprs, units, "Earth-Moon CR3BP, synodic frame, low thrust with mass flow (eq. 8)",
-                  ("x", "y", "z"))
+                  ("x", "y", "z"), frame=_frame(earth_centred=False))
     return _maybe_sundman(model, options, sp.sqrt((x + mu) ** 2 + y**2 + z**2))
 
 
@@ -113,5 +148,5 @@ def polar(options) -> Model:
     model = Model("cr3bp_polar", (r, theta, z, rdot, thetadot, zdot, m), (delta, phi), dyn,
                   params, exprs, units,
                   "Earth-Moon CR3BP, Earth-centred rotating polar frame (ECRF, eq. 28), thrust angles",
-                  ("r", "theta", "z"))
+                  ("r", "theta", "z"), frame=_frame(earth_centred=True))
     return _maybe_sundman(model, options, sp.sqrt(r**2 + z**2))

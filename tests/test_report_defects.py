@@ -269,3 +269,33 @@ def test_a_table_wider_than_the_page_is_split_with_its_key_column(tmp_path):
     heads = [_table(html, f"Table tables/robustness.csv (part {i} of 3")[0] for i in (1, 2, 3)]
     assert all(h[0] == "factor" and len(h) == 7 for h in heads)
     assert heads[0][1].startswith("lqr.") and heads[2][1].startswith("theta")
+
+
+# ------------------------------------------------------------------------ angles, colour bars
+def test_an_angle_crossing_pi_is_drawn_unwrapped():
+    """A thrust angle beta that leaves [-pi, pi) is one continuous curve, not a 2 pi jump,
+    and the caption says so; a non-angle with the same jump is drawn as it is."""
+    from ocdsl.report import figures as F
+
+    t = np.linspace(0.0, 1.0, 50)
+    beta = np.angle(np.exp(1j * (2.5 + 1.5 * t)))          # 2.5 -> 4.0 rad, wrapped at pi
+    res = Result(name="wrap", status="optimal", problem={"units": {"beta": "rad", "q": "m"}},
+                 phases=[PhaseTrajectory("main", t, {"q": beta.copy()}, {"beta": beta})])
+    (ctrl,) = [f for f in F.fig_states_controls(res) if f.key.startswith("controls")]
+    y = ctrl.figure.axes[0].get_lines()[0].get_ydata()
+    assert np.allclose(y, 2.5 + 1.5 * t) and "beta unwrapped" in ctrl.caption
+    (st,) = [f for f in F.fig_states_controls(res) if f.key.startswith("states")]
+    assert np.allclose(st.figure.axes[0].get_lines()[0].get_ydata(), beta) and "unwrapped" not in st.caption
+
+
+def test_many_runs_coloured_in_order_get_a_colour_bar():
+    from ocdsl.report import figures as F
+
+    t = np.linspace(0.0, 1.0, 20)
+    runs = [Result(name=f"p{i:02d}", status="optimal", problem={},
+                   phases=[PhaseTrajectory("main", t, {"x": t * i})]) for i in range(14)]
+    (fig,) = F.fig_compare_runs(runs)
+    bars = [ax for ax in fig.figure.axes if ax.get_label() == "<colorbar>"]
+    assert len(bars) == 1 and bars[0].get_ylabel() == "run, in order"
+    (few,) = F.fig_compare_runs(runs[:3])
+    assert not [ax for ax in few.figure.axes if ax.get_label() == "<colorbar>"]

@@ -31,4 +31,4 @@ def sundman(model: Model, distance: sp.Expr, k: float, c: float = 1.0,
     return Model(f"{model.name}_sundman", tuple(model.states) + (tau,), model.controls, dyn,
                  dict(model.parameters), exprs, units,
                  (model.description + f" [Sundman: dt = {c} R^{k} ds, clock state {clock!r}]").strip(),
-                 model.positions, time_state=clock)
+                 model.positions, time_state=clock, frame=model.frame)

@@ -10,7 +10,7 @@ and a problem file parsed by :mod:`ocdsl.spec` refer to the very same SymPy symb
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Any, Callable, Mapping
 
 import sympy as sp
 
@@ -47,6 +47,11 @@ class Model:
     vectors : name -> column of symbols or expressions: declared vector groups (``r`` for
         the states ``x, y, z``) and vector-valued named expressions, usable by name in
         expressions (``norm(r)``, ``cross(r, v)``, ``r(tf)``).
+    frame : the frame the positions are drawn in, as a function of the parameter values
+        (name -> value) returning ``{"name", "coordinates": "cartesian" | "cylindrical"
+        ((r, theta, z) drawn as x = r cos theta, y = r sin theta), "bodies": [{"name",
+        "at": [x, y, z], "radius"}], "points": [{"name", "at"}]}``: reports mark the bodies
+        and points (the Moon, L1) beside the trajectory. None: no declared frame.
     """
 
     name: str
@@ -60,6 +65,7 @@ class Model:
     positions: tuple[str, ...] = ()
     vectors: Mapping[str, sp.ImmutableMatrix] = field(default_factory=dict)
     time_state: str = ""    # the state that is physical time when the independent variable is not (Sundman)
+    frame: Callable[[Mapping[str, float]], dict[str, Any]] | None = None
 
     def __post_init__(self) -> None:
         missing = [s for s in self.states if s not in self.dynamics]

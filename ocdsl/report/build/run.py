@@ -111,6 +111,7 @@ def _figures_section(doc: Doc, res: Result) -> None:
                                           "solver's last iterate, not a verified solution."})
     for what, fn in (("state/control figures", F.fig_states_controls), ("costate figure", F.fig_costates),
                      ("Hamiltonian figures", F.fig_hamiltonian), ("trajectory view", F.fig_positions),
+                     ("frame view", F.fig_frame),
                      ("other time histories", F.fig_other_extra)):
         doc.guard(what, lambda fn=fn: doc.figures(b, fn(res)))
     if reintegration_tables(res):

@@ -5,7 +5,8 @@ and returns a list of :class:`Fig` (possibly empty when the run folder has nothi
 draw); none of them raises for a missing optional piece. :func:`to_svg` and
 :func:`to_pdf` turn a figure into vector bytes. One module per figure kind: time
 histories (:mod:`.trajectory`), Hamiltonian and switching functions
-(:mod:`.hamiltonian`), paths in space (:mod:`.positions`), mesh refinement
+(:mod:`.hamiltonian`), paths in space (:mod:`.positions`) and in a declared frame
+(:mod:`.frame`), mesh refinement
 (:mod:`.mesh`), controllers (:mod:`.closed_loop`), Pareto fronts (:mod:`.pareto`),
 studies (:mod:`.study`) and solver convergence (:mod:`.solver`); shared parts in
 :mod:`.base` and :mod:`.time`.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 from ocdsl.report.figures.base import HAMILTONIAN_KEYS, Fig, tex_name, to_pdf, to_svg
 from ocdsl.report.figures.closed_loop import closed_loop_tables, fig_closed_loop
+from ocdsl.report.figures.frame import fig_frame
 from ocdsl.report.figures.hamiltonian import fig_hamiltonian
 from ocdsl.report.figures.mesh import fig_mesh_history
 from ocdsl.report.figures.pareto import fig_pareto
@@ -23,6 +25,6 @@ from ocdsl.report.figures.study import fig_compare_runs, fig_histograms, fig_swe
 from ocdsl.report.figures.trajectory import fig_costates, fig_other_extra, fig_reintegration, fig_states_controls
 
 __all__ = ["Fig", "HAMILTONIAN_KEYS", "closed_loop_tables", "fig_closed_loop", "fig_compare_runs", "fig_costates",
-           "fig_hamiltonian", "fig_histograms", "fig_mesh_history", "fig_other_extra", "fig_pareto",
+           "fig_frame", "fig_hamiltonian", "fig_histograms", "fig_mesh_history", "fig_other_extra", "fig_pareto",
            "fig_positions", "fig_reintegration", "fig_sweep", "fig_solver_history", "fig_states_controls",
            "tex_name", "to_pdf", "to_svg"]

@@ -180,6 +180,7 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
         for lab, _, _ in series:
             if lab not in labels_all:
                 labels_all.append(lab)
+    colors_default = colors is None
     colors = colors or _run_colors(len(labels_all))
     color_of = {lab: colors[i % len(colors)] for i, lab in enumerate(labels_all)}
     for ci, chunk in enumerate(chunks):
@@ -213,10 +214,18 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
                     handles, labs = [h for h, l in zip(handles, labs) if l == "bound"], ["bound"] * ("bound" in labs)
                 if labs:
                     ax.legend(handles, labs, fontsize=7, loc="best", frameon=False)
+        if len(labels_all) > MAX_LEGEND and colors_default:     # the colour is the run's place in order
+            import matplotlib
+            from matplotlib.cm import ScalarMappable
+            from matplotlib.colors import Normalize
+            sm = ScalarMappable(Normalize(1, len(labels_all)), matplotlib.colormaps["viridis"])
+            cb = fig.colorbar(sm, ax=axes, shrink=0.8, aspect=30, pad=0.01)
+            cb.set_label("run, in order", fontsize=7.5)
+            cb.ax.tick_params(labelsize=7)
         suffix = f" ({ci + 1} of {len(chunks)})" if len(chunks) > 1 else ""
         if len(labels_all) > MAX_LEGEND:
             suffix += (f" {len(labels_all)} runs, coloured in order from the first ({labels_all[0]}, dark "
-                       f"blue) to the last ({labels_all[-1]}, yellow).")
+                       f"blue) to the last ({labels_all[-1]}, yellow; colour bar).")
         out.append(Fig(f"{key}-{ci}", caption + suffix, fig))
     return out
 

@@ -5,6 +5,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ocdsl.result import Result
+from ocdsl.report.figures.frame import declared_frame
 from ocdsl.report.figures.base import (
     Fig, WIDTH_IN, _marker_kw, _phase_colors, _styled, axis_label, tex_name, unit_tex)
 
@@ -23,6 +24,8 @@ def fig_positions(res: Result) -> list[Fig]:
     units = res.problem.get("units") or {}
     reint = {k[len("reintegration_"):] if k != "reintegration" else None: v
              for k, v in res.tables.items() if k == "reintegration" or k.startswith("reintegration_")}
+    if declared_frame(res.problem or {}) is not None:
+        return []           # drawn in its frame, with its bodies (figures/frame.py)
     for gi, group in enumerate(_position_groups(res.problem)):
         segs = [(p.name, [np.asarray(p.states[n], float) for n in group]) for p in res.phases
                 if all(n in p.states for n in group)]

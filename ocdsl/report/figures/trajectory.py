@@ -2,12 +2,32 @@
 re-integration over the collocated states."""
 from __future__ import annotations
 
+import numpy as np
+
 from ocdsl.result import Result
 from ocdsl.report.figures.base import (
-    FLAG_COLUMNS, Fig, HAMILTONIAN_KEYS, MAX_PANELS, _bounds_of, _chunks, _grid_figures, _new_figure,
+    FLAG_COLUMNS, HAMILTONIAN_KEYS, Fig, Series, MAX_PANELS, _bounds_of, _chunks, _grid_figures, _new_figure,
     _nonempty, _styled, axis_label, tex_name, time_label)
 from ocdsl.report.figures.time import (
     _phase_boundaries, _phase_series, _phases_note, _time_units, phase_time, time_variable)
+
+
+ANGLE_PERIODS = {"rad": 2 * np.pi, "deg": 360.0, "degree": 360.0, "degrees": 360.0}
+
+
+def unwrapped(panels: list[tuple[str, Series]], units: dict) -> tuple[list[tuple[str, Series]], str]:
+    """Angles (unit rad or deg) that jump by more than half a turn between rows, drawn
+    unwrapped (a direction crossing +-pi is one continuous curve, not a 2 pi jump); the
+    caption's note names them."""
+    out, names = [], []
+    for name, series in panels:
+        period = ANGLE_PERIODS.get(str(units.get(name, "")).strip().lower())
+        if period is not None and any(np.any(np.abs(np.diff(np.asarray(y, float))) > period / 2) for _, _, y in series):
+            series = [(lab, t, np.unwrap(np.asarray(y, float), period=period)) for lab, t, y in series]
+            names.append(name)
+        out.append((name, series))
+    note = (f" Angles {', '.join(names)} unwrapped (no jumps of a full turn)." if names else "")
+    return out, note
 
 
 @_styled
@@ -16,14 +36,14 @@ def fig_states_controls(res: Result) -> list[Fig]:
     units = res.problem.get("units") or {}
     out: list[Fig] = []
     note = _phases_note(res)
-    st = _phase_series(res, "states")
+    st, wrapped = unwrapped(_phase_series(res, "states"), units)
     if st:
-        out += _grid_figures("states", "State histories." + note + " Dashed: bounds.", st, units,
+        out += _grid_figures("states", "State histories." + note + " Dashed: bounds." + wrapped, st, units,
                              _bounds_of(res.problem, [n for n, _ in st]),
                              boundaries=_phase_boundaries(res))
-    ct = _phase_series(res, "controls")
+    ct, wrapped = unwrapped(_phase_series(res, "controls"), units)
     if ct:
-        out += _grid_figures("controls", "Control histories; dashed lines are the control bounds." + note,
+        out += _grid_figures("controls", "Control histories; dashed lines are the control bounds." + note + wrapped,
                              ct, units, _bounds_of(res.problem, [n for n, _ in ct]),
                              boundaries=_phase_boundaries(res))
     return out

@@ -9,6 +9,7 @@ from typing import Any
 import pydantic
 import sympy as sp
 
+from ...symbolic.model import TIME
 from ...symbolic.problem import BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
 from ..errors import ExprError, FollowOnError, Issue, SpecError
 from ..expr import RESERVED, parse_continuity
@@ -201,11 +202,24 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 "t0": ph.t0 if ph.t0 is not None else "free", "tf": ph.tf if ph.tf is not None else "free"}
             desc["units"].update(f.units)
             desc["positions"] = list(f.positions) or desc["positions"]
+            if f.frame is not None:     # the frame the positions are drawn in (models/cr3bp.py)
+                desc["frame"] = f.frame({s.name: float(v) for s, v in ph.constants.items()})
             if f.time_state:        # the independent variable is not time: reports plot against this
                 desc["time_variable"] = f.time_state
             for s, v in ph.constants.items():
                 desc["parameters"][s.name] = {"value": v, "free": False}
         for s, fp in self.free.items():
             desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
-        desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(obj.expr)}
+        desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(self.shown_integrals(obj.expr, phases))}
         return desc
+
+    @staticmethod
+    def shown_integrals(expr: sp.Expr, phases: list[Phase]) -> sp.Expr:
+        """``expr`` with each integral's internal symbol (``integral1_main``) as the integral
+        it stands for, over its phase's time: what the report typesets."""
+        multi = len(phases) > 1
+        subs = {}
+        for ph in phases:
+            t0, tf = (sp.Symbol(f"t_{{{k},{ph.name}}}" if multi else f"t_{k}") for k in ("0", "f"))
+            subs.update({s: sp.Integral(e, (TIME, t0, tf)) for s, e in ph.integrals.items()})
+        return expr.xreplace(subs)

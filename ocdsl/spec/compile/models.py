@@ -73,7 +73,7 @@ class ModelCompiler:
             vectors = {**model.vectors, **self.vector_groups(mspec.vectors, names, loc)}
             return Model(model.name, model.states, model.controls, model.dynamics, params,
                          model.expressions, units, model.description,
-                         tuple(mspec.positions) or model.positions, vectors, model.time_state)
+                         tuple(mspec.positions) or model.positions, vectors, model.time_state, model.frame)
         return self.inline_model(mspec, loc)
 
     def inline_model(self, m: ModelSpec, loc: tuple) -> Model | None:
