@@ -1,4 +1,4 @@
-"""The disk cache of generated NLP code (ocdsl/cache.py, used by ocdsl/transcribe/direct_nlp.py).
+"""The disk cache of generated NLP code (ocdsl/cache.py, used by ocdsl/transcribe/direct_nlp/).
 
 A second compile of the same problem reads every family from the cache and does not
 differentiate; a changed expression or ocdsl version misses; a corrupt entry is ignored and
@@ -56,7 +56,7 @@ def counted(monkeypatch):
         calls.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(direct_nlp, "_derivatives", spy)
+    monkeypatch.setattr(direct_nlp.codegen, "_derivatives", spy)   # where _generated looks it up
     return calls
 
 
@@ -93,7 +93,7 @@ def test_changed_dynamics_and_version_miss(configs, cache_dir, counted, tmp_path
     import ocdsl
 
     monkeypatch.setattr(ocdsl, "__version__", ocdsl.__version__ + ".test")
-    monkeypatch.setattr(direct_nlp, "_GENERATOR", [])
+    monkeypatch.setattr(direct_nlp.codegen, "_GENERATOR", [])
     _nlp(configs / "brachistochrone.yaml")
     assert len(counted) - n1 == n0 and len(set(_entries(cache_dir)) - e1) == n0
 

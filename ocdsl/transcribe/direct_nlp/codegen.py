@@ -1,0 +1,183 @@
+"""Generated NumPy functions of the direct NLP: which functions have a smooth NumPy form,
+SymPy's first and second derivatives, the NumPy source (common subexpressions eliminated,
+rows written in place), its disk cache, and the families of node functions built from them."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+INF = 1e20
+# functions whose NumPy form and SymPy derivatives agree with the ASL's everywhere they are
+# smooth; anything else (Abs, Min/Max, Piecewise, sign...) stays on the PyNumero route
+_SMOOTH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
+           "asinh", "acosh", "atanh", "exp", "log", "sqrt"}
+
+
+class Unsupported(Exception):
+    pass
+
+
+def _check_smooth(exprs, what: str) -> None:
+    for e in exprs:
+        for f in sp.sympify(e).atoms(sp.Function):
+            if type(f).__name__ not in _SMOOTH:
+                raise Unsupported(f"{what} uses {type(f).__name__}")
+        if sp.sympify(e).has(sp.Piecewise):
+            raise Unsupported(f"{what} is piecewise")
+
+
+def _derivatives(exprs, syms):
+    """Nonzero first derivatives [(output, a)], their expressions, and nonzero lower-triangle
+    second derivatives [(output, a, b)] with b <= a, their expressions. Only the symbols an
+    expression contains are tried (the others give 0): the count of ``diff`` calls grows with
+    the nonzero derivatives, not with outputs x symbols (48 states: 10.0 s against 12.6 s)."""
+    pos = {s: i for i, s in enumerate(syms)}
+    jac, jexprs, hess, hexprs = [], [], [], []
+    for o, e in enumerate(exprs):
+        e = sp.sympify(e)
+        for a in sorted(pos[s] for s in e.free_symbols if s in pos):
+            d = sp.diff(e, syms[a])
+            if d == 0:
+                continue
+            jac.append((o, a))
+            jexprs.append(d)
+            for b in sorted(pos[s] for s in d.free_symbols if s in pos and pos[s] <= a):
+                d2 = sp.diff(d, syms[b])
+                if d2 != 0:
+                    hess.append((o, a, b))
+                    hexprs.append(d2)
+    return jac, jexprs, hess, hexprs
+
+
+def _source(args, exprs) -> str | None:
+    """NumPy source of ``f(*args, _out)`` writing ``exprs`` into the rows of ``_out`` after
+    common-subexpression elimination (``sympy.lambdify(..., cse=True)``'s code, as text that
+    can be cached). Rows are assigned in place: a constant or a node array fills its row by
+    broadcasting, without a per-entry ``broadcast_to`` and ``stack`` (which took half of a
+    Hessian evaluation's time on seed 0)."""
+    if not exprs:
+        return None
+    from sympy.printing.numpy import NumPyPrinter
+
+    reps, red = sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
+    pr = NumPyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
+    lines = [f"def f({', '.join(str(a) for a in args)}, _out):"]
+    lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
+    lines += [f"    _out[{i}] = {pr.doprint(e)}" for i, e in enumerate(red)]
+    lines.append("    return _out")
+    return "\n".join(lines) + "\n"
+
+
+def _function(source: str | None):
+    if source is None:
+        return None
+    ns = {"numpy": np}
+    exec(compile(source, "<ocdsl.transcribe.direct_nlp>", "exec"), ns)
+    return ns["f"]
+
+
+_GENERATOR: list[str] = []
+
+
+def _generator_id() -> str:
+    """What the generated code depends on besides the expressions: ocdsl's and SymPy's
+    versions and this module's own source (an edited generator never meets old entries)."""
+    if not _GENERATOR:
+        from pathlib import Path
+
+        from ... import __version__
+        from ...cache import fingerprint
+
+        _GENERATOR.append(fingerprint(__version__, sp.__version__, Path(__file__).read_text()))
+    return _GENERATOR[0]
+
+
+def _generated(exprs, dvars, extra=()) -> dict:
+    """``exprs`` with their nonzero first and lower-triangle second derivatives in ``dvars``
+    (further arguments ``extra``): {"n_out", "jac", "hess", "values", "first", "second"},
+    the last three NumPy sources of functions of ``dvars + extra``. Taken from the disk
+    cache (ocdsl/cache.py, kind ``nlp``) when it holds them: the key is the expressions
+    themselves, with the arguments renamed by position, so a study's points and a second
+    run of a file skip SymPy's differentiation."""
+    from ... import cache
+
+    args = list(dvars) + list(extra)
+    stand = [sp.Symbol(f"_a{i}", **a.assumptions0) for i, a in enumerate(args)]
+    norm = [sp.sympify(e).xreplace(dict(zip(args, stand))) for e in exprs]
+    free = set().union(*(e.free_symbols for e in norm)) - set(stand) if norm else set()
+    if free:
+        raise Unsupported(f"the expressions use {', '.join(sorted(str(s) for s in free))}")
+    key = cache.fingerprint(_generator_id(), str(len(dvars)), sp.srepr(stand), sp.srepr(norm))
+    entry = cache.read_entry("nlp", key)
+    if not (isinstance(entry, dict) and entry.get("n_out") == len(norm)):
+        jac, jexprs, hess, hexprs = _derivatives(norm, stand[:len(dvars)])
+        entry = {"n_out": len(norm), "jac": jac, "hess": hess, "values": _source(stand, norm),
+                 "first": _source(stand, jexprs), "second": _source(stand, hexprs)}
+        cache.write_entry("nlp", key, entry)
+    return entry
+
+
+@dataclass
+class _Family:
+    """Expressions of one node's local variables w (and the node's normalised time S),
+    with their nonzero first and (lower-triangle) second derivatives, evaluated for many
+    nodes at once."""
+
+    n_out: int
+    jac: np.ndarray       # (E1, 2): output, local variable
+    hess: np.ndarray      # (E2, 3): output, local a, local b (b <= a)
+    _values: Any
+    _first: Any
+    _second: Any
+
+    @classmethod
+    def compile(cls, exprs: list, wsyms: list, S: sp.Symbol) -> "_Family":
+        g = _generated(exprs, wsyms, [S])
+        return cls(g["n_out"], np.array(g["jac"], int).reshape(-1, 2), np.array(g["hess"], int).reshape(-1, 3),
+                   _function(g["values"]), _function(g["first"]), _function(g["second"]))
+
+    @staticmethod
+    def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
+        if fn is None or n_rows == 0:
+            return np.zeros((0, nodes))
+        return fn(*cols, np.empty((n_rows, nodes)))
+
+    def values(self, cols, nodes):
+        return self._stack(self._values, self.n_out, cols, nodes)
+
+    def first(self, cols, nodes):
+        return self._stack(self._first, len(self.jac), cols, nodes)
+
+    def second(self, cols, nodes):
+        return self._stack(self._second, len(self.hess), cols, nodes)
+
+
+@dataclass
+class _Scalars:
+    """The objective (output 0) and the general boundary constraints (outputs 1..) as
+    functions of the scalar symbols: y entries (boundary values, t0/tf, parameters) and
+    integrals, which may only enter linearly (their coefficients are constants)."""
+
+    n_out: int            # 1 + number of general boundary constraints
+    symbols: list         # ("y", y index) or ("I", (phase, integral)) of each argument, y first
+    jac: list             # (output, symbol position, ) nonzero first derivatives in y symbols
+    hess: list            # (output, a, b) b <= a, y symbols only
+    integral_coef: list   # (output, phase index, integral index, constant coefficient)
+    _values: Any
+    _first: Any
+    _second: Any
+
+    @property
+    def y_of(self) -> list:
+        """index in y of each non-integral symbol (the first arguments)"""
+        return [ref for kind, ref in self.symbols if kind == "y"]
+
+    def evaluate(self, z, which):
+        fn = {"values": self._values, "first": self._first, "second": self._second}[which]
+        if fn is None:
+            return np.zeros(0)
+        n = {"values": self.n_out, "first": len(self.jac), "second": len(self.hess)}[which]
+        return fn(*z, np.empty(n))
