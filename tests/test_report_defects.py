@@ -299,3 +299,21 @@ def test_many_runs_coloured_in_order_get_a_colour_bar():
     assert len(bars) == 1 and bars[0].get_ylabel() == "run, in order"
     (few,) = F.fig_compare_runs(runs[:3])
     assert not [ax for ax in few.figure.axes if ax.get_label() == "<colorbar>"]
+
+
+def test_angles_the_file_gave_in_degrees_are_drawn_in_degrees():
+    """seed3_attitude writes x0 as ``phi: 10deg``: its angle histories are drawn in degrees
+    (the run keeps radians); an angle given in radians stays in radians."""
+    from ocdsl.report import figures as F
+    from ocdsl.spec.controller import degree_inputs
+
+    assert degree_inputs({"phi": "10deg", "theta": "-2.5 deg", "psi": 0.1, "wx": "pi/18"}) == ["phi", "theta"]
+    t = np.linspace(0.0, 10.0, 30)
+    phi, psi = np.radians(10.0) * np.exp(-t), 0.1 * np.exp(-t)
+    cl = {"closed_loop_lqr": {"t": t, "phi": phi, "psi": psi}}
+    problem = {"units": {"phi": "rad", "psi": "rad"}, "display_units": {"phi": "deg"},
+               "phases": {"main": {"states": ["phi", "psi"], "controls": []}}}
+    (fig,) = F.fig_closed_loop(cl, problem)
+    ax_phi, ax_psi = fig.figure.axes[:2]
+    assert np.allclose(ax_phi.get_lines()[0].get_ydata(), np.degrees(phi)) and "deg" in ax_phi.get_ylabel()
+    assert np.allclose(ax_psi.get_lines()[0].get_ydata(), psi) and "rad" in ax_psi.get_ylabel()

@@ -23,7 +23,7 @@ import numpy as np
 import sympy as sp
 
 from ocdsl.result import PhaseTrajectory, Result
-from ocdsl.spec.controller import ControllerSpec, to_number
+from ocdsl.spec.controller import ControllerSpec, degree_inputs, to_number
 from ocdsl.symbolic import sdc as sdcmod
 from ocdsl.symbolic.model import Model
 
@@ -107,6 +107,7 @@ def run_one(model: Model, spec: ControllerSpec, kind: str, sdc: sdcmod.SDC,
     params.update({str(k): float(v) for k, v in (parameters or {}).items()})
     problem = _problem(model, sdc)
     problem["phases"]["main"]["tf"] = sim_spec.horizon
+    problem["display_units"] = {n: "deg" for n in degree_inputs(sim_spec.x0)}
     try:
         z0 = sim_spec.initial_state(names)
         n, m = sdc.n, sdc.m

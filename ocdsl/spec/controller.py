@@ -77,6 +77,13 @@ def to_number(value: Number, symbols: Mapping[str, sp.Basic] | None = None) -> f
     return out
 
 
+def degree_inputs(values: Mapping[str, Number] | list) -> list[str]:
+    """Names whose value the file wrote in degrees (``phi: 10deg``): reports draw them in degrees."""
+    if not isinstance(values, Mapping):
+        return []
+    return [k for k, v in values.items() if isinstance(v, str) and _DEG.match(v)]
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 

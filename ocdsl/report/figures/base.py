@@ -230,6 +230,23 @@ def _grid_figures(key: str, caption: str, panels: list[tuple[str, Series]], unit
     return out
 
 
+def in_degrees(panels: list[tuple[str, Series]], bounds: dict | None, units: dict,
+               problem: dict) -> tuple[list[tuple[str, Series]], dict | None, dict]:
+    """Angles the file gave in degrees (``problem.display_units``: name -> "deg", from
+    inputs such as ``10deg``) drawn in degrees, with their bounds; the rest unchanged."""
+    deg = [n for n, u in (problem.get("display_units") or {}).items()
+           if u == "deg" and str(units.get(n, "rad")) == "rad"]
+    if not deg:
+        return panels, bounds, units
+    k = 180.0 / math.pi
+    panels = [(n, [(lab, t, np.asarray(y, float) * k) for lab, t, y in series] if n in deg else series)
+              for n, series in panels]
+    if bounds:
+        bounds = {n: tuple(None if b is None else b * k for b in lohi) if n in deg else lohi
+                  for n, lohi in bounds.items()}
+    return panels, bounds, {**units, **{n: "deg" for n in deg}}
+
+
 def _near(bound: float | None, ys: list, margin: float = 0.25) -> bool:
     """A bound is drawn only when it lies within ``margin`` of the data's span of the data:
     a loose bound (h <= 1e6 for a landing from 1 km) would flatten the curve."""

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from ocdsl.report.figures.base import (
-    Fig, MAX_LEGEND, _bounds_of, _grid_figures, _new_figure, _nonempty, _run_colors, _styled, time_label)
+    Fig, MAX_LEGEND, _bounds_of, _grid_figures, _new_figure, _nonempty, _run_colors, _styled, in_degrees,
+    time_label)
 
 
 # ------------------------------------------------------------------- closed loop
@@ -38,7 +39,8 @@ def fig_closed_loop(tables: dict[str, dict[str, np.ndarray]], problem: dict, lab
     out: list[Fig] = []
     names = [label_prefix + c for c in cl]
     st = [(n, [(label_prefix + c, tab["t"], tab[n]) for c, tab in cl.items() if n in tab]) for n in states]
-    out += _grid_figures("cl-states", "Closed-loop state responses, one line per controller.", st, units)
+    st, _, st_units = in_degrees(st, None, units, problem)
+    out += _grid_figures("cl-states", "Closed-loop state responses, one line per controller.", st, st_units)
     ct = [(n, [(label_prefix + c, tab["t"], tab[n]) for c, tab in cl.items() if n in tab]) for n in controls]
     if ct:
         out += _grid_figures("cl-controls", "Closed-loop control histories (dashed: control bounds).",

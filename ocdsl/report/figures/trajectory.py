@@ -7,7 +7,7 @@ import numpy as np
 from ocdsl.result import Result
 from ocdsl.report.figures.base import (
     FLAG_COLUMNS, HAMILTONIAN_KEYS, Fig, Series, MAX_PANELS, _bounds_of, _chunks, _grid_figures, _new_figure,
-    _nonempty, _styled, axis_label, tex_name, time_label)
+    _nonempty, _styled, axis_label, in_degrees, tex_name, time_label)
 from ocdsl.report.figures.time import (
     _phase_boundaries, _phase_series, _phases_note, _time_units, phase_time, time_variable)
 
@@ -36,15 +36,18 @@ def fig_states_controls(res: Result) -> list[Fig]:
     units = res.problem.get("units") or {}
     out: list[Fig] = []
     note = _phases_note(res)
-    st, wrapped = unwrapped(_phase_series(res, "states"), units)
+    st = _phase_series(res, "states")
+    st, bounds, st_units = in_degrees(st, _bounds_of(res.problem, [n for n, _ in st]), units, res.problem)
+    st, wrapped = unwrapped(st, st_units)
     if st:
-        out += _grid_figures("states", "State histories." + note + " Dashed: bounds." + wrapped, st, units,
-                             _bounds_of(res.problem, [n for n, _ in st]),
-                             boundaries=_phase_boundaries(res))
-    ct, wrapped = unwrapped(_phase_series(res, "controls"), units)
+        out += _grid_figures("states", "State histories." + note + " Dashed: bounds." + wrapped, st, st_units,
+                             bounds, boundaries=_phase_boundaries(res))
+    ct = _phase_series(res, "controls")
+    ct, bounds, ct_units = in_degrees(ct, _bounds_of(res.problem, [n for n, _ in ct]), units, res.problem)
+    ct, wrapped = unwrapped(ct, ct_units)
     if ct:
         out += _grid_figures("controls", "Control histories; dashed lines are the control bounds." + note + wrapped,
-                             ct, units, _bounds_of(res.problem, [n for n, _ in ct]),
+                             ct, ct_units, bounds,
                              boundaries=_phase_boundaries(res))
     return out
 
