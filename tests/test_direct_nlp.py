@@ -18,7 +18,8 @@ pytestmark = pytest.mark.ipopt
 
 # every pseudospectral file in configs/ (the others are flat, parametric or feedback methods)
 PSEUDOSPECTRAL = ["brachistochrone", "bryson_denham", "double_integrator", "goddard", "mesh_bryson_denham",
-                  "mesh_double_integrator", "mesh_goddard", "mesh_moon_landing", "minimal_double_integrator",
+                  "mesh_double_integrator", "mesh_goddard", "mesh_moon_landing", "min_time_to_climb",
+                  "minimal_double_integrator",
                   "moon_landing", "seed0_exact_euler", "seed0_rendezvous", "seed1_10N_optimal",
                   "seed4_two_burn_nlp", "seed4_unrestricted", "study_moon_landing_sweep",
                   "two_phase_double_integrator"]
@@ -76,6 +77,61 @@ def _compare_with_pynumero(tr, trials=2):
 @pytest.mark.parametrize("name", PSEUDOSPECTRAL)
 def test_direct_evaluation_equals_pynumero(configs, name):
     _compare_with_pynumero(_built(configs, name))
+
+
+def test_generated_derivatives_of_table_ramps_and_safe_exp_match_finite_differences():
+    """The tables' truncated powers r1..r3 (max(z, 0)**p) and safe_exp on the direct route:
+    the generated values are the functions', the first and second derivatives those of
+    central differences of the generated values and first derivatives, on both sides of
+    each kink and at random points."""
+    import sympy as sp
+
+    from ocdsl.symbolic.numbers import safe_exp
+    from ocdsl.symbolic.tables import r1, r2, r3
+
+    x, y = sp.symbols("x y", real=True)
+    exprs = [3 * r3(x - 0.2) - 2 * r3(0.5 - x) * y, r2(y - 0.1) * x + r2(x * y + 0.3),
+             2 * safe_exp(x * y - 0.5), r3(x * y - 0.1) + sp.sin(x)]
+    g = direct_nlp._generated(exprs, [x, y])
+    values, first, second = (direct_nlp._function(g[k]) for k in ("values", "first", "second"))
+    jac, hess = np.array(g["jac"]).reshape(-1, 2), np.array(g["hess"]).reshape(-1, 3)
+    rng = np.random.default_rng(5)
+    pts = np.concatenate([rng.uniform(-1, 1, (2, 40)),
+                          np.array([[0.2 - 1e-3, 0.2 + 1e-3, 0.5 - 1e-3, 0.5 + 1e-3], [0.7, -0.4, 0.9, 1.1]])], axis=1)
+    direct_nlp._check_smooth(exprs, "test")
+    with pytest.raises(direct_nlp.Unsupported, match="r1"):      # its second derivative is a delta
+        direct_nlp._check_smooth([r1(x) * y], "test")
+    exact = sp.lambdify([x, y], [e.replace(
+        lambda f: isinstance(f, (r1, r2, r3)), lambda f: sp.Max(f.args[0], 0) ** f.power).replace(
+        safe_exp, sp.exp) for e in exprs], "numpy")
+
+    def val(p):
+        return values(p[0], p[1], np.empty((len(exprs), p.shape[1])))
+
+    def fir(p):
+        return first(p[0], p[1], np.empty((len(jac), p.shape[1])))
+    assert np.allclose(val(pts), np.array(exact(*pts), float), rtol=1e-13, atol=1e-15)
+    h = 1e-6
+    for k, (o, a) in enumerate(jac):
+        e = np.zeros((2, 1))
+        e[a] = h
+        fd = (val(pts + e)[o] - val(pts - e)[o]) / (2 * h)
+        assert np.allclose(fir(pts)[k], fd, rtol=1e-6, atol=1e-7), (o, a)
+    dense = {(o, a): k for k, (o, a) in enumerate(jac)}
+    sec = second(pts[0], pts[1], np.empty((len(hess), pts.shape[1])))
+    for k, (o, a, b) in enumerate(hess):
+        e = np.zeros((2, 1))
+        e[b] = h
+        fd = (fir(pts + e)[dense[(o, a)]] - fir(pts - e)[dense[(o, a)]]) / (2 * h)
+        assert np.allclose(sec[k], fd, rtol=1e-5, atol=1e-6), (o, a, b)
+    assert len(hess) >= 6
+
+
+def test_tables_and_safe_exp_take_the_direct_route(configs):
+    """min_time_to_climb (tables: r3 splines) is no longer refused by the direct route."""
+    tr = _built(configs, "min_time_to_climb")
+    nlp, why = direct_nlp.DirectNLP.of(tr)
+    assert nlp is not None, why
 
 
 @pytest.mark.parametrize("scheme", ["LG", "LGL", "LGR"])

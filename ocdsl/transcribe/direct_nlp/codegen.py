@@ -11,9 +11,13 @@ import sympy as sp
 
 INF = 1e20
 # functions whose NumPy form and SymPy derivatives agree with the ASL's everywhere they are
-# smooth; anything else (Abs, Min/Max, Piecewise, sign...) stays on the PyNumero route
+# smooth; anything else (Abs, Min/Max, Piecewise, sign...) stays on the PyNumero route. The
+# tables' truncated powers r2, r3 (max(z, 0)**p, ocdsl/symbolic/tables.py: a C2 spline's r3
+# has derivatives 3 r2 and 6 r1, continuous) and safe_exp (exp kept whole,
+# ocdsl/symbolic/numbers.py) are printed by _Printer below; r1 itself is not taken (its
+# second derivative is a Dirac delta)
 _SMOOTH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
-           "asinh", "acosh", "atanh", "exp", "log", "sqrt"}
+           "asinh", "acosh", "atanh", "exp", "log", "sqrt", "r2", "r3", "safe_exp"}
 
 
 class Unsupported(Exception):
@@ -60,15 +64,46 @@ def _source(args, exprs) -> str | None:
     Hessian evaluation's time on seed 0)."""
     if not exprs:
         return None
-    from sympy.printing.numpy import NumPyPrinter
-
     reps, red = sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
-    pr = NumPyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
+    pr = _printer()
     lines = [f"def f({', '.join(str(a) for a in args)}, _out):"]
     lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
     lines += [f"    _out[{i}] = {pr.doprint(e)}" for i, e in enumerate(red)]
     lines.append("    return _out")
     return "\n".join(lines) + "\n"
+
+
+_PRINTER: list = []
+
+
+def _printer():
+    """NumPy's printer, plus the functions of ocdsl's own that _SMOOTH admits."""
+    if not _PRINTER:
+        from sympy.printing.numpy import NumPyPrinter
+
+        class _Printer(NumPyPrinter):
+            def _ramp(self, e, power: int) -> str:
+                base = f"numpy.maximum({self._print(e.args[0])}, 0.0)"
+                return base if power == 1 else f"{base}**{power}"
+
+            def _print_r1(self, e):
+                return self._ramp(e, 1)
+
+            def _print_r2(self, e):
+                return self._ramp(e, 2)
+
+            def _print_r3(self, e):
+                return self._ramp(e, 3)
+
+            def _print_Heaviside(self, e):     # r1's derivative (a third derivative of r3)
+                return f"numpy.heaviside({self._print(e.args[0])}, 0.5)"
+
+            def _print_safe_exp(self, e):
+                return f"numpy.exp({self._print(e.args[0])})"
+
+        _PRINTER.append(_Printer({"fully_qualified_modules": True, "inline": True,
+                                  "allow_unknown_functions": False}))
+    return _PRINTER[0]
 
 
 def _function(source: str | None):
