@@ -70,8 +70,13 @@ def test_paper_setting_is_not_verified_and_refinement_reaches_the_optimum():
     assert paper["worst_check"]["value"] > paper["worst_check"]["limit"]
     # the paper's numbers are kept: within the printed row's 0.1 kg / 0.5 %
     assert paper["objective"] == pytest.approx(153.747, abs=0.1)
-    last = levels[-1]
-    assert last["verification"] == "verified" and all(lv["verification"] == "failed" for lv in levels[:-1])
+    # the refinement stops once two verified levels agree in the objective (to the tolerance);
+    # the Result is the coarser of the two, the one the finer level confirmed
+    last, finer = levels[-2], levels[-1]
+    assert last["verification"] == finer["verification"] == "verified"
+    assert all(lv["verification"] == "failed" for lv in levels[:-2])
+    assert abs(last["objective"] - finer["objective"]) <= 1e-6 * max(1.0, abs(last["objective"]))
+    assert res.extra["refinement"]["objective_settled"] is True and res.status == "optimal"
     assert res.extra["refinement"]["tolerance"] == 1e-6
     assert last["reintegration_miss"] <= 1e-6 < paper["reintegration_miss"]
     assert last["max_residual_dense"] < 1e-3 * paper["max_residual_dense"]
@@ -158,3 +163,51 @@ def test_unwrapped_angle_is_continuous_inside_its_bounds():
     # starting on the negative side of the cut (seed 2, strategy 1: -3.14 then 3.1 .. 2.1)
     b = np.concatenate([[-3.14], np.linspace(3.1, 2.1, 20)])
     assert np.allclose(_unwrapped(ph, beta, b), np.concatenate([[-3.14 + 2 * np.pi], b[1:]]))
+
+
+BRYSON_DENHAM_FLAT = """
+name: Bryson-Denham via flat outputs
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x <= 1/9, x(t0) == 0, x(tf) == 0, v(t0) == 1, v(tf) == -1]
+  objective: minimize integral(u**2/2)
+method:
+  transcription: flat-bspline
+  flat_outputs: [x]
+  degree: 5
+  control_points: 20
+  collocation_points: 20
+  tolerance: 1.0e-6
+  refinements: REFINEMENTS
+"""
+
+
+@pytest.mark.ipopt
+def test_a_verified_level_whose_objective_has_not_settled_is_not_optimal(tmp_path):
+    """Bryson-Denham (J* = 4) with 20 control points is feasible and verified at J = 4.0024:
+    the bound x <= 1/9 holds through the control points (conservative) and the spline cannot
+    follow the optimum's corners. One refinement (35 points) is verified too but moves J by
+    5e-4, far above the tolerance: the run must not say optimal."""
+    f = write(tmp_path, BRYSON_DENHAM_FLAT.replace("REFINEMENTS", "1"), "bd.yaml")
+    res = ocdsl.load(f).solve()
+    levels = res.extra["refinement"]["levels"]
+    assert [lv["verification"] for lv in levels] == ["verified", "verified"]
+    assert levels[0]["objective"] - 4.0 > 1e-3 > levels[1]["objective"] - 4.0 > 0
+    assert res.objective == levels[1]["objective"] and "changed by" in res.message
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert res.extra["refinement"]["objective_settled"] is False
+    assert "did not settle" in res.message and res.verification["status"] == "verified"
+
+
+@pytest.mark.slow
+@pytest.mark.ipopt
+def test_flat_refinement_reaches_bryson_denham_optimum(tmp_path):
+    """With room to refine (20 -> 245 control points) the objective settles at 4 within 1e-6."""
+    f = write(tmp_path, BRYSON_DENHAM_FLAT.replace("REFINEMENTS", "5"), "bd.yaml")
+    res = ocdsl.load(f).solve()
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(4.0, rel=1e-6)

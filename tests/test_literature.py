@@ -109,7 +109,8 @@ def test_tumour_flagged_tf_not_stationary(tmp_path):
 def test_free_flying_robot_not_verified(tmp_path):
     data = _run(FFR, tmp_path)
     assert data["status"] == "mesh_not_converged"
-    assert data["verification"]["status"] == "skipped"
+    # the best mesh is verified all the same (its NLP converged); the run is still not ok
+    assert data["verification"]["status"] in ("verified", "failed")
     (check,) = data["expect"]
     assert not check["passed"] and 1e-5 < check["relative_error"] < 1e-4
 

@@ -39,9 +39,14 @@ def _level(result, opts, verification: dict, wall_s: float) -> dict:
 
 def refine(file, mp, first: Result, options: dict, verbose: bool,
             first_wall_s: float) -> Result:
-    """Verify at the method's tolerance; while a level fails, double the knot spans of
-    every function (and the residual equations with them) and solve again from the level
-    before. Stops at the first verified level, after ``refinements`` doublings, or when a
+    """Verify at the method's tolerance; while a level fails, or its objective differs from
+    the previous verified level's by more than the tolerance (relative to ``max(1, |J|)``),
+    double the knot spans of every function (and the residual equations with them) and
+    solve again from the level before. A verified level is only feasible: bounds on the
+    outputs hold through their control points, which is conservative, and a coarse spline
+    cannot bend where the optimum does (Bryson-Denham, 20 control points: verified at
+    J = 4.0024 against 4). Stops when two verified levels agree, after ``refinements``
+    doublings (then ``mesh_not_converged`` if the objective had not settled), or when a
     level's solve does not converge (the last converged level is returned)."""
     from ..solve import ipopt
     from ..verify import CONVERGED, VerifySettings, attach_verification
@@ -52,10 +57,16 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     start = time.perf_counter()
     attach_verification(file.problem, first, settings)
     levels = [_level(first, mp.opts, first.verification, first_wall_s)]
-    best = first
-    current = mp
-    for _ in range(method.refinements):
-        if best.verification.get("status") == "verified":
+    best, current = first, mp
+    verified: list[tuple[Result, object]] = []       # (level, its options), coarse to fine
+    settled = False
+    for step in range(method.refinements + 1):
+        if best.verification.get("status") == "verified" and (not verified or verified[-1][0] is not best):
+            verified.append((best, current.opts))
+            if len(verified) > 1 and _relative_change(verified[-2][0], best) <= tol:
+                settled = True
+                break
+        if step == method.refinements:
             break
         t = time.perf_counter()
         nxt = current.with_options(_next_level(current.opts, method.refine_residual))
@@ -68,13 +79,32 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         if res.status not in CONVERGED:
             break
         best, current = res, nxt
+    opts = current.opts
+    confirmed = ""
+    if settled:
+        # the level the finer one confirmed is the result (the finer one is in `levels`)
+        finer = best
+        best, opts = verified[-2]
+        confirmed = (f", its objective confirmed by {finer.nlp.get('variables')} variables "
+                     f"({_relative_change(best, finer):.1e} apart)")
+    elif best.verification.get("status") == "verified" and best.status in ("optimal", "acceptable"):
+        change = ("no finer level was verified to compare it with" if len(verified) < 2 else
+                  f"it changed by {_relative_change(verified[-2][0], best):.2e} from the previous verified "
+                  f"level ({verified[-2][0].objective:.10g} -> {best.objective:.10g})")
+        best.status = "mesh_not_converged"
+        best.message = (f"the objective did not settle to the tolerance {tol:g} within {method.refinements} "
+                        f"refinement(s): {change}; raise refinements or control_points")
     best.extra["starts"] = first.extra.get("starts", [])
-    best.extra["refinement"] = {"tolerance": tol, "levels": levels,
+    best.extra["refinement"] = {"tolerance": tol, "levels": levels, "objective_settled": settled,
                                 "wall_time_s": round(time.perf_counter() - start, 3)}
-    best.message = (f"{best.message}; refined to {current.opts.n_ctrl} control points / "
-                    f"{current.opts.n_col} {current.opts.residual} equations in {len(levels) - 1} step(s), "
-                    f"verification {best.verification.get('status')} at {tol:g}")
+    best.message = (f"{best.message}; refined to {opts.n_ctrl} control points / "
+                    f"{opts.n_col} {opts.residual} equations in {len(levels) - 1} step(s), "
+                    f"verification {best.verification.get('status')} at {tol:g}{confirmed}")
     return best
+
+
+def _relative_change(a: Result, b: Result) -> float:
+    return abs(float(b.objective) - float(a.objective)) / max(1.0, abs(float(b.objective)))
 
 
 def _next_level(opts, residual: str):
