@@ -24,7 +24,7 @@ MATCHED = {
     "brachistochrone_wall": False, "hypersensitive_linear": False,
     "bryson_denham_three_phase": False, "goddard_three_phase": False,
     "min_fuel_double_integrator": True, "rayleigh_mixed": True, "catalyst_mixing": True,
-    "singular_aly": True, "goddard_cops": True, "delta_iii": True,
+    "singular_aly": True, "goddard_cops": True, "delta_iii": True, "lotka_fishing": True,
 }
 # not verified: adaptive refinement stops at max_iterations (largest estimated error 2e-5),
 # J settles at 7.910916, 4.5e-5 above the published 7.91055654 (expect fails at rtol 1e-6)
