@@ -79,3 +79,26 @@ def test_cache_off_derives_every_time(cache_dir, monkeypatch):
     numeric.family([t, x, lam], ("test", *F), _make(calls))
     numeric.family([t, x, lam], ("test", *F), _make(calls))
     assert calls == [1, 1]
+
+
+@pytest.mark.ipopt
+def test_a_second_run_prints_nothing_for_certificate_and_verification(configs, cache_dir, monkeypatch):
+    """Two solves of a freshly compiled file: the second one's certificate and verification
+    functions all come from the disk cache (nothing printed), and its records are the first's."""
+    import ocdsl
+
+    printed = []
+    real = numeric.source
+    monkeypatch.setattr(numeric, "source", lambda *a, **k: (printed.append(1), real(*a, **k))[1])
+    first = ocdsl.load(configs / "brachistochrone.yaml").solve()
+    assert printed and first.certificate.get("passed") is True
+    n = len(printed)
+    second = ocdsl.load(configs / "brachistochrone.yaml").solve()
+    assert len(printed) == n
+    assert second.certificate == first.certificate
+
+    def checks(v):
+        return {k: x for k, x in v.items() if "time" not in k}
+
+    assert first.verification["status"] == "verified"
+    assert checks(second.verification) == checks(first.verification)
