@@ -212,3 +212,19 @@ def test_the_seed1_optimal_files_declare_their_chain():
         chain = f.problem.phases[0].guess["chain"]
         assert chain["from"] == f"seed1_{n}N_paper.yaml" and chain["transform"] == "cr3bp_polar_to_sundman"
         assert chain["reuse"] == f"../reports/seed1_{n}N_paper"
+
+
+def test_a_previous_runs_values_outside_the_bounds_are_clipped_into_them(tmp_path):
+    """A solution ends 1e-8 outside its bounds (Ipopt's bound relaxation); started from it,
+    the guess lies inside them, as the file's own guess does (Pyomo warned per variable)."""
+    from ocdsl.transcribe.guess import make_guess
+
+    t = np.linspace(0.0, 2.0, 9)
+    u = np.where(t < 1.0, -1.0 - 1e-8, 1.0 + 1e-8)
+    prev = PhaseTrajectory("main", t, states={"x": 1.0 - t, "v": 0.0 * t}, controls={"u": u})
+    (tmp_path / "f.yaml").write_text(target("{tf: 2.0}"))
+    file = load(tmp_path / "f.yaml")
+    ph = file.problem.phases[0]
+    g = make_guess(file.problem, ph, prev)
+    assert np.all(np.abs(g.v_table["u"]) <= 1.0) and np.isclose(np.abs(g.v_table["u"]), 1.0).all()
+    assert np.array_equal(g.v_table["x"], 1.0 - t)       # inside its bounds: as it was

@@ -97,10 +97,13 @@ def make_guess(problem: Problem, ph: Phase, previous=None, seed: int | None = No
         tp = np.asarray(previous.time, float)
         span = tp[-1] - tp[0] if tp[-1] > tp[0] else 1.0
         sp_ = (tp - tp[0]) / span
+        bounds = {var.name: ph.bounds_of(var) for var in ph.states + ph.controls}
         for n, arr in {**previous.states, **previous.controls}.items():
             if n in s_table:
                 ok = np.isfinite(arr)
-                s_table[n], v_table[n] = sp_[ok], np.asarray(arr)[ok]
+                # into the bounds, as the file's guess: a solution's values 1e-8 outside them
+                # (Ipopt's bound relaxation) made Pyomo warn once per variable
+                s_table[n], v_table[n] = sp_[ok], np.clip(np.asarray(arr)[ok], *bounds[n])
         t0, tf = (float(tp[0]) if ph.t0 is None else t0), (float(tp[-1]) if ph.tf is None else tf)
     rng = None
     random = ph.guess.get("random") or seed is not None
