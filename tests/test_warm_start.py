@@ -112,10 +112,12 @@ def test_resolve_same_mesh_takes_few_iterations_with_multipliers(configs, config
         assert abs(i.objective - info.objective) <= 1e-9 * abs(info.objective)
     # the direct path reads everything back like Pyomo's: duals (costates) and bounds' z
     # (the duals of a degenerate optimum move a little between solves: measured 1.7e-5 of
-    # max |lambda| on Bryson-Denham, 3.5e-4 on the moon landing's lambda_m; 4e-3 without
-    # the multipliers)
+    # max |lambda| on Bryson-Denham, 3.5e-4 on the moon landing's lambda_m with Ipopt's
+    # bound_relax_factor 1e-8 and 1.4e-3 with ocdsl's 1e-9 (the first two nodes only, where
+    # the thrust leaves its bound; every other node agrees to 2e-12); 4e-3 without the
+    # multipliers. A wrong read-back is off by O(1).)
     lam, lam_m = colloc_costates(tr.model, tr.phases[0]), colloc_costates(tr_m.model, tr_m.phases[0])
-    assert np.all(np.abs(lam_m - lam) <= 1e-3 * np.max(np.abs(lam), axis=0))
+    assert np.all(np.abs(lam_m - lam) <= 2e-3 * np.max(np.abs(lam), axis=0))
     assert len(tr_m.model.ipopt_zL_out) == len(tr.model.ipopt_zL_out) > 0
 
 
