@@ -178,3 +178,32 @@ def test_two_phase_file_with_the_new_constructs_solves(tmp_path):
     res = ocdsl.load(write(tmp_path, TWO_PHASE)).solve()
     assert res.ok, (res.status, res.expect)
     assert res.tf["brake"] == pytest.approx(2.0, rel=1e-8)
+
+
+ROCKET_CAR = """
+name: Rocket car minimum time
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
+  objective: minimize tf
+"""
+
+
+def test_free_final_time_is_bounded_below_by_a_fixed_start(tmp_path):
+    """Time runs forward: with t0 fixed and no bound on tf, minimum time used to run to
+    tf = -1e20 (backwards in time the car reaches x = 1 ever "sooner")."""
+    import ocdsl
+    from ocdsl.spec.errors import SpecError
+
+    loaded = ocdsl.load(write(tmp_path, ROCKET_CAR))
+    assert loaded.file.problem.phases[0].tf_bounds == (0.0, float("inf"))
+    res = loaded.solve()
+    assert res.status == "optimal" and res.verified and abs(res.tf - 2.0) < 1e-6
+    later = ROCKET_CAR.replace("time: {t0: 0, tf: free}", "time: {t0: free, tf: 3}").replace(
+        "x(t0) == 0,", "x(t0) == 0, t0 >= 5,")
+    with pytest.raises(SpecError, match=r"t0 <= tf = 3 \(time runs forward\)"):
+        ocdsl.load(write(tmp_path, later, "later.yaml"))

@@ -10,7 +10,7 @@ import sympy as sp
 from ...chain.check import check_guess, is_problem_file
 from ...hints import did_you_mean
 from ...symbolic.model import TIME, Model, sym
-from ...symbolic.problem import BoundaryValue, Objective, Phase, Problem
+from ...symbolic.problem import INF, BoundaryValue, Objective, Phase, Problem
 from ..errors import ExprError
 from ..expr import Scope, is_vector, parse_expression
 from ..schema import TimeSpec
@@ -63,7 +63,17 @@ class PhaseCompiler:
                       "random": guess.random, "seed": guess.seed,
                       "chain": {"from": guess.from_, "transform": guess.transform, "reuse": guess.reuse,
                                 "file": str(self.path)} if chained else None}
-        return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict)
+        # time runs forward: with one end fixed the other is bounded by it (a free final time
+        # with nothing below it let `minimize tf` run to tf = -1e20); later bounds narrow these
+        bounds = {}
+        texts = self.__dict__.setdefault("bound_texts", {})
+        if tf is None and t0 is not None:
+            bounds["tf_bounds"] = (t0, INF)
+            texts[((name, tfs), "lo")] = f"tf >= t0 = {t0:g} (time runs forward)"
+        if t0 is None and tf is not None:
+            bounds["t0_bounds"] = (-INF, tf)
+            texts[((name, t0s), "hi")] = f"t0 <= tf = {tf:g} (time runs forward)"
+        return Phase(name, model, constants, t0, tf, t0s, tfs, guess=guess_dict, **bounds)
 
     def phase_values(self, phase: str, model: Model, top_params, values: dict, loc) -> dict[sp.Symbol, float]:
         """A phase's own values of constants of its model or of the file (``parameters:`` under
