@@ -13,7 +13,6 @@ from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, phase_end
 from .junction import limit_junction_controls
 from .locate import locate_features, locate_switches, misplaced
-from .mixed import locate_mixed_junctions
 from .refine import MeshStalled, refine, same_mesh
 from .regularise import chattering_segments, merge_intervals, regularise
 from .segments import control_polys, seg_polys, solution_arrays
@@ -241,13 +240,6 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         bang[pb.phase.name] = locate_switches(tr, pb, params, max(1e-6, 0.1 * spec.tolerance))
                     except Exception:   # an aid, as the locators
                         bang[pb.phase.name] = []
-                # and the junctions of mixed constraints (accurate as the switches: docs/mesh.md)
-                exact = {k: list(v) for k, v in bang.items()}
-                for pb in tr.phases:
-                    try:
-                        exact[pb.phase.name] += locate_mixed_junctions(pb, params)
-                    except Exception:   # an aid, as the locators
-                        pass
                 if spec.move_switches:
                     try:
                         pinned = bang
