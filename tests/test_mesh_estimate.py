@@ -150,3 +150,53 @@ def test_breakpoint_gradient_matches_resolves(configs):
     fd = (j1 - j0) / 1e-5
     assert fd < -10          # moving the breakpoint right lowers J* here
     assert abs(g0 - fd) < 0.05 * abs(fd)
+
+
+UNSTABLE = """name: unstable scalar transfer
+model:
+  states: [y]
+  controls: [u]
+  dynamics: {y: 2*y + u}
+problem:
+  time: {t0: 0, tf: 20}
+  constraints:
+    - y(t0) == 1
+    - y(tf) == 0
+  objective: minimize integral(u**2 + y**2)
+method:
+  transcription: LGR
+  segments: 20
+  degree: 5
+  mesh: {tolerance: 1.0e-6, max_iterations: 3}
+"""
+
+
+@pytest.mark.ipopt
+def test_terminal_check_left_out_for_unstable_flight(tmp_path):
+    """y' = 2 y + u over 20: the open-loop flight amplifies a change of y(0) by e^40, so
+    flown from x(t0) the terminal condition says nothing about the solution (Betts' alp rider:
+    1e8-1e14, the mesh tripled every iteration); the check is left out, and the run says so."""
+    f = tmp_path / "unstable.yaml"
+    f.write_text(UNSTABLE)
+    res = ocdsl.load(f).solve()
+    assert "terminal conditions not checked by flying the phase" in res.message, res.message
+    for h in res.extra["mesh_history"]:
+        assert h["terminal_error"] == 0.0
+
+
+@pytest.mark.ipopt
+def test_flight_amplification_small_where_stable(configs):
+    """The bang-off-bang double integrator over 3: a change of x(t0) grows by at most ~T."""
+    from ocdsl.solve import ipopt
+    from ocdsl.solve.mesh.estimate import flight_amplification, phase_end
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    pr = load(configs / "mesh_bang_off_bang.yaml").problem
+    tr = build(pr, {ph.name: Mesh.uniform("LGR", 10, 4) for ph in pr.phases},
+               {ph.name: make_guess(pr, ph, None) for ph in pr.phases})
+    assert ipopt.solve(tr.model, {"tol": 1e-9}, transcription=tr).status == "optimal"
+    pb = tr.phases[0]
+    amp = flight_amplification(pb, {}, phase_end(pb, {}))
+    assert 0.5 < amp < 10.0, amp

@@ -228,9 +228,10 @@ class PhaseEnd:
     u_end: np.ndarray
 
 
-def phase_end(pb, params: dict, rtol: float = 1e-12) -> PhaseEnd:
+def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
     """The phase re-integrated from x(t0) over all its segments (see ``PhaseEnd``): what the
-    terminal conditions and the integrals really are at the returned t_f."""
+    terminal conditions and the integrals really are at the returned t_f. ``start``: another
+    initial state (``flight_amplification``)."""
     from scipy.integrate import solve_ivp
 
     from ...verify.checks import state_scale
@@ -248,7 +249,7 @@ def phase_end(pb, params: dict, rtol: float = 1e-12) -> PhaseEnd:
     quad_k = segment_quadratures(pb, params)
     x_scale = state_scale(X)
     q_scale = np.maximum(np.sum(np.abs(quad_k), axis=0), 1e-12) if nq else np.zeros(0)
-    y = np.concatenate([X[0], np.zeros(nq)])
+    y = np.concatenate([X[0] if start is None else np.asarray(start, float), np.zeros(nq)])
     atol = rtol * np.concatenate([1.0 + np.max(np.abs(X), axis=0), 1.0 + q_scale])
     u0 = u_end = np.zeros(len(ph.controls))
     for k in range(mesh.segments):
@@ -275,3 +276,18 @@ def phase_end(pb, params: dict, rtol: float = 1e-12) -> PhaseEnd:
             break
         y = sol.y[:, -1]
     return PhaseEnd(t0, tf, X[0], y[:nx], y[nx:], x_scale, q_scale, u0, u_end)
+
+
+def flight_amplification(pb, params: dict, end: PhaseEnd, rel: float = 1e-6) -> float:
+    """How much the open-loop flight of ``phase_end`` amplifies a change of its initial state:
+    max_j |dx_j(tf)| / x_scale_j over max_j |dx_j(t0)| / x_scale_j for the start moved by
+    ``rel`` of every state's scale (one direction: a lower bound of the amplification).
+    Inf when the moved flight fails. Betts' alp rider (a block with eigenvalue +2 over
+    t_f = 20) amplifies by about e^40: flown from x(t0), its terminal conditions were missed by
+    1e8-1e14 on meshes whose J was 7e-7 from the published value."""
+    d = rel * end.x_scale
+    moved = phase_end(pb, params, start=end.x0 + d)
+    dx = np.abs(moved.x_end - end.x_end) / end.x_scale
+    if not np.all(np.isfinite(dx)):
+        return math.inf
+    return float(np.max(dx) / rel)
