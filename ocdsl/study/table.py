@@ -1,0 +1,172 @@
+"""The study table (study.csv, study.json) rewritten as points finish, the progress line,
+and the summary printed at the end."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .points import GOOD, _atomic_write
+from .spec import Point
+
+if TYPE_CHECKING:
+    from .run import StudyResult
+
+
+
+class _Table:
+    FIXED = ["seed", "status", "verification", "objective", "tf", "iterations", "wall_time_s", "host",
+             "warm_start", "message"]
+
+    def __init__(self, out_dir: Path, points: list[Point], info: dict[str, Any]):
+        self.out_dir, self.info = out_dir, info
+        self.pnames: list[str] = []
+        for p in points:
+            for k in p.parameters:
+                if k not in self.pnames:
+                    self.pnames.append(k)
+        self.tagnames = [t for t in ("sweep", "sample", "start")
+                         if any(t in p.tags for p in points)]
+        self.rows: dict[str, dict[str, Any]] = {}
+        for p in points:
+            self.rows[p.id] = {"id": p.id, **{k: p.parameters.get(k) for k in self.pnames},
+                               **{t: p.tags.get(t) for t in self.tagnames},
+                               "seed": p.seed, "status": "pending", "verification": None,
+                               "objective": None, "tf": None,
+                               "iterations": None, "wall_time_s": None, "host": None,
+                               "warm_start": None, "message": ""}
+        self.sense = "minimize"
+        self._last_write = 0.0
+        self._write_cost = 0.0
+
+    def set(self, pid: str, summary: dict[str, Any], meta: dict[str, Any]) -> None:
+        self.sense = summary.pop("sense", self.sense) or self.sense
+        self.rows[pid].update(summary)
+        self.rows[pid].update(host=meta.get("host"), warm_start=meta.get("warm_start"))
+
+    def counts(self) -> dict[str, int]:
+        st = [r["status"] for r in self.rows.values()]
+        done = sum(s != "pending" for s in st)
+        ok = sum(s in GOOD for s in st)
+        return {"points": len(st), "done": done, "ok": ok, "failed": done - ok,
+                "pending": len(st) - done}
+
+    def best(self) -> dict[str, Any] | None:
+        good = [r for r in self.rows.values() if r["status"] in GOOD
+                and r["objective"] is not None and math.isfinite(r["objective"])]
+        if not good:
+            return None
+        sign = -1.0 if self.sense == "maximize" else 1.0
+        return min(good, key=lambda r: sign * r["objective"])
+
+    def columns(self) -> list[str]:
+        return ["id", *self.pnames, *self.tagnames, *self.FIXED]
+
+    def write(self, state: str, extra: dict[str, Any] | None = None, force: bool = False) -> None:
+        """Rewrite study.json and study.csv atomically (throttled to a few % of the run
+        time for very large studies; always when ``force``)."""
+        now = time.perf_counter()
+        if not force and now - self._last_write < 20 * self._write_cost:
+            return
+        t0 = time.perf_counter()
+        cols = self.columns()
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        w.writerow(cols)
+        for r in self.rows.values():
+            w.writerow([_cell(r.get(c)) for c in cols])
+        doc = {**self.info, "state": state, "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
+               "counts": self.counts(), "best": self.best(), "columns": cols,
+               "points": list(self.rows.values()), **(extra or {})}
+        # csv first: a reader that sees state=complete in study.json finds a full csv too
+        _atomic_write(self.out_dir / "study.csv", buf.getvalue())
+        _atomic_write(self.out_dir / "study.json", json.dumps(_jsonable(doc), indent=1))
+        self._last_write = time.perf_counter()
+        self._write_cost = self._last_write - t0
+
+
+def _cell(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (dict, list)):
+        return json.dumps(v)
+    return str(v)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return str(obj)
+    return obj
+
+
+# --------------------------------------------------------------------------------------
+# progress display
+# --------------------------------------------------------------------------------------
+class _Progress:
+    """Points done of the total, elapsed, ETA, counts and the best point (ocdsl/progress.py:
+    one live line on a terminal, plain lines in a log)."""
+
+    def __init__(self, title: str, total: int, quiet: bool):
+        from ..progress import Stage
+
+        self.bar = Stage(title, total, enabled=not quiet)
+
+    def update(self, counts: dict[str, int], running: int, best: dict | None) -> None:
+        b = "-" if best is None else f"{best['objective']:.6g} ({best['id']})"
+        self.bar.update(counts["done"], f"ok {counts['ok']}  failed {counts['failed']}  running {running}  best {b}")
+
+    def stop(self) -> None:
+        self.bar.close()
+
+
+def _final_table(res: StudyResult, quiet: bool) -> None:
+    if quiet:
+        return
+    from rich.console import Console
+    from rich.table import Table
+    console = Console()
+    rows = res.rows
+    shown = rows
+    if len(rows) > 40:
+        fails = [r for r in rows if r["status"] not in GOOD][:10]
+        good = sorted((r for r in rows if r["status"] in GOOD and r["objective"] is not None),
+                      key=lambda r: r["objective"])[:15]
+        shown = sorted(good + fails, key=lambda r: r["id"])
+    t = Table(title=f"study {res.out_dir}  ({res.counts['ok']} ok, {res.counts['failed']} "
+                    f"failed of {res.counts['points']}; {res.executor}; "
+                    f"{res.wall_time_s:.1f} s)")
+    pn = res.parameter_names[:6]
+    for c in ["id", *pn, "status", "verification", "objective", "tf", "iter", "wall s", "host"]:
+        t.add_column(c, justify="right" if c not in ("id", "status", "verification", "host") else "left")
+    for r in shown:
+        style = "" if r["status"] in GOOD else ("yellow" if r["status"] == "pending" else "red")
+        tf = r["tf"]
+        t.add_row(r["id"], *[_fmt(r.get(k)) for k in pn], r["status"], str(r.get("verification") or ""),
+                  _fmt(r["objective"]),
+                  _fmt(tf) if not isinstance(tf, dict) else json.dumps(tf),
+                  _fmt(r["iterations"]), _fmt(r["wall_time_s"], 3), str(r["host"] or ""),
+                  style=style)
+    console.print(t)
+    if len(shown) < len(rows):
+        console.print(f"(best 15 and first failures shown; all {len(rows)} rows in "
+                      f"{res.out_dir / 'study.csv'})")
+    if res.best:
+        console.print(f"best: {res.best['id']} objective {res.best['objective']:.10g}")
+
+
+def _fmt(v: Any, digits: int = 6) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.{digits}g}"
+    return str(v)
