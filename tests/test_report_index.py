@@ -105,3 +105,24 @@ def test_index_page_counts_and_columns(tmp_path, rows):
     listed = re.findall(r'<li><a href="[^"]+">([^<]+)</a>(.*?)</li>', html)
     assert len(listed) == len(R.report_folders(REPORTS))
     assert all(title.strip() and 'class="badge' in rest for title, rest in listed)
+
+
+def test_reports_only_keeps_a_report_whose_run_data_is_not_here(tmp_path):
+    """A committed run folder holds no trajectory (.gitignore): --reports-only keeps its
+    report as it is and says to re-run it, instead of writing one without figures."""
+    import numpy as np
+
+    from ocdsl.report import make_report
+    from ocdsl.result import PhaseTrajectory, Result
+
+    t = np.linspace(0.0, 1.0, 11)
+    res = Result(name="run", status="optimal", problem={"name": "run"},
+                 phases=[PhaseTrajectory("main", t, {"x": t})])
+    folder = res.write(tmp_path / "reports" / "run")
+    make_report(folder, ("html",))
+    before = (folder / "report.html").read_bytes()
+    for f in folder.glob("trajectory*.csv"):
+        f.unlink()
+    out = R.remake_reports(tmp_path / "reports", ("html",), log=lambda *_: None)
+    assert [(o.stem, o.status) for o in out] == [("run", "skipped")] and "--only run" in out[0].message
+    assert (folder / "report.html").read_bytes() == before

@@ -35,9 +35,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     if args.reports_only:
         outcomes = remake_reports(args.out, formats, only=args.only, configs=args.configs)
+        kept = [o.stem for o in outcomes if o.status == "skipped"]
+        outcomes = [o for o in outcomes if o.status != "skipped"]
         bad_runs = [o.stem for o in outcomes if not o.ok]
         print(f"[reproduce] {len(outcomes) - len(bad_runs)} of {len(outcomes)} reports of ok runs"
-              + (f"; not ok: {', '.join(bad_runs)}" if bad_runs else ""))
+              + (f"; not ok: {', '.join(bad_runs)}" if bad_runs else "")
+              + (f"; kept as they are (run data not here): {', '.join(kept)}" if kept else ""))
         return 1 if any(o.status == "error" for o in outcomes) else 0
     examples = find_examples(args.configs, args.only, args.skip_slow)
     if args.list:

@@ -138,6 +138,13 @@ def remake_reports(reports: Path = REPORTS, formats: Sequence[str] = ("html", "p
         if only and d.name not in only:
             continue
         t0 = time.perf_counter()
+        missing = _missing_run_data(d, load_run)
+        if missing:     # a committed folder holds no trajectories: its report stays as it is
+            out = Outcome(d.name, "report", "skipped", False, 0.0,
+                          message=f"{missing}: the report is kept; re-run it (--only {d.name}) to re-make it")
+            outcomes.append(out)
+            log(f"[reproduce] report {d.name}: skipped\n{out.message}")
+            continue
         try:
             if (d / "result.json").is_file():
                 files = make_report(d, formats)
@@ -170,6 +177,21 @@ def remake_reports(reports: Path = REPORTS, formats: Sequence[str] = ("html", "p
     return outcomes
 
 
+def _missing_run_data(folder: Path, load_run) -> str:
+    """What a folder lacks for its report to be made again from it (empty: nothing): the
+    run data that is not committed (trajectories, tables, a study's per-point runs)."""
+    if (folder / "result.json").is_file():
+        try:
+            _, notes = load_run(folder)
+        except Exception as exc:  # noqa: BLE001
+            return f"result.json unreadable ({exc})"
+        return "the run folder is incomplete (its trajectory or tables are not here)" if notes else ""
+    if (folder / "study.csv").is_file() and not any(folder.glob("points/*/result.json")) \
+            and not any(folder.glob("*/result.json")):
+        return "the study's run folders are not here"
+    return ""
+
+
 def _update_verdicts(reports: Path, outcomes: Sequence[Outcome]) -> None:
     """The manifest keeps when each example was run; its status and ok follow the run
     folder as the current ocdsl reads it."""
@@ -179,7 +201,7 @@ def _update_verdicts(reports: Path, outcomes: Sequence[Outcome]) -> None:
     except (OSError, ValueError):
         data = {}
     for o in outcomes:
-        if o.stem in data and o.status != "error":
+        if o.stem in data and o.status not in ("error", "skipped"):
             data[o.stem].update({"ok": o.ok, "report_made": time.strftime("%Y-%m-%dT%H:%M:%S"),
                                  "report_commit": _git_commit()})
             if o.kind == "run":
