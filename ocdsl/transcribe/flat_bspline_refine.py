@@ -61,7 +61,7 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     verified: list[tuple[Result, object]] = []       # (level, its options), coarse to fine
     settled = False
     for step in range(method.refinements + 1):
-        if best.verification.get("status") == "verified" and (not verified or verified[-1][0] is not best):
+        if best.verification.get("status") == "verified":       # each pass holds a new level
             verified.append((best, current.opts))
             if len(verified) > 1 and _relative_change(verified[-2][0], best) <= tol:
                 settled = True

@@ -33,6 +33,8 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         self.integral_count = 0
         self.tables: dict = {}
         self.table_calls: dict = {}
+        # ((phase, quantity), "lo" | "hi") -> the constraint text that set that side of its bounds
+        self.bound_texts: dict[tuple, str] = {}
 
     def issue(self, loc: tuple, message: str, text: str | None = None) -> None:
         if text is None:

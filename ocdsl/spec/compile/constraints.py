@@ -175,7 +175,7 @@ class ConstraintCompiler:
     def narrowed(self, ph, expr, old, lo, hi, text, loc) -> tuple[float, float]:
         """A later bound on the same quantity intersects the earlier ones (never replaces
         them); an empty intersection names the constraint that set the other side."""
-        seen = self.__dict__.setdefault("bound_texts", {})
+        seen = self.bound_texts
         key = (ph.name, expr)
         new = (max(old[0], lo), min(old[1], hi))
         if new[0] > new[1]:

@@ -66,7 +66,7 @@ class PhaseCompiler:
         # time runs forward: with one end fixed the other is bounded by it (a free final time
         # with nothing below it let `minimize tf` run to tf = -1e20); later bounds narrow these
         bounds = {}
-        texts = self.__dict__.setdefault("bound_texts", {})
+        texts = self.bound_texts
         if tf is None and t0 is not None:
             bounds["tf_bounds"] = (t0, INF)
             texts[((name, tfs), "lo")] = f"tf >= t0 = {t0:g} (time runs forward)"
