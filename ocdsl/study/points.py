@@ -155,10 +155,6 @@ def _solve_point(task: dict[str, Any]) -> dict[str, Any]:
 # --------------------------------------------------------------------------------------
 # study folder
 # --------------------------------------------------------------------------------------
-def _atomic_write(path: Path, text: str) -> None:
-    run_folder.atomic_write_text(path, text)
-
-
 def _install_point(points_dir: Path, point: Point, files: dict[str, bytes], meta: dict) -> None:
     with run_folder.assemble(points_dir / point.id, "run", force=True) as tmp:
         _write_files(tmp, files)

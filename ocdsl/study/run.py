@@ -45,7 +45,7 @@ from ocdsl import run_folder
 
 from .executor import Executor, WorkerLost
 from .spec import Point, StudyError, load_study
-from .points import (GOOD, STUDY_ENTRIES, _atomic_write, _check_problem, _error_result, _finished,
+from .points import (GOOD, STUDY_ENTRIES, _check_problem, _error_result, _finished,
                      _install_point, _read_files, _solve_point, _summary)
 from .points import solve_point  # noqa: F401  the default point function, documented here
 from .table import _final_table, _Progress, _Table
@@ -216,7 +216,7 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
         run_folder.remove_tree(stale) if stale.is_dir() else stale.unlink()
     for stale in out_dir.glob(".study.*.ocdsl-*"):
         stale.unlink(missing_ok=True)
-    _atomic_write(out_dir / "plan.json", json.dumps(
+    run_folder.atomic_write_text(out_dir / "plan.json", json.dumps(
         {"fingerprint": fingerprint, "problem_file": str(problem_path), "problem_sha256": sha,
          "points": [p.to_json() for p in points]}, indent=1))
 

@@ -10,7 +10,9 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .points import GOOD, _atomic_write
+from ocdsl import run_folder
+
+from .points import GOOD
 from .spec import Point
 
 if TYPE_CHECKING:
@@ -83,8 +85,8 @@ class _Table:
                "counts": self.counts(), "best": self.best(), "columns": cols,
                "points": list(self.rows.values()), **(extra or {})}
         # csv first: a reader that sees state=complete in study.json finds a full csv too
-        _atomic_write(self.out_dir / "study.csv", buf.getvalue())
-        _atomic_write(self.out_dir / "study.json", json.dumps(_jsonable(doc), indent=1))
+        run_folder.atomic_write_text(self.out_dir / "study.csv", buf.getvalue())
+        run_folder.atomic_write_text(self.out_dir / "study.json", json.dumps(_jsonable(doc), indent=1))
         self._last_write = time.perf_counter()
         self._write_cost = self._last_write - t0
 
