@@ -89,16 +89,22 @@ def test_gc_left_as_found_after_build_and_hand_over(configs):
     assert gc.isenabled() and gc.get_freeze_count() == 0
 
 
-def test_dropped_models_are_freed_by_the_next_build(configs):
+@pytest.mark.parametrize("limit", [0, 8_000])
+def test_dropped_models_are_freed_by_the_next_build(configs, monkeypatch, limit):
     """Models handed to the oldest generation by the gc levers bypass CPython's trigger for
-    full collections; the next build collects, so a process solving point after point does
-    not keep every dropped model (they hold reference cycles)."""
+    full collections; the next build collects once more than COLLECT_AFTER objects were
+    handed over since the last collection, so a process solving point after point does not
+    keep every dropped model (they hold reference cycles). A 20 x 4 brachistochrone model
+    is a few thousand objects: with the limit at 8,000 the third build has collected."""
     import weakref
 
     from ocdsl.api import compile_file
+    from ocdsl.transcribe import pseudospectral
     from ocdsl.transcribe.guess import make_guess
     from ocdsl.transcribe.mesh import Mesh
     from ocdsl.transcribe.pseudospectral import build
+
+    monkeypatch.setattr(pseudospectral, "COLLECT_AFTER", limit)
 
     f = compile_file(configs / "brachistochrone.yaml")
     problem, method = f.problem, f.method
@@ -109,7 +115,7 @@ def test_dropped_models_are_freed_by_the_next_build(configs):
         return build(problem, meshes, guesses).model
 
     refs = []
-    for _ in range(3):
+    for _ in range(3 if limit == 0 else 6):
         model = one_model()
         refs.append(weakref.ref(model))
         del model

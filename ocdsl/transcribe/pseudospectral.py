@@ -83,15 +83,19 @@ FAST = {
 # long-lived objects, so no full collection is ever triggered by them: a process building
 # model after model (study workers, multi-start, mesh refinement) kept every dropped model
 # (they hold reference cycles), ~40 MB per point at 200 segments (measured). So the next
-# build starts with one full collection whenever earlier ones were handed over this way.
-# A flag, not gc.get_freeze_count(), which walks the frozen objects (0.05 s at 100k variables).
-_bypassed_since_collection = False
+# build starts with one full collection once the objects handed over this way since the last
+# one (a count kept here, not gc.get_freeze_count(), which walks them: 0.05 s at 100k
+# variables) pass COLLECT_AFTER. Not on every build: a full collection walks the whole heap
+# (SymPy, Pyomo, SciPy), 0.04-0.07 s even for a 30-variable model, which was a fifth of each
+# iteration of a small mesh refinement (moon landing: ~8,000 objects per build).
+COLLECT_AFTER = 250_000
+_bypassed_since_collection = 0
 
 
 def _to_oldest_generation():
     global _bypassed_since_collection
+    _bypassed_since_collection += gc.get_count()[0]   # container objects made since the freeze
     gc.freeze()
-    _bypassed_since_collection = True
     gc.unfreeze()
 
 
@@ -101,9 +105,9 @@ def _gc_paused(collect: bool = True):
     if not FAST["no_gc"] or not gc.isenabled():
         yield
         return
-    if _bypassed_since_collection and collect:
+    if _bypassed_since_collection > COLLECT_AFTER and collect:
         gc.collect()
-        _bypassed_since_collection = False
+        _bypassed_since_collection = 0
     gc.disable()
     try:
         yield
@@ -142,8 +146,8 @@ def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGue
     folded), each made a mutable Pyomo Param ``c_<name>`` with this value, so that the model
     can be re-solved with other values (ocdsl/solve/reuse.py).
 
-    ``collect``: first free what earlier builds left for the collector (a full collection,
-    which walks the whole heap: 0.34 s per build in a loaded mesh-refinement run); false for
+    ``collect``: first free what earlier builds left for the collector, once it is more than
+    ``COLLECT_AFTER`` objects (a full collection walks the whole heap); false for
     the short-lived trial models of a mesh iteration (ocdsl/solve/mesh/switches.py), whose
     garbage the next build that collects frees."""
     with _gc_paused(collect):
