@@ -233,11 +233,16 @@ def barycentric_rows(x: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
     evaluates one interpolant many times computes them once)."""
     diff = p[:, None] - x[None, :]
     hit = diff == 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         terms = w / diff
         L = terms / terms.sum(axis=1, keepdims=True)
     rows = hit.any(axis=1)
     L[rows] = hit[rows].astype(float)
+    # a point within ~1e-300 of a node (w / diff overflowed): that node's row
+    near = ~np.isfinite(L).all(axis=1) & np.isfinite(p)
+    if near.any():
+        L[near] = 0.0
+        L[near, np.argmin(np.abs(diff[near]), axis=1)] = 1.0
     return L
 
 

@@ -62,8 +62,12 @@ def _interpolant(nodes, values):
             d = p[0] - x
             if not d.all():
                 return F[np.flatnonzero(d == 0.0)[:1]]
-            r = w / d
-            return (r @ F / r.sum())[None, :]
+            with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+                r = w / d
+                out = r @ F / r.sum()
+            if not np.isfinite(out).all():   # a point within ~1e-300 of a node: w / d overflowed
+                return F[[int(np.argmin(np.abs(d)))]]
+            return out[None, :]
         return barycentric_rows(x, w, p) @ F
 
     return ev
