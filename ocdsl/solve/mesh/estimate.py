@@ -24,6 +24,10 @@ class SegmentError:
     switches: list[tuple[float, float]] = field(default_factory=list)   # brackets in s
     smoothed: bool = False       # the error is the one with the smoothed control (see estimate_errors)
     integral: float = 0.0        # largest relative error of an integral's quadrature (see estimate_errors)
+    # the segment flown from its own start: the state at its end and each integral's increment
+    # (``segment_ends``: the terminal conditions judged piece by piece)
+    x_end: np.ndarray | None = None
+    q_increment: np.ndarray | None = None
 
 
 def _smoothed_control(lay, k, U, ulo, uhi, t0, tf):
@@ -96,6 +100,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
         x_poly = xs(tau_f)
         x_start = x_poly[0]
         q_err = np.zeros(nq)
+        q_inc = np.array(quad_k[k], float) if nq else np.zeros(0)
         if h > 0:
             # the integrals ride along from 0: their increment over the segment against the
             # NLP's quadrature of it (a control that zigzags between the nodes can make the
@@ -105,7 +110,8 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
             ok = sol.success and sol.y.shape[1] == len(t_f)
             x_int = sol.y[:nx].T if ok else np.full_like(x_poly, np.nan)
             if nq:
-                q_err = np.abs(sol.y[nx:, -1] - quad_k[k]) / scale_q if ok else np.full(nq, np.inf)
+                q_inc = sol.y[nx:, -1] if ok else np.full(nq, np.nan)
+                q_err = np.abs(q_inc - quad_k[k]) / scale_q if ok else np.full(nq, np.inf)
         else:
             x_int = x_poly
         rel = np.abs(x_int - x_poly) / scale
@@ -185,7 +191,8 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
         switches = sorted(set(switches))
         err = max(disc, viol, integral_err)
         out.append(SegmentError(ph.name, k, ta, tb, sc.degree, err, disc, viol, which,
-                                bool(switches), switches, smoothed, integral_err))
+                                bool(switches), switches, smoothed, integral_err,
+                                np.array(x_int[-1], float), q_inc))
     return out
 
 
@@ -276,6 +283,32 @@ def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
             break
         y = sol.y[:, -1]
     return PhaseEnd(t0, tf, X[0], y[:nx], y[nx:], x_scale, q_scale, u0, u_end)
+
+
+def segment_ends(pb, params: dict, errors: list[SegmentError]) -> PhaseEnd:
+    """The phase's ends judged piece by piece (multiple shooting): the state at t_f is the
+    last segment's flown from that segment's own collocated start, each integral the sum of the
+    segments' increments, each flown from its start (``estimate_errors`` integrates them).
+    For dynamics whose flight from x(t0) amplifies (``flight_amplification``): a change of
+    the state grows over one segment only, not over the phase (Betts' alp rider, e^40 over
+    t_f = 20; at most e^(2 h) over a segment of width h)."""
+    from ...verify.checks import state_scale
+
+    ph = pb.phase
+    X, U, t0, tf = solution_arrays(pb)
+    nq = len(ph.integrals)
+    quad_k = segment_quadratures(pb, params)
+    last = errors[-1] if errors else None
+    x_end = last.x_end if last is not None and last.x_end is not None else X[-1]
+    q_end = (np.sum([e.q_increment for e in errors], axis=0) if nq and errors else np.zeros(nq))
+    q_scale = np.maximum(np.sum(np.abs(quad_k), axis=0), 1e-12) if nq else np.zeros(0)
+    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
+    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
+    lay = pb.layout
+    _, us0 = seg_polys(lay, 0, X, U)
+    _, us1 = seg_polys(lay, lay.mesh.segments - 1, X, U)
+    return PhaseEnd(t0, tf, X[0], np.asarray(x_end, float), np.asarray(q_end, float), state_scale(X), q_scale,
+                    np.clip(us0(-1.0)[0], ulo, uhi), np.clip(us1(1.0)[0], ulo, uhi))
 
 
 def flight_amplification(pb, params: dict, end: PhaseEnd, rel: float = 1e-6) -> float:

@@ -17,6 +17,7 @@ from ...verify.checks import evaluate, relative_violation, sensitivity_scale
 class TerminalError:
     error: float          # largest relative violation (0 without conditions)
     where: str            # the condition's text
+    flown: str = "flown from x(t0)"   # how the ends were obtained (drive.py: piece by piece where unstable)
 
 
 def terminal_error(problem, ends: dict, params: dict) -> TerminalError:
