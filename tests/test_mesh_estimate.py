@@ -207,3 +207,30 @@ def test_flight_amplification_small_where_stable(configs):
     pb = tr.phases[0]
     amp = flight_amplification(pb, {}, phase_end(pb, {}))
     assert 0.5 < amp < 10.0, amp
+
+
+@pytest.mark.ipopt
+def test_flight_amplification_measured_once_where_far_below_the_limit(configs, monkeypatch, tmp_path):
+    """The bang-off-bang double integrator misses its terminal conditions flown from x(t0) on
+    several meshes; its amplification (~3, far below drive.AMPLIFICATION) is measured on the
+    first of them and kept, while the unstable scalar problem is measured on every mesh."""
+    from ocdsl.solve.mesh import drive
+
+    calls = []
+    real = drive.flight_amplification
+
+    def counted(*args, **kwargs):
+        calls.append(real(*args, **kwargs))
+        return calls[-1]
+
+    monkeypatch.setattr(drive, "flight_amplification", counted)
+    res = ocdsl.load(configs / "mesh_bang_off_bang.yaml").solve()
+    missed = [h for h in res.extra["mesh_history"] if h["terminal_error"] > res.extra["mesh"]["tolerance"]]
+    assert res.status == "optimal" and len(missed) >= 2
+    assert len(calls) == 1 and calls[0] < 1e4
+
+    del calls[:]
+    unstable = tmp_path / "unstable.yaml"
+    unstable.write_text(UNSTABLE)
+    res = ocdsl.load(unstable).solve()
+    assert len(calls) == len(res.extra["mesh_history"]) and min(calls) > 1e6

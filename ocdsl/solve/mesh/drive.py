@@ -125,6 +125,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     located: dict = {}   # per phase: the features located on the previous mesh (limit_junction_controls)
     budget = Budget.of(spec)   # the symbolic steps' time and memory bounds (budget.py)
     terminal_notes: list = []  # where the terminal conditions were judged piece by piece (unstable dynamics)
+    amplification: dict = {}   # per phase: the last measured flight amplification
     if not spec.symbolic:
         budget.notes.append("symbolic steps off (mesh: {symbolic: false}): no boundary controls, "
                             "state-constrained arcs located from the control polynomials only")
@@ -180,8 +181,15 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     # conditions are judged piece by piece instead (each segment flown from its
                     # own start, ``segment_ends``). Measured only when the flight misses them:
                     # a flight that meets them is a trajectory that does, however unstable.
-                    amp = {pb.phase.name: flight_amplification(pb, params, ends[pb.phase.name])
+                    # a phase measured far below AMPLIFICATION keeps that measure (the flow's
+                    # sensitivity changes little between meshes; a phase that became unstable
+                    # would only be judged the stricter way, from x(t0)); near or above it,
+                    # every time
+                    amp = {pb.phase.name: (amplification[pb.phase.name]
+                                           if amplification.get(pb.phase.name, math.inf) <= 1e-2 * AMPLIFICATION
+                                           else flight_amplification(pb, params, ends[pb.phase.name]))
                            for pb in tr.phases}
+                    amplification.update(amp)
                     unstable = {k: a for k, a in amp.items() if not a <= AMPLIFICATION}
                     if unstable:
                         for pb in tr.phases:

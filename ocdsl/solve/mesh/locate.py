@@ -96,10 +96,11 @@ def _corner(mesh, k, errors, controls, tol):
     ga, gb = float(mesh.breakpoints[lk + 1]), float(mesh.breakpoints[rk])
     grid = np.linspace(ga, gb, 81)
     best = None
-    for j in range(left(grid).shape[1]):
+    L, R = left(grid), right(grid)      # on the whole grid at once (was 81 one-point calls each)
+    for j in range(L.shape[1]):
         d = lambda s: float(left(np.array([s]))[0, j] - right(np.array([s]))[0, j])  # noqa: E731
-        vals = np.array([d(s) for s in grid])
-        span = np.max(np.abs(left(grid)[:, j])) + np.max(np.abs(right(grid)[:, j])) + 1.0
+        vals = L[:, j] - R[:, j]
+        span = np.max(np.abs(L[:, j])) + np.max(np.abs(R[:, j])) + 1.0
         # no kink where the two polynomials stay together to 1e-3 of the control's size over
         # the gap (Goddard's coast arc: u at 0 up to solver noise of 1e-6 crossed itself)
         if np.max(np.abs(vals)) < 1e-3 * span:
