@@ -62,9 +62,14 @@ def _source(args, exprs) -> str | None:
     can be cached). Rows are assigned in place: a constant or a node array fills its row by
     broadcasting, without a per-entry ``broadcast_to`` and ``stack`` (which took half of a
     Hessian evaluation's time on seed 0)."""
-    if not exprs:
-        return None
-    reps, red = sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
+    return _numpy_source(args, *_cse(exprs)) if exprs else None
+
+
+def _cse(exprs):
+    return sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
+
+
+def _numpy_source(args, reps, red) -> str:
     pr = _printer()
     lines = [f"def f({', '.join(str(a) for a in args)}, _out):"]
     lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
@@ -119,25 +124,29 @@ _GENERATOR: list[str] = []
 
 def _generator_id() -> str:
     """What the generated code depends on besides the expressions: ocdsl's and SymPy's
-    versions and this module's own source (an edited generator never meets old entries)."""
+    versions and the generators' own sources (an edited generator never meets old entries)."""
     if not _GENERATOR:
         from pathlib import Path
 
         from ... import __version__
         from ...cache import fingerprint
 
-        _GENERATOR.append(fingerprint(__version__, sp.__version__, Path(__file__).read_text()))
+        here = Path(__file__).parent
+        _GENERATOR.append(fingerprint(__version__, sp.__version__, (here / "codegen.py").read_text(),
+                                      (here / "native.py").read_text()))
     return _GENERATOR[0]
 
 
-def _generated(exprs, dvars, extra=()) -> dict:
+def _generated(exprs, dvars, extra=(), native: bool = False) -> dict:
     """``exprs`` with their nonzero first and lower-triangle second derivatives in ``dvars``
-    (further arguments ``extra``): {"n_out", "jac", "hess", "values", "first", "second"},
-    the last three NumPy sources of functions of ``dvars + extra``. Taken from the disk
+    (further arguments ``extra``): {"n_out", "jac", "hess", "values", "first", "second", "c"},
+    the three NumPy sources of functions of ``dvars + extra`` and, with ``native`` when they
+    are long (``native.MIN_LINES``), their C twin (else None). Taken from the disk
     cache (ocdsl/cache.py, kind ``nlp``) when it holds them: the key is the expressions
     themselves, with the arguments renamed by position, so a study's points and a second
     run of a file skip SymPy's differentiation."""
     from ... import cache
+    from . import native as _native
 
     args = list(dvars) + list(extra)
     stand = [sp.Symbol(f"_a{i}", **a.assumptions0) for i, a in enumerate(args)]
@@ -145,12 +154,17 @@ def _generated(exprs, dvars, extra=()) -> dict:
     free = set().union(*(e.free_symbols for e in norm)) - set(stand) if norm else set()
     if free:
         raise Unsupported(f"the expressions use {', '.join(sorted(str(s) for s in free))}")
-    key = cache.fingerprint(_generator_id(), str(len(dvars)), sp.srepr(stand), sp.srepr(norm))
+    key = cache.fingerprint(_generator_id(), str(len(dvars)), str(native), sp.srepr(stand), sp.srepr(norm))
     entry = cache.read_entry("nlp", key)
     if not (isinstance(entry, dict) and entry.get("n_out") == len(norm)):
         jac, jexprs, hess, hexprs = _derivatives(norm, stand[:len(dvars)])
-        entry = {"n_out": len(norm), "jac": jac, "hess": hess, "values": _source(stand, norm),
-                 "first": _source(stand, jexprs), "second": _source(stand, hexprs)}
+        entry = {"n_out": len(norm), "jac": jac, "hess": hess, "c": None}
+        parts = {name: _cse(es) for name, es in (("values", norm), ("first", jexprs), ("second", hexprs)) if es}
+        for name in ("values", "first", "second"):
+            entry[name] = _numpy_source(stand, *parts[name]) if name in parts else None
+        if native and sum(len(r) + len(e) for r, e in parts.values()) >= _native.MIN_LINES:
+            entry["c"] = _native.module_source({name: _native.function_source(name, stand, *p)
+                                                for name, p in parts.items()})
         cache.write_entry("nlp", key, entry)
     return entry
 
@@ -167,12 +181,22 @@ class _Family:
     _values: Any
     _first: Any
     _second: Any
+    evaluation: str = "NumPy"    # or "C", or "NumPy: why not C"
 
     @classmethod
     def compile(cls, exprs: list, wsyms: list, S: sp.Symbol) -> "_Family":
-        g = _generated(exprs, wsyms, [S])
+        from . import native
+
+        g = _generated(exprs, wsyms, [S], native=True)
+        fns, how = {k: _function(g[k]) for k in ("values", "first", "second")}, "NumPy"
+        if g.get("c"):
+            compiled, why = native.load(g["c"])
+            if compiled is not None:
+                fns, how = {k: compiled.get(k) for k in fns}, "C"
+            else:
+                how = f"NumPy: {why}"
         return cls(g["n_out"], np.array(g["jac"], int).reshape(-1, 2), np.array(g["hess"], int).reshape(-1, 3),
-                   _function(g["values"]), _function(g["first"]), _function(g["second"]))
+                   fns["values"], fns["first"], fns["second"], how)
 
     @staticmethod
     def _stack(fn, n_rows, cols, nodes) -> np.ndarray:

@@ -352,7 +352,12 @@ class DirectNLP:
         eq = int(np.sum(self.gl == self.gu))
         return {"variables": self.n, "constraints": self.m, "nonzeros": len(self._jrows),
                 "hessian_nonzeros": len(self._hrows), "equality_constraints": eq,
-                "inequality_constraints": self.m - eq, "evaluation": "direct (NumPy)"}
+                "inequality_constraints": self.m - eq, "evaluation": f"direct ({self._evaluation()})"}
+
+    def _evaluation(self) -> str:
+        """How the node families are evaluated: "NumPy", "C", or each family's way when they differ."""
+        ways = [f.evaluation for ph in self.phases for f in (ph["G"], ph["g"], ph["H"]) if f is not None]
+        return ", ".join(dict.fromkeys(ways)) or "NumPy"
 
 
 def _finite(values, what):
