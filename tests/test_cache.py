@@ -166,3 +166,34 @@ def test_solve_identical_and_no_cache_flag(configs, cache_dir, tmp_path):
     assert rows["off"] == rows["cold"] == rows["warm"]
     objs = {n: json.loads((tmp_path / n / "result.json").read_text())["objective"] for n in rows}
     assert objs["off"] == objs["cold"] == objs["warm"]
+
+
+def test_long_families_compiled_to_c_cached_and_equal_to_numpy(configs, cache_dir, counted, monkeypatch):
+    """Seed 0's dynamics (a source past native.MIN_LINES) are evaluated in C: its shared
+    library is cached beside the JSON entry, a second compile reads both (no differentiation,
+    identical values), and without the cache the values are the same too; without a compiler the same entry is evaluated by NumPy, equal to
+    rounding, and the NLP says so."""
+    from ocdsl.transcribe.direct_nlp import native
+
+    if native._compiler() is None:
+        pytest.skip("no C compiler")
+    path = configs / "seed0_rendezvous.yaml"
+    cold = _nlp(path, segments=3)
+    assert cold.info()["evaluation"] == "direct (C)"
+    assert list((cache_dir / "nlp").glob("*.so"))
+    n = len(counted)
+    warm = _nlp(path, segments=3)
+    assert len(counted) == n and warm.info()["evaluation"] == "direct (C)"
+    a, b = _evaluate(cold), _evaluate(warm)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    monkeypatch.setenv(cache.ENV_OFF, "1")           # compiled in a temporary folder, nothing kept
+    before = sorted((cache_dir / "nlp").iterdir())
+    off = _nlp(path, segments=3)
+    assert off.info()["evaluation"] == "direct (C)" and sorted((cache_dir / "nlp").iterdir()) == before
+    assert all(np.array_equal(x, y) for x, y in zip(a, _evaluate(off)))
+    monkeypatch.delenv(cache.ENV_OFF)
+    monkeypatch.setenv("CC", str(cache_dir / "no-such-compiler"))
+    plain = _nlp(path, segments=3)
+    assert plain.info()["evaluation"].startswith("direct (NumPy: C compile failed")
+    for x, y in zip(a, _evaluate(plain)):
+        assert np.allclose(x, y, rtol=1e-12, atol=1e-12 * max(1.0, np.max(np.abs(x), initial=0.0)))
