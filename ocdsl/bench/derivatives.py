@@ -3,7 +3,8 @@
 What the direct NLP route (``ocdsl.transcribe.direct_nlp``) does once per phase on a cold
 cache: the dynamics times the duration, differentiated by SymPy (nonzero first and
 lower-triangle second derivatives in states, controls, t0, tf), then printed as NumPy
-source after common-subexpression elimination. Models: the ``configs/`` dynamics, seed 0's
+source after common-subexpression elimination, and as C when the sources are long
+(``direct_nlp.native``). Models: the ``configs/`` dynamics, seed 0's
 6-DOF rendezvous, and ``k`` independent copies of it (12 k states, 6 k controls), so that
 the size grows without changing the kind of expression. Size = nodes of the dynamics'
 expression DAG (distinct subexpressions, ``sympy.cse``'s view), and Hessian entries.
@@ -59,26 +60,39 @@ def dynamics_family(path: Path, copies: int = 1):
 def measure(label, exprs, dvars, S, nx, nu) -> dict:
     from ..transcribe import direct_nlp
 
+    import resource
+
+    from ..transcribe.direct_nlp import native
+
     os.environ["OCDSL_NO_CACHE"] = "1"
     t = time.process_time()
-    g = direct_nlp._generated(exprs, dvars, [S])
+    g = direct_nlp._generated(exprs, dvars, [S], native=True)
     gen = time.process_time() - t
     t = time.process_time()
     for k in ("values", "first", "second"):
         direct_nlp._function(g[k])
     load = time.process_time() - t
+    cc = None
+    if g.get("c"):      # the compiler runs as a child process: its CPU is the children's
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t = time.process_time()
+        fns, why = native.load(g["c"])
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if fns is not None:
+            cc = time.process_time() - t + (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     return {"model": label, "states": nx, "controls": nu, "nodes": _dag_nodes(exprs),
             "jacobian": len(g["jac"]), "hessian": len(g["hess"]),
             "source_lines": sum((g[k] or "").count("\n") for k in ("values", "first", "second")),
-            "generate": gen, "compile": load}
+            "generate": gen, "compile": load, "c_compile": cc}
 
 
 def table(rows: list[dict]) -> tuple[str, float | None]:
     lines = ["| model | states | controls | DAG nodes | Jacobian entries | Hessian entries | source lines | "
-             "generate CPU s | compile CPU s |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "generate CPU s | compile CPU s | C compile CPU s |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['model']} | {r['states']} | {r['controls']} | {r['nodes']} | {r['jacobian']} | "
-                     f"{r['hessian']} | {r['source_lines']} | {r['generate']:.3f} | {r['compile']:.3f} |")
+                     f"{r['hessian']} | {r['source_lines']} | {r['generate']:.3f} | {r['compile']:.3f} | "
+                     f"{'-' if r['c_compile'] is None else format(r['c_compile'], '.3f')} |")
     big = [r for r in rows if r["nodes"] >= 100]
     p = None
     if len(big) >= 2:
@@ -104,7 +118,9 @@ def main(argv: list[str] | None = None) -> str:
            f"{machine()} (2 cores shared with other agents), {time.strftime('%Y-%m-%d %H:%M')}. "
            f"Made by `python -m ocdsl.bench.derivatives` (`make bench-peers`). {doc}\n\n"
            "compile = `exec` of the three sources: what a run on a warm cache (ocdsl/cache.py) "
-           "pays instead of generate, besides reading the JSON entry.\n\n" + text + "\n\n"
+           "pays instead of generate, besides reading the JSON entry. C compile = the C compiler "
+           "on the C source (its child process's CPU included), paid once per content on a cold "
+           "cache; - where the family stays NumPy (shorter sources).\n\n" + text + "\n\n"
            + (f"Fitted exponent, generate CPU ~ nodes^p over rows of >= 100 nodes: p = {p:.2f}\n" if p else ""))
     return out
 

@@ -6,8 +6,8 @@ operation, whatever the number of nodes. Seed 0's 6-DOF dynamics have about 1,50
 their second derivatives, so on its 60 nodes a Hessian took 0.8 ms in NumPy and 0.05 ms
 compiled, and each of its 8 starts evaluates 55-127 of them (CasADi runs the same expressions
 in its SX virtual machine, in C). Families whose NumPy source is shorter than ``MIN_LINES``
-stay NumPy: there the overhead is small and a compile (0.05 s of compiler start-up plus about
-0.7 ms per line, once per content) would only slow the first run. Where no compiler is found
+stay NumPy: there the overhead is small and a compile (about 0.1 s, once per content) would
+only slow the first run. Where no compiler is found
 or a compile fails, the family stays NumPy, and ``DirectNLP.info()`` says which it took.
 
 The C function of a list of expressions is ``void NAME(const double *const *in, double *out,
@@ -28,7 +28,10 @@ from pathlib import Path
 # compiled: seed 0's dynamics have 986, the next largest in configs/ (min_time_to_climb's
 # tables) far fewer; reports/bench/seed0.md
 MIN_LINES = 400
-FLAGS = ("-O1", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno")
+# -O0: seed 0's 1,059 lines compile in 0.14 s against 0.80 s at -O1 and evaluate in 82 against
+# 48 us per point (values, first and second derivatives at 60 nodes): the compile is paid on
+# every cold run, the difference in evaluation is 25 ms over seed 0's 742 iterations
+FLAGS = ("-O0", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno")
 NAMES = ("values", "first", "second")
 
 _PRINTER: list = []
