@@ -5,7 +5,8 @@ One folder, ``$OCDSL_CACHE`` (default ``~/.cache/ocdsl``), with a subfolder per 
 * ``nlp/``: the NLP functions of the direct NumPy route (``ocdsl.transcribe.direct_nlp``):
   the derivatives SymPy found, as NumPy source, and their sparsity, one JSON file per
   family of expressions (a phase's dynamics, path constraints or integrands; the
-  objective and boundary conditions);
+  objective and boundary conditions), and the shared libraries of the families compiled
+  to C (``direct_nlp/native.py``);
 * ``numeric/``: the certificate's and the verification's NumPy/``math`` functions of a
   phase (``ocdsl.symbolic.numeric``), one JSON file per family;
 * ``simulate/``: the Numba modules of ``ocdsl.simulate``.
