@@ -177,6 +177,7 @@ def test_long_families_compiled_to_c_cached_and_equal_to_numpy(configs, cache_di
 
     if native._compiler() is None:
         pytest.skip("no C compiler")
+    monkeypatch.setattr(native, "_LOADED", {})      # libraries loaded by earlier tests of this process
     path = configs / "seed0_rendezvous.yaml"
     cold = _nlp(path, segments=3)
     assert cold.info()["evaluation"] == "direct (C)"
