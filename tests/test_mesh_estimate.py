@@ -234,3 +234,29 @@ def test_flight_amplification_measured_once_where_far_below_the_limit(configs, m
     unstable.write_text(UNSTABLE)
     res = ocdsl.load(unstable).solve()
     assert len(calls) == len(res.extra["mesh_history"]) and min(calls) > 1e6
+
+
+@pytest.mark.ipopt
+def test_boundary_arc_flight_is_bounded(configs, monkeypatch):
+    """Bryson-Denham's arc x = 1/9 on [1/3, 2/3]: followed by its boundary control it is
+    recognised; with the flight's right-hand-side evaluations capped below what it needs
+    (coarsen.MAX_EVALUATIONS), it is given up (None), not run on (COPS hang glider: minutes)."""
+    from ocdsl.solve import ipopt
+    from ocdsl.solve.mesh import coarsen
+    from ocdsl.solve.mesh.segments import solution_arrays
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    pr = load(configs / "mesh_bryson_denham.yaml").problem
+    tr = build(pr, {ph.name: Mesh("LGR", np.array([0.0, 1 / 3, 2 / 3, 1.0]), (4, 4, 4)) for ph in pr.phases},
+               {ph.name: make_guess(pr, ph, None) for ph in pr.phases})
+    assert ipopt.solve(tr.model, {"tol": 1e-10}, transcription=tr).status == "optimal"
+    pb = tr.phases[0]
+    X = solution_arrays(pb)[0]
+    xscale = 1.0 + np.max(np.abs(X), axis=0)
+    pts = np.linspace(1 / 3, 2 / 3, 7)
+    y = coarsen._boundary_arc(pb, 1 / 3, 2 / 3, pts, xscale, 1e-4)
+    assert y is not None and np.allclose(y[:, 0], 1 / 9, atol=1e-6)
+    monkeypatch.setattr(coarsen, "MAX_EVALUATIONS", 5)
+    assert coarsen._boundary_arc(pb, 1 / 3, 2 / 3, pts, xscale, 1e-4) is None

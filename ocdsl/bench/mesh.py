@@ -25,6 +25,7 @@ REFERENCE = {
     "mesh_bryson_denham": 4.0,
     "mesh_double_integrator": 2.0,
     "mesh_goddard": 1.0125762700748699,
+    "mesh_hang_glider": 1248.031026,
     "mesh_hanging_chain": 5.068480110993,
     "mesh_moon_landing": 1.4203125990,
     "mesh_rayleigh_mixed": 44.8044449110,

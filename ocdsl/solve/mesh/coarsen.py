@@ -119,6 +119,17 @@ def coarsen(pb, errors, spec, features, budget=None) -> Any:
     return merged
 
 
+# right-hand-side evaluations a boundary-arc flight may take (DOP853: about 12 per step). A
+# bound that is not active on the arc can make its boundary control drive the flight where the
+# integrator creeps (COPS hang glider, the bound on x or vy followed over the thermal: one
+# call ran for minutes, the mesh iteration with it); such a flight is no boundary arc.
+MAX_EVALUATIONS = 20_000
+
+
+class _TooLong(Exception):
+    pass
+
+
 def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=None):
     """States on the sample points ``pts`` (normalised time in [a, b]) of the trajectory that
     starts from the collocated state at a and follows a state bound's boundary control
@@ -143,7 +154,12 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=
             u[i] = float(ub(*x, t))
             return u
 
-        def rhs(t, x, control=control):
+        calls = [0]
+
+        def rhs(t, x, control=control, calls=calls):
+            calls[0] += 1
+            if calls[0] > MAX_EVALUATIONS:
+                raise _TooLong
             return np.asarray(f(*x, *control(x, t), t), float).reshape(-1)
 
         x0 = state_at(lay, X, U, a)
