@@ -121,9 +121,11 @@ def coarsen(pb, errors, spec, features, budget=None) -> Any:
 
 # right-hand-side evaluations a boundary-arc flight may take (DOP853: about 12 per step). A
 # bound that is not active on the arc can make its boundary control drive the flight where the
-# integrator creeps (COPS hang glider, the bound on x or vy followed over the thermal: one
-# call ran for minutes, the mesh iteration with it); such a flight is no boundary arc.
-MAX_EVALUATIONS = 20_000
+# integrator creeps (COPS hang glider: the boundary controls of x's and vx's bounds, never
+# active, followed over the thermal: one call ran for minutes, the mesh iteration with it);
+# such a flight is no boundary arc. The boundary arcs of configs/mesh_*.yaml took 32
+# (Bryson-Denham) to 515 (Goddard's v <= 0.1).
+MAX_EVALUATIONS = 5_000
 
 
 class _TooLong(Exception):
