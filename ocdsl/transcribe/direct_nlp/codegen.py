@@ -169,6 +169,13 @@ def _generated(exprs, dvars, extra=(), native: bool = False) -> dict:
     return entry
 
 
+def _rows_of(fn):
+    """A generated NumPy function ``f(*args, _out)`` called as ``f(Y, out)``, one row of Y per argument."""
+    if fn is None:
+        return None
+    return lambda Y, out: fn(*Y, out)
+
+
 @dataclass
 class _Family:
     """Expressions of one node's local variables w (and the node's normalised time S),
@@ -188,7 +195,7 @@ class _Family:
         from . import native
 
         g = _generated(exprs, wsyms, [S], native=True)
-        fns, how = {k: _function(g[k]) for k in ("values", "first", "second")}, "NumPy"
+        fns, how = {k: _rows_of(_function(g[k])) for k in ("values", "first", "second")}, "NumPy"
         if g.get("c"):
             compiled, why = native.load(g["c"])
             if compiled is not None:
@@ -200,9 +207,10 @@ class _Family:
 
     @staticmethod
     def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
+        """``cols``: the C-ordered float64 (arguments, nodes) array of w and S."""
         if fn is None or n_rows == 0:
             return np.zeros((0, nodes))
-        return fn(*cols, np.empty((n_rows, nodes)))
+        return fn(cols, np.empty((n_rows, nodes)))
 
     def values(self, cols, nodes):
         return self._stack(self._values, self.n_out, cols, nodes)

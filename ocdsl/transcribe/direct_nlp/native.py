@@ -10,8 +10,8 @@ stay NumPy: there the overhead is small and a compile (about 0.1 s, once per con
 only slow the first run. Where no compiler is found
 or a compile fails, the family stays NumPy, and ``DirectNLP.info()`` says which it took.
 
-The C function of a list of expressions is ``void NAME(const double *const *in, double *out,
-long C)``: ``in[i][n]`` is argument i at node n, ``out[r * C + n]`` row r at node n, the same
+The C function of a list of expressions is ``void NAME(const double *in, double *out, long C)``:
+``in[i * C + n]`` is argument i at node n, ``out[r * C + n]`` row r at node n, the same
 common subexpressions as the NumPy source, and no floating-point contraction (``a*b + c``
 rounds as NumPy rounds it).
 """
@@ -72,9 +72,9 @@ def function_source(name: str, args, reps, red) -> str:
     """C source of ``name`` computing the rows ``red`` after the common subexpressions ``reps``
     (``sympy.cse``'s output) of the arguments ``args`` at every node."""
     pr = _printer()
-    lines = [f"void {name}(const double *const *in, double *out, long C) {{",
+    lines = [f"void {name}(const double *in, double *out, long C) {{",
              "  for (long n = 0; n < C; n++) {"]
-    lines += [f"    const double {a} = in[{i}][n];" for i, a in enumerate(args)]
+    lines += [f"    const double {a} = in[{i} * C + n];" for i, a in enumerate(args)]
     lines += [f"    const double {s} = {pr.doprint(e)};" for s, e in reps]
     lines += [f"    out[{i} * C + n] = {pr.doprint(e)};" for i, e in enumerate(red)]
     lines += ["  }", "}"]
@@ -135,15 +135,10 @@ def load(source: str) -> tuple[dict | None, str]:
 
 
 def _caller(fn):
-    """``f(*cols, out)`` as the NumPy functions are called: every column a contiguous float64
-    array of the node count, ``out`` a C-ordered (rows, nodes) array."""
-    import numpy as np
-
-    def f(*args):
-        *cols, out = args
-        cols = [c if c.flags.c_contiguous and c.dtype == np.float64 else np.ascontiguousarray(c, float)
-                for c in cols]
-        ptrs = (ctypes.c_void_p * len(cols))(*[c.ctypes.data for c in cols])
-        fn(ptrs, out.ctypes.data, out.shape[1])
+    """``f(Y, out)`` as _Family calls its functions: ``Y`` the C-ordered float64 (arguments,
+    nodes) array, ``out`` a C-ordered (rows, nodes) array (one pointer each: building a
+    pointer per argument cost more than the compiled function itself)."""
+    def f(Y, out):
+        fn(Y.ctypes.data, out.ctypes.data, out.shape[1])
         return out
     return f

@@ -61,6 +61,7 @@ class DirectNLP:
         self.boundary_base = c["boundary_base"]
         self._assemble()
         self._cache_x = None
+        self._gather: dict = {}
 
     # -- compilation (once per Transcription, kept on it) -----------------------------------
     @classmethod
@@ -233,7 +234,17 @@ class DirectNLP:
         self._vals = self._firsts = None
 
     def _cols(self, ph):
-        return [self.y[ph["W"][:, a]] for a in range(ph["W"].shape[1])] + [ph["S"]]
+        """The (local variables + S, nodes) array of a phase's node functions, gathered in one
+        call into this NLP's buffer of the phase (nothing keeps it between calls)."""
+        got = self._gather.get(ph["index"])
+        if got is None:
+            WT = np.ascontiguousarray(ph["W"].T)
+            Y = np.empty((WT.shape[0] + 1, ph["nodes"]))
+            Y[-1] = ph["S"]
+            got = self._gather[ph["index"]] = (WT, Y)
+        WT, Y = got
+        np.take(self.y, WT, out=Y[:-1], mode="clip")     # "clip": no buffered copy (indices are valid)
+        return Y
 
     def _scalar_z(self):
         s = self.scalars
