@@ -486,8 +486,13 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
         bad = diagnose.nonfinite_at_start(transcription, nlp)
         if bad:
             raise _BadStart(bad)
+    from . import ipopt_c
+
     nlp.intermediate = callback
-    problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
+    if ipopt_c.available():      # the same Ipopt without cyipopt's element-wise copies (ipopt_c.py)
+        problem = ipopt_c.Problem(nlp)
+    else:
+        problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
     for k, v in opts.items():
         problem.add_option(k, v)
     model = transcription.model if transcription is not None else None
