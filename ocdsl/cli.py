@@ -128,12 +128,12 @@ def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool, f
 
 
 def _summary(result, out: Path) -> None:
-    from rich.console import Console
-
-    from .result_views import expect_error_text
     from rich.table import Table
 
-    con = Console()
+    from .progress import console
+    from .result_views import expect_error_text
+
+    con = console()
     ok = "green" if result.status == "optimal" else "red"
     v = result.verification or {}
     vstatus = v.get("status", "not run")

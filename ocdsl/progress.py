@@ -100,3 +100,14 @@ class Stage:
         else:
             self.stream.write(text + "\n")
         self.stream.flush()
+
+
+def console():
+    """The rich console of ocdsl's summaries and tables. Off a terminal (a pipe, a log, CI)
+    lines are never hard-wrapped: rich's default 80 columns would break a headline such as
+    "solver optimal, verification verified" in two, and `grep verified` would miss it."""
+    from rich.console import Console
+
+    if sys.stdout.isatty():
+        return Console()
+    return Console(width=240, soft_wrap=True)

@@ -90,3 +90,36 @@ def test_importing_it_does_not_import_scipy():
             "print(sorted(m for m in sys.modules if m == 'scipy' or m.startswith('scipy.')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_ensemble_steps_each_piece_as_alone():
+    """``solve_ensemble``: pieces of very different difficulty side by side (Van der Pol at
+    mu = 1 and 10 over spans of 1 and 12, in their own time s in [0, 1]): each piece takes the
+    steps it takes alone and gives its values at the positions to round-off; a piece that
+    leaves its domain fails the ensemble instead of returning numbers."""
+    spans = np.array([1.0, 12.0, 3.0, 12.0])
+    mus = np.array([1.0, 1.0, 10.0, 10.0])
+    y0 = np.array([[2.0, 0.0], [1.0, 0.5], [2.0, 0.0], [0.5, -1.0]])
+    positions = np.linspace(0.0, 1.0, 9)
+
+    def fun(idx, s, Y):
+        mu = mus[idx]
+        return np.column_stack([Y[:, 1], mu * (1 - Y[:, 0] ** 2) * Y[:, 1] - Y[:, 0]]) * spans[idx, None]
+
+    ens = dop853.solve_ensemble(fun, y0, positions, 1e-9, 1e-11)
+    assert ens.success and ens.y.shape == (9, 4, 2)
+    steps = 0
+    for k in range(4):
+        alone = dop853.solve(lambda s, y: fun(np.array([k]), np.array([s]), y[None])[0], (0.0, 1.0), y0[k],
+                             positions, 1e-9, 1e-11)
+        steps += alone.steps
+        assert np.max(np.abs(ens.y[:, k].T - alone.y)) < 1e-12 * max(1.0, np.abs(alone.y).max())
+    assert ens.steps == steps
+
+    def leaves(idx, s, Y):
+        F = fun(idx, s, Y)
+        F[idx == 2] = np.where(s[idx == 2, None] > 0.5, np.nan, F[idx == 2])
+        return F
+
+    bad = dop853.solve_ensemble(leaves, y0, positions, 1e-9, 1e-11)
+    assert not bad.success and "piece 2" in bad.message

@@ -235,7 +235,7 @@ def test_batched_local_pass_equals_piece_by_piece(di_problem):
     X = np.column_stack([x, v])
     scale = np.array([np.ptp(x), np.ptp(v)])
     grid = I.dense_grid(t, t, 3)
-    batched = I.batched_local_pass(funcs, uf, grid, t, X, 3, 1e-10, scale, 0.0)
+    batched = I.batched_local_pass(funcs, uf, grid, t, X[:-1], 1e-10, scale, 0.0)
     assert batched is not None and batched.methods == {"DOP853 (batched)"}
 
     def from_rows(k, y_prev):
@@ -280,3 +280,42 @@ def test_a_verification_past_its_time_budget_is_an_error_not_a_pass(di_problem):
     v = verify_result(di_problem, di_result(), VerifySettings(time_limit=0.0))
     assert v["status"] == "error" and "time budget" in v["summary"]
     assert verify_result(di_problem, di_result())["status"] == "verified"
+
+
+def test_batched_local_pass_of_collocation_segments(di_problem):
+    """Pieces holding several rows each (collocation segments, with their Lagrange controls)
+    and an integral: the batched local pass gives what integrating each piece alone gives,
+    a defect in one segment's end row included."""
+    from ocdsl.verify import integrate as I
+    from ocdsl.verify.functions import PhaseFunctions
+    from ocdsl.verify.interpolate import control_interpolant
+
+    segments = np.linspace(0.0, 2.0, 81)                  # 80 segments of 3 rows + the end
+    t = np.concatenate([np.linspace(a, b, 4)[:-1] for a, b in zip(segments[:-1], segments[1:])] + [[2.0]])
+    u = 0.8 * np.sin(3 * t)
+    x = 0.8 * (t / 3 - np.sin(3 * t) / 9)                   # exact flight under u = 0.8 sin 3t
+    v = 0.8 * (1 - np.cos(3 * t)) / 3
+    v[t == segments[50]] += 1e-4
+    traj = PhaseTrajectory("main", t, {"x": x, "v": v}, {"u": u},
+                           control_interpolation={"kind": "lagrange-segments", "breakpoints": segments.tolist()})
+    ph = di_problem.phases[0]
+    funcs = PhaseFunctions(ph, {}, ph.integrals)
+    uf = control_interpolant(traj, ["u"], [(-1.0, 1.0)], traj.control_interpolation)
+    X = np.column_stack([x, v])
+    scale = np.array([np.ptp(x), np.ptp(v)] + [1.0] * len(funcs.integral_symbols))
+    grid = I.dense_grid(t, segments, 3)
+    starts = X[np.searchsorted(t, segments[:-1])]
+    batched = I.batched_local_pass(funcs, uf, grid, segments, starts, 1e-10, scale, 0.0)
+    assert batched is not None and batched.methods == {"DOP853 (batched)"}
+    nq = len(funcs.integral_symbols)
+
+    def from_rows(k, y_prev):
+        return np.concatenate([starts[k], np.zeros(nq) if k == 0 else y_prev[2:]])
+    alone = I.integrate_pass(funcs, uf, grid, segments, from_rows, 1e-10, scale, 0.0)
+    assert np.max(np.abs(batched.Y - alone.Y) / scale) < 1e-9
+    at_rows = np.searchsorted(grid, t)
+    err = np.abs(batched.Y[at_rows, :2] - X) / scale[:2]
+    # the defective row: the arrival of segment 49 misses it, segment 50 flies from it
+    hit = int(np.flatnonzero(t == segments[50])[0])
+    assert err[hit:hit + 4, 1] == pytest.approx(np.full(4, 1e-4 / scale[1]), rel=2e-3)
+    assert np.delete(err[:, 1], range(hit, hit + 4)).max() < 1e-6 / scale[1]

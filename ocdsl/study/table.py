@@ -134,9 +134,10 @@ class _Progress:
 def _final_table(res: StudyResult, quiet: bool) -> None:
     if quiet:
         return
-    from rich.console import Console
     from rich.table import Table
-    console = Console()
+
+    from ..progress import console as make_console
+    console = make_console()
     rows = res.rows
     shown = rows
     if len(rows) > 40:

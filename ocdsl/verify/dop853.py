@@ -201,3 +201,132 @@ def solve(fun, t_span, y0, t_eval, rtol: float, atol) -> Solution:
         t, y, fy = t_new, y_new, f_new
         ts.append(t)
     return result(True, "The solver successfully reached the end of the integration interval.")
+
+
+@dataclass
+class Ensemble:
+    """Many independent pieces integrated side by side: ``y`` (len(positions), P, w), the
+    solution of each piece at the common ``positions`` of its own time s in [0, 1];
+    ``success`` (False: some piece failed, ``message`` says which), ``steps`` accepted over
+    all pieces, ``nfev`` vectorised right-hand side calls."""
+
+    y: np.ndarray
+    success: bool
+    message: str
+    steps: int
+    nfev: int
+
+
+def _rms_rows(x) -> np.ndarray:
+    return np.sqrt(np.mean(x * x, axis=1)) if x.shape[1] else np.zeros(len(x))
+
+
+def solve_ensemble(fun, y0, positions, rtol: float, atol) -> Ensemble:
+    """Integrate P independent systems ``dY_k/ds = fun(idx, s, Y)[k]`` over s in [0, 1], each
+    with its own step size, exactly as :func:`solve` integrates one (same initial step, error
+    norm per piece, step control and dense output), the right-hand side evaluated for all
+    pieces still running in one call: ``fun(idx, s, Y)`` gets the pieces' indices (q,), their
+    times (q,) and states (q, w), and returns (q, w). ``positions`` are sorted, in [0, 1]."""
+    T = _table()
+    A, B, C = T.A[:N_STAGES, :N_STAGES], T.B, T.C[:N_STAGES]
+    y = np.array(y0, dtype=float)
+    P, w = y.shape
+    rtol = max(float(rtol), 100 * np.finfo(float).eps)
+    atol = np.broadcast_to(np.asarray(atol, float), (w,))
+    positions = np.asarray(positions, float)
+    out = np.full((len(positions), P, w), np.nan)
+    nfev = [0]
+
+    def f(idx, ss, yy):
+        nfev[0] += 1
+        return np.asarray(fun(idx, ss, yy), dtype=float)
+
+    every = np.arange(P)
+    s = np.zeros(P)
+    fy = f(every, s, y)
+    # the initial step of each piece (as _initial_step, row by row, over a span of 1)
+    sc = atol + np.abs(y) * rtol
+    d0, d1 = _rms_rows(y / sc), _rms_rows(fy / sc)
+    h0 = np.where((d0 < 1e-5) | (d1 < 1e-5), 1e-6, 0.01 * d0 / np.where(d1 > 0, d1, 1.0))
+    h0 = np.minimum(h0, 1.0)
+    f1 = f(every, h0, y + h0[:, None] * fy)
+    d2 = _rms_rows((f1 - fy) / sc) / h0
+    with np.errstate(divide="ignore"):
+        h1 = np.where((d1 <= 1e-15) & (d2 <= 1e-15), np.maximum(1e-6, h0 * 1e-3),
+                      (0.01 / np.maximum(d1, d2)) ** (1.0 / 8.0))
+    h_abs = np.minimum(np.minimum(100 * h0, h1), 1.0)
+    i_eval = np.full(P, int(np.searchsorted(positions, 0.0, side="right")))
+    out[:i_eval[0]] = y[None]
+    rejected = np.zeros(P, bool)       # the current step of the piece was rejected before
+    steps = 0
+    K = np.empty((T.n_extended, P, w))
+    while True:
+        idx = np.flatnonzero(s < 1.0)
+        if len(idx) == 0:
+            break
+        si, yi = s[idx], y[idx]
+        min_step = 10 * np.abs(np.nextafter(si, np.inf) - si)
+        fresh = ~rejected[idx]
+        h = np.where(fresh, np.maximum(h_abs[idx], min_step), h_abs[idx])
+        if np.any(h < min_step):
+            bad = int(idx[np.argmax(h < min_step)])
+            return Ensemble(out, False, f"piece {bad}: required step size is less than spacing "
+                            "between numbers.", steps, nfev[0])
+        s_new = np.minimum(si + h, 1.0)
+        h = s_new - si
+        Ki = K[:, :len(idx)]
+        Ki[0] = fy[idx]
+        for st in range(1, N_STAGES):
+            Ki[st] = f(idx, si + C[st] * h, yi + np.einsum("kqw,k->qw", Ki[:st], A[st, :st]) * h[:, None])
+        y_new = yi + h[:, None] * np.einsum("kqw,k->qw", Ki[:N_STAGES], B)
+        f_new = f(idx, s_new, y_new)
+        Ki[N_STAGES] = f_new
+        scale = atol + np.maximum(np.abs(yi), np.abs(y_new)) * rtol
+        err5 = np.einsum("kqw,k->qw", Ki[:N_STAGES + 1], T.E5) / scale
+        err3 = np.einsum("kqw,k->qw", Ki[:N_STAGES + 1], T.E3) / scale
+        e5, e3 = np.sum(err5 ** 2, axis=1), np.sum(err3 ** 2, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err = np.where((e5 == 0) & (e3 == 0), 0.0, h * e5 / np.sqrt((e5 + 0.01 * e3) * w))
+            grow = np.where(err == 0, MAX_FACTOR, np.minimum(MAX_FACTOR, SAFETY * err ** ERROR_EXPONENT))
+            shrink = np.maximum(MIN_FACTOR, SAFETY * err ** ERROR_EXPONENT)
+        ok = err < 1                     # a non-finite step: err = nan, rejected and shrunk
+        shrink = np.where(np.isfinite(shrink), shrink, MIN_FACTOR)
+        grow = np.where(rejected[idx], np.minimum(1.0, grow), grow)
+        h_abs[idx] = np.where(ok, h * grow, h * shrink)
+        rejected[idx] |= ~ok
+        acc = np.flatnonzero(ok)
+        if len(acc) == 0:
+            continue
+        steps += len(acc)
+        j = np.searchsorted(positions, s_new[acc], side="right")
+        need = acc[j > i_eval[idx[acc]]]
+        if len(need):      # requested positions in these steps: the 7th-degree dense output
+            q = idx[need]
+            Kn = K[:, need]
+            hn = h[need][:, None]
+            for st in range(N_STAGES + 1, T.n_extended):
+                a = T.A[st]
+                Kn[st] = f(q, si[need] + T.C[st] * h[need],
+                           yi[need] + np.einsum("kqw,k->qw", Kn[:st], a[:st]) * hn)
+            dy = y_new[need] - yi[need]
+            F = np.empty((T.power, len(need), w))
+            F[0] = dy
+            F[1] = hn * Kn[0] - dy
+            F[2] = 2 * dy - hn * (f_new[need] + Kn[0])
+            F[3:] = hn[None] * np.einsum("pk,kqw->pqw", T.D, Kn)
+            first, last = i_eval[q], np.searchsorted(positions, s_new[need], side="right")
+            counts = last - first
+            rows = np.repeat(np.arange(len(need)), counts)
+            at = np.concatenate([np.arange(a0, b0) for a0, b0 in zip(first, last)])
+            x = ((positions[at] - si[need][rows]) / h[need][rows])[:, None]
+            Fr = F[:, rows]
+            Y = np.zeros((len(rows), w))
+            for i, Fi in enumerate(Fr[::-1]):
+                Y += Fi
+                Y *= x if i % 2 == 0 else 1 - x
+            out[at, q[rows]] = Y + yi[need][rows]
+            i_eval[q] = last
+        done = idx[acc]
+        s[done], y[done], fy[done] = s_new[acc], y_new[acc], f_new[acc]
+        rejected[done] = False
+    return Ensemble(out, True, "every piece reached the end of its interval.", steps, nfev[0])
