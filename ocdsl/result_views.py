@@ -8,7 +8,7 @@ with ``ocdsl.read(run_dir)`` answers exactly as the one the solve returned.
 <Result 'Brachistochrone with named expressions': optimal, objective 1.80160..., tf 1.80160..., 1 phase, 41 rows, expect 1/1 passed, verification verified>
 >>> again = ocdsl.read(res.write(tmp / "run"))           # the run folder, read back
 >>> at = again.sample([0.0, again.tf])                   # states and controls at any times
->>> [round(float(v), 6) for v in at["x"]]
+>>> [round(float(v), 6) + 0.0 for v in at["x"]]   # + 0.0: a solved -1e-12 prints as 0.0
 [0.0, 10.0]
 >>> df = again.to_pandas()
 >>> list(df.columns[:5]), df.attrs["units"]["v"]
