@@ -15,13 +15,18 @@ def register_method(name: str, spec_class) -> None:
 
 
 def method_spec(name: str, data: dict) -> Any:
+    return method_spec_class(name).model_validate(data)
+
+
+def method_spec_class(name: str):
+    """The spec class registered for ``name`` (its keys are what a misspelt key is matched to)."""
     _load()
     if name not in _SPECS:
         from .hints import did_you_mean
 
         known = ["LG", "LGR", "LGL", "LGR-start"] + sorted(_SPECS)
         raise ValueError(f"unknown transcription '{name}'{did_you_mean(name, known)}; known: {', '.join(known)}")
-    return _SPECS[name].model_validate(data)
+    return _SPECS[name]
 
 
 def _load() -> None:

@@ -55,6 +55,19 @@ CASES = [
      "did you mean 'max_iter'"),
     ("bad mesh warm start", ("degree: 3}", "degree: 3, mesh: {tolerance: 1.0e-6, warm_start: multiplier}}"), 18,
      "warm_start: Input should be 'multipliers' or 'primal'"),
+    # an integral is one number for the phase, a path constraint holds at each t (was: ok, then a
+    # ValueError at the build)
+    ("integral in a path constraint", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - integral(x) <= x"), 12,
+     "cannot mix an integral"),
+    ("constant link of a chain", ("- -1 <= u <= 1", "- u <= 1 <= 2"), 11, "the link `1 <= 2` of this chain"),
+    ("boundary value outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x >= 2"), 13,
+     "contradicts the bound `x >= 2` (line 12)"),
+    ("boundary range outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x <= 0.5"), 13,
+     "contradicts the bound `x <= 0.5` (line 12)"),
+    ("misspelt mesh key", ("degree: 3}", "degree: 3, mesh: {tolerence: 1.0e-6}}"), 18, "did you mean 'tolerance'"),
+    ("misspelt method key", ("segments: 4", "segmnts: 4"), 18, "did you mean 'segments'"),
+    ("time not a constant", ("tf: free}", "tf: 2*pix}"), 9, "`2*pix` is not a number (unknown name 'pix')"),
+    ("time from a parameter", ("tf: free}", "tf: T}"), 9, "constant expression such as 2*pi"),
 ]
 
 
@@ -144,3 +157,15 @@ def test_an_l1_integral_is_refused_with_the_split_as_hint(tmp_path, objective, l
     p = subprocess.run([sys.executable, "-m", "ocdsl.cli", "check", str(tmp_path / "f.yaml")],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "Traceback" not in p.stderr and "abs() in an integral" in p.stderr
+
+
+def test_a_time_may_be_a_constant_expression(tmp_path):
+    """`tf: 2*pi` (the safe parser, constants only) is the number it stands for."""
+    import math
+
+    p = tmp_path / "f.yaml"
+    p.write_text(GOOD.replace("tf: free}", "tf: 2*pi}").replace(
+        "objective: minimize tf", "objective: minimize integral(u**2)\n  guess: {tf: sqrt(2)}"))
+    ph = compile_file(p).problem.phases[0]
+    assert ph.tf == pytest.approx(2 * math.pi, rel=1e-15) and ph.t0 == 0.0
+    assert ph.guess["tf"] == pytest.approx(math.sqrt(2), rel=1e-15)

@@ -66,9 +66,36 @@ class ModelSpec(Strict):
         return self
 
 
+def constant_number(value):
+    """A number written as a constant expression (``2*pi``, ``sqrt(2)/3``), read by the safe
+    parser with no names but the constants; anything that is not a number stays as it is for
+    the field's own check (so `free` and a wrong type keep their messages)."""
+    if not isinstance(value, str) or value.strip() == "free":
+        return value
+    from .errors import ExprError
+    from .expr import Scope, parse_expression
+
+    why = "not a finite real number"
+    try:
+        e = parse_expression(value, Scope({}))
+        if e.is_number and e.is_real and e.is_finite:
+            return float(e)
+    except ExprError as err:
+        why = err.message
+    raise ValueError(f"`{value}` is not a number ({why}): write a number, a constant expression "
+                     "such as 2*pi or sqrt(2)/3 (no parameters), or `free`")
+
+
 class TimeSpec(Strict):
-    t0: Union[float, Literal["free"]] = Field(0.0, description="initial time, or `free` (e.g. a later phase linked to the one before)")
-    tf: Union[float, Literal["free"]] = Field(..., description="final time, or `free` (bounds as a constraint `lo <= tf <= hi`)")
+    t0: Union[float, Literal["free"]] = Field(0.0, description="initial time (a number or a constant expression "
+                                              "such as 2*pi), or `free` (e.g. a later phase linked to the one before)")
+    tf: Union[float, Literal["free"]] = Field(..., description="final time (a number or a constant expression such "
+                                              "as 2*pi), or `free` (bounds as a constraint `lo <= tf <= hi`)")
+
+    @field_validator("t0", "tf", mode="before")
+    @classmethod
+    def _constant(cls, v):
+        return constant_number(v)
 
 
 GuessValue = Union[float, list[float], dict[str, list[float]]]
@@ -79,6 +106,11 @@ class GuessSpec(Strict):
 
     model_config = ConfigDict(extra="allow")
     tf: float | None = None
+
+    @field_validator("tf", mode="before")
+    @classmethod
+    def _constant(cls, v):
+        return constant_number(v)
     from_: str | None = Field(None, alias="from", description="a previous run folder to start from, or a "
                               "problem file solved first (docs/problem-language.md, \"Chains\")")
     transform: str | None = Field(None, description="a registered change of variables from the source's "

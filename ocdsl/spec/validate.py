@@ -19,9 +19,10 @@ def validate(located: Located) -> ProblemFile:
         raise SpecError(_schema_issues(located, e.errors())) from None
 
 
-def _schema_issues(located: Located, errors: list) -> list[Issue]:
+def _schema_issues(located: Located, errors: list, root: tuple | None = None) -> list[Issue]:
     """One issue per location: a value that is none of a union's types (text or a number)
-    fails each of them, which is one mistake."""
+    fails each of them, which is one mistake. ``root``: (location prefix, pydantic class)
+    of a block validated by its own class (`method:`), for the did-you-mean of its keys."""
     locs = [_document_loc(err["loc"]) for err in errors]
     out, seen = [], set()
     for err, loc in zip(errors, locs):
@@ -30,7 +31,7 @@ def _schema_issues(located: Located, errors: list) -> list[Issue]:
         if loc in seen or any(len(o) > len(loc) and o[:len(loc)] == loc for o in locs):
             continue
         seen.add(loc)
-        out.append(_issue_from_pydantic(located, err))
+        out.append(_issue_from_pydantic(located, err, root))
     return out
 
 
@@ -105,7 +106,7 @@ def _set_aside(data, loc: tuple) -> None:
         del parent[loc[-1]]
 
 
-def _issue_from_pydantic(located: Located, err: dict) -> Issue:
+def _issue_from_pydantic(located: Located, err: dict, root: tuple | None = None) -> Issue:
     loc = _document_loc(err["loc"])
     msg = err["msg"].removeprefix("Value error, ")
     if err["type"] == "extra_forbidden":
@@ -114,7 +115,10 @@ def _issue_from_pydantic(located: Located, err: dict) -> Issue:
             parent = parent.get(p, {}) if isinstance(parent, dict) else {}
         msg = f"unknown key '{loc[-1]}'"
         if isinstance(parent, dict):
-            msg += did_you_mean(loc[-1], _known_keys(loc[:-1]))
+            if root is not None and loc[:len(root[0])] == root[0]:
+                msg += did_you_mean(loc[-1], _known_keys(loc[len(root[0]):-1], root[1]))
+            else:
+                msg += did_you_mean(loc[-1], _known_keys(loc[:-1]))
     elif err["type"] == "missing":
         msg = f"missing required key '{loc[-1]}'"
     if loc and isinstance(loc[-1], str) and ("(" in loc[-1]) != (")" in loc[-1]):
@@ -135,10 +139,10 @@ _UNION_TAGS = {"float", "int", "str", "ParameterSpec", "list[float]", "list[int]
                "function-after[_segments(), union[int,list[float]]]", "literal['free']"}
 
 
-def _known_keys(loc: tuple) -> list[str]:
+def _known_keys(loc: tuple, model: Any = None) -> list[str]:
     from . import schema
 
-    model: Any = schema.ProblemFile
+    model = schema.ProblemFile if model is None else model
     for p in loc:
         if isinstance(p, int):
             continue

@@ -23,14 +23,19 @@ def _broken_table(name: str):
 
 
 def _validate_method(method: dict) -> Any:
+    return _method_class(method).model_validate(method)
+
+
+def _method_class(method: dict):
+    """The spec class of a `method:` block: pseudospectral, or the one its back end registered."""
     kind = method.get("transcription", "LGR")
     if not isinstance(kind, str):
         raise ValueError(f"transcription: a method name such as LGR, not {kind!r}")
     if kind in PSEUDOSPECTRAL:
-        return PseudospectralMethod.model_validate(method)
-    from ...methods import method_spec  # other back ends register their method specs
+        return PseudospectralMethod
+    from ...methods import method_spec_class  # other back ends register their method specs
 
-    return method_spec(kind, method)
+    return method_spec_class(kind)
 
 
 def _is_number(e: sp.Expr) -> bool:

@@ -16,7 +16,7 @@ from ..expr import RESERVED, parse_continuity
 from ..loader import Located
 from ..schema import ProblemFile
 from ..validate import _issue_from_pydantic, _schema_issues, _source_line
-from .common import MAX_CONSTRAINTS, NAME_RE, _broken_table, _num, _validate_method
+from .common import MAX_CONSTRAINTS, NAME_RE, _broken_table, _method_class, _num, _validate_method
 from .loaded import LoadedFile
 from .constraints import ConstraintCompiler
 from .models import ModelCompiler
@@ -35,6 +35,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         self.table_calls: dict = {}
         # ((phase, quantity), "lo" | "hi") -> the constraint text that set that side of its bounds
         self.bound_texts: dict[tuple, str] = {}
+        self.bound_lines: dict[tuple, int | None] = {}
 
     def issue(self, loc: tuple, message: str, text: str | None = None) -> None:
         if text is None:
@@ -113,7 +114,8 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             return _validate_method(data)
         except pydantic.ValidationError as e:
             self.issues += _schema_issues(self.located, [dict(err, loc=("method",) + tuple(err["loc"]))
-                                                         for err in e.errors()])
+                                                         for err in e.errors()],
+                                          root=(("method",), _method_class(data)))
         except (ValueError, KeyError) as e:
             self.issue(("method", "transcription") if "transcription" in data else ("method",), str(e).strip("'\""))
         return None
@@ -181,7 +183,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                     if part is not None:
                         obj.expr = obj.expr + (part if obj.sense == "minimize" else -part)
         self.check_resolved(phases, boundary, obj)
-        self.check_contradictions(boundary)
+        self.check_contradictions(boundary, phases)
         if self.issues:
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)

@@ -74,16 +74,34 @@ class ConstraintCompiler:
                 self.issue(loc, f"the objective uses {', '.join(left)}, which has no value here "
                            "(boundary values, phase times, integrals, free parameters and constants only)")
 
-    def check_contradictions(self, boundary: list[Constraint]) -> None:
+    def check_contradictions(self, boundary: list[Constraint], phases: list[Phase] = ()) -> None:
         """Boundary constraints on the same quantity whose ranges do not meet (x(t0) == 1 and
-        x(t0) == 2): an error naming both, not an infeasible solve."""
+        x(t0) == 2), or a boundary value outside its state's own bounds (x(t0) == 1 with
+        x >= 2): an error naming both, not an infeasible solve."""
         first: dict[sp.Expr, Constraint] = {}
+        by_name = {p.name: p for p in phases}
         for c in boundary:
             other = first.setdefault(c.expr, c)
             if other is not c and (c.lower > other.upper or c.upper < other.lower):
                 self.issues.append(Issue(str(self.path), c.line, f"contradicts `{other.text}`"
                                          + (f" (line {other.line})" if other.line else "")
                                          + ": no value meets both", c.text))
+                continue
+            bv = self.boundary_values.get(c.expr)
+            ph = by_name.get(bv.phase) if bv is not None else None
+            if ph is None or bv.var not in ph.state_bounds:
+                continue
+            lo, hi = ph.state_bounds[bv.var]
+            side = "lo" if c.upper < lo else "hi" if c.lower > hi else None
+            if side is None:
+                continue
+            key = ((ph.name, bv.var), side)
+            text = self.bound_texts.get(key, f"the bounds of {bv.var}")
+            line = self.bound_lines.get(key)
+            self.issues.append(Issue(str(self.path), c.line, f"contradicts the bound `{text}`"
+                                     + (f" (line {line})" if line else "")
+                                     + f": {bv.var} must lie in [{lo:g}, {hi:g}] at every time, "
+                                     f"{bv.which} included", c.text))
 
     def _phase_constraint_texts(self):
         spec = self.spec
@@ -119,7 +137,12 @@ class ConstraintCompiler:
             else:
                 expr, value = sp.expand(lhs - rhs) if False else lhs - rhs, sp.Integer(0)
             if _is_number(expr):
-                self.issue(loc, "this relation has no variables in it", text)
+                if len(rels) > 1:
+                    # `u <= 1 <= 2`: the chain has variables, one of its links has none
+                    self.issue(loc, f"the link `{r.lhs} {r.op} {r.rhs}` of this chain compares two "
+                               "numbers: a chain puts the expression in the middle, e.g. -1 <= u <= 1", text)
+                else:
+                    self.issue(loc, "this relation has no variables in it", text)
                 return []
             v = float(value)
             lo, hi = parts.setdefault(expr, [-INF, INF])
@@ -148,6 +171,12 @@ class ConstraintCompiler:
         if ph is not None:
             bare = syms_ & (set(ph.states + ph.controls) | {TIME})
             if bare:
+                if syms_ & set(ph.integrals):
+                    # an integral is one number for the whole phase; a path constraint holds at each t
+                    self.issue(loc, "a constraint cannot mix an integral (one value for the whole phase) "
+                               "with path values (bare states/controls/t): bound the integral alone, e.g. "
+                               "integral(x) <= 1, or make it a state (q' = x) and constrain q", text)
+                    return None
                 if syms_ & set(self.boundary_values) or syms_ & {ph.t0_symbol, ph.tf_symbol}:
                     self.issue(loc, "a constraint cannot mix path values (bare states/controls/t) with "
                                "boundary values or t0/tf", text)
@@ -182,8 +211,11 @@ class ConstraintCompiler:
             other = seen.get((key, "lo" if new[0] > hi else "hi"), "an earlier bound")
             self.issue(loc, f"contradicts `{other}`: {expr} would have to lie in [{new[0]:g}, {new[1]:g}]", text)
             return old
+        line = self.located.line(loc)
         if lo > old[0]:
             seen[(key, "lo")] = text
+            self.bound_lines[(key, "lo")] = line
         if hi < old[1]:
             seen[(key, "hi")] = text
+            self.bound_lines[(key, "hi")] = line
         return new
