@@ -207,3 +207,19 @@ def test_free_final_time_is_bounded_below_by_a_fixed_start(tmp_path):
         "x(t0) == 0,", "x(t0) == 0, t0 >= 5,")
     with pytest.raises(SpecError, match=r"t0 <= tf = 3 \(time runs forward\)"):
         ocdsl.load(write(tmp_path, later, "later.yaml"))
+
+
+def test_a_phase_with_both_ends_free_runs_forward(tmp_path):
+    """With t0 and tf both free neither end bounds the other: `minimize tf - t0` flew the
+    phase backwards to a duration of -10 and Ipopt called it optimal."""
+    import ocdsl
+
+    both = ROCKET_CAR.replace("time: {t0: 0, tf: free}", "time: {t0: free, tf: free}").replace(
+        "x(tf) == 1,", "x(tf) == 1, 0 <= t0 <= 10, 0 <= tf <= 10,").replace(
+        "minimize tf", "minimize tf - t0")
+    loaded = ocdsl.load(write(tmp_path, both))
+    forward = [c for c in loaded.file.problem.boundary if "time runs forward" in c.text]
+    assert len(forward) == 1 and forward[0].lower == 0.0
+    res = loaded.solve()
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(2.0, rel=1e-6)

@@ -10,7 +10,7 @@ import pydantic
 import sympy as sp
 
 from ...symbolic.model import TIME
-from ...symbolic.problem import BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
+from ...symbolic.problem import INF, BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
 from ..errors import ExprError, FollowOnError, Issue, SpecError
 from ..expr import RESERVED, parse_continuity
 from ..loader import Located
@@ -172,6 +172,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 boundary += self.relations(None, phases, text, ("links", i), link=True)
             else:
                 boundary += self.continuity(phases, *joined, text, ("links", i))
+        boundary += self.time_runs_forward(phases)
         if spec.problem is not None:
             obj = self.guarded(("problem", "objective"), self.objective, spec.problem.objective, phases[0], phases)
         else:
@@ -188,6 +189,20 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)
         return Problem(spec.name, phases, obj, boundary, self.free, self.boundary_values, desc)
+
+    @staticmethod
+    def time_runs_forward(phases: list[Phase]) -> list[Constraint]:
+        """tf >= t0 for a phase with both ends free (one fixed end bounds the other directly,
+        ocdsl/spec/compile/phases.py): without it `minimize tf - t0` flew a phase backwards to a
+        duration of -10 and called it optimal."""
+        multi = len(phases) > 1
+        out = []
+        for ph in phases:
+            if ph.t0 is None and ph.tf is None:
+                name = f"{ph.name}." if multi else ""
+                out.append(Constraint(ph.tf_symbol - ph.t0_symbol, 0.0, INF,
+                                      f"{name}tf >= {name}t0 (time runs forward)"))
+        return out
 
     def describe(self, phases: list[Phase], obj: Objective, multi: bool) -> dict:
         desc: dict[str, Any] = {"name": self.spec.name, "description": self.spec.description, "phases": {},
