@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from ..symbolic.model import TIME
+from ..symbolic.problem import INF
 from .checks import (evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
                      state_scale, worst)
 from .functions import PhaseFunctions
@@ -353,7 +355,7 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
             if active and abs(_d_dtf(c.expr, ph, run, problem, point)) * duration > tol * sc:
                 moving = True
                 break
-        if moving:
+        if moving or _held_at_the_end(ph, run, tol):
             continue
         g = _d_dtf(obj.expr, ph, run, problem, point)
         if g == 0.0 and not (obj.expr.free_symbols & ({ph.tf_symbol} | set(ph.integrals))):
@@ -361,6 +363,28 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
         checks.append(row("free final time", ph.name, abs(g) * duration / j_scale, tol,
                           f"dJ/dtf = {g:.6g} at tf = {T:.10g}",
                           "objective stationary in tf (no active constraint moves with it)"))
+
+
+def _held_at_the_end(ph, run, tol: float) -> bool:
+    """A state bound or path constraint active at t_f: ending later is then not free (x <= 0.3
+    reached at t_f stops x(t_f) from growing), J is not differentiable in t_f there and its
+    one-sided dJ/dt_f need not vanish (unseen #29: exact optimum, dJ/dtf = -0.7)."""
+    x_end = run.X[-1]
+    for j, s in enumerate(ph.states):
+        lo, hi = ph.state_bounds.get(s, (-INF, INF))
+        if min(abs(x_end[j] - lo), abs(hi - x_end[j])) <= tol * max(run.scale_x[j], abs(x_end[j])):
+            return True
+    if not ph.path:
+        return False
+    T = float(run.t[-1])
+    at_end = {TIME: T} | dict(zip(ph.states, map(float, x_end))) \
+        | dict(zip(ph.controls, map(float, run.uf.at(np.array([T]))[0])))
+    for c in ph.path:
+        v = evaluate(ph.substitute(c.expr), at_end)
+        size = max(abs(v), *(abs(b) for b in (c.lower, c.upper) if math.isfinite(b)), 1e-12)
+        if min(abs(v - c.lower), abs(c.upper - v)) <= tol * size:
+            return True
+    return False
 
 
 def _points(problem, result, runs, params, which: str):
