@@ -338,3 +338,45 @@ def test_lgl_double_integrator_converges(configs):
     assert res.status == "optimal", res.message
     assert abs(res.phase("main").time[-1] - 2.0) <= 1e-8
     assert min(abs(_breakpoints(res) - 1.0)) <= 1e-6
+
+
+FULLER = """
+name: Fuller's problem (chattering control)
+model:
+  states: [x1, x2]
+  controls: [u]
+  dynamics: {x1: x2, x2: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [-1 <= u <= 1, x1(t0) == 0.01, x2(t0) == 0, x1(tf) == 0.01, x2(tf) == 0]
+  objective: minimize integral(x1**2)
+method: {transcription: LGR, segments: 4, degree: 4, mesh: {tolerance: 1.0e-6, max_iterations: 15}}
+"""
+
+
+def test_meshes_within_tolerance_must_agree_in_the_objective(tmp_path):
+    """Fuller's control chatters: every segment's state error fell to 2e-8 while J still fell
+    by 3e-4 from mesh to mesh, and the smallest mesh was called converged 1.1e-3 above the
+    optimum 1.5280351e-5 (Fuller's synthesis). Meshes that disagree in J are no convergence."""
+    path = tmp_path / "fuller.yaml"
+    path.write_text(FULLER)
+    res = ocdsl.load(path).solve()
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert "disagree in the objective" in res.message
+    within = [h["objective"] for h in res.extra["mesh_history"] if h.get("converged")]
+    assert len(within) >= 2 and (max(within) - min(within)) / max(within) > 1e-6
+
+
+def test_objective_agreement_rule():
+    from types import SimpleNamespace
+
+    from ocdsl.solve.mesh.drive import _objective_disagreement
+
+    def entry(it, J):
+        return (1e-8, it, None, SimpleNamespace(objective=J), {}, {})
+
+    assert _objective_disagreement([entry(3, 2.0)], 1e-6) is None
+    assert _objective_disagreement([entry(3, 2.0), entry(4, 2.0 + 1e-7)], 1e-6) is None
+    assert "iterations [3, 4]" in _objective_disagreement([entry(3, 2.0), entry(4, 2.00001)], 1e-6)
+    # near zero the floor 1e-8 keeps rounding noise from counting
+    assert _objective_disagreement([entry(3, 1e-30), entry(4, 1e-20)], 1e-6) is None

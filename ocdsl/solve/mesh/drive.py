@@ -27,6 +27,23 @@ GOOD = ("optimal", "acceptable")
 AMPLIFICATION = 1e6
 
 
+def _objective_disagreement(converged: list, tolerance: float) -> str | None:
+    """Meshes within the error tolerance must agree in J to it too: on Fuller's problem three
+    of them (the second and third by coarsening) gave J 5e-4 apart, still falling, while every
+    segment's state error was 2e-8; the estimate does not see an unresolved chattering control,
+    and the smallest of them was called converged 1.1e-3 above the optimum. A relative spread
+    (with a floor of 1e-8 for objectives near zero) above the tolerance is no convergence."""
+    values = [c[3].objective for c in converged if c[3].objective is not None]
+    if len(values) < 2:
+        return None
+    spread = (max(values) - min(values)) / max(max(abs(v) for v in values), 1e-8)
+    if spread <= tolerance:
+        return None
+    iterations = [c[1] for c in converged]
+    return (f"the meshes within tolerance {tolerance:.1e} (iterations {iterations}) disagree in the "
+            f"objective by {spread:.2e} (relative): the error estimate does not see what moves J")
+
+
 def _dense_trajectory(pb, samples: int = 4) -> PhaseTrajectory:
     """States and controls sampled from each segment's polynomials (a warm start)."""
     ph, lay = pb.phase, pb.layout
@@ -365,6 +382,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 _say(progress, f"mesh {it}: {note}")
             rec["symbolic_notes"] = budget.notes[noted:]
             noted = len(budget.notes)
+    disagree = _objective_disagreement(converged, spec.tolerance)
+    if status is None and disagree:
+        status = "mesh_not_converged"
+        chosen = converged[-1]
     if status is None:
         if converged:
             chosen = min(converged, key=lambda c: (c[3].nlp.get("variables", 0), c[0]))
@@ -381,7 +402,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     else:
         chosen = last
     max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
-    if status == "mesh_not_converged":
+    if status == "mesh_not_converged" and disagree:
+        message = (f"mesh refinement did not converge: {disagree}. The last of them (iteration {it_c}) "
+                   "is reported; tighten the tolerance, or see docs/mesh.md (chattering controls, "
+                   "singular arcs).")
+    elif status == "mesh_not_converged":
         above = [e for es in errors_c.values() for e in es if e.error > spec.tolerance]
         worst = max(above, key=lambda e: e.error) if above else None
         off_c = history[it_c - 1].get("features_off_breakpoints", {})
