@@ -161,7 +161,7 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
             traj.extra.update(mu)       # mu_<k>: multiplier of phase.path[k] (costates.py)
             if mu:
                 texts[ph.name] = {f"mu_{k}": c.text for k, c in enumerate(ph.path)}
-    values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
+    values = {s: _value(v) for s, v in tr.scalars.items()}
     tf = {ph.name: float(pyo.value(pb.block.tf)) for ph, pb in zip(problem.phases, tr.phases)}
     result = Result(
         name=file.spec.name, status=info.status, message=info.message, objective=info.objective,
@@ -176,6 +176,23 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
     result.expect = check_expectations(file, values, info.objective)
     _certify(file, result)
     return result
+
+
+def _value(v) -> float:
+    """A scalar's value, NaN where it has none (an integral of log(x - 2.5) at a guess with
+    x = 0, a run that stopped at the guess): never a raw "math domain error" from Pyomo."""
+    import logging
+
+    import pyomo.core as pyo
+
+    log = logging.getLogger("pyomo.common.numeric_types")     # its "ERROR: evaluating object" line
+    was, log.disabled = log.disabled, True
+    try:
+        return float(pyo.value(v))
+    except (ValueError, ArithmeticError, TypeError):
+        return math.nan
+    finally:
+        log.disabled = was
 
 
 def _certify(file: LoadedFile, result: Result) -> None:

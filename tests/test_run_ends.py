@@ -87,6 +87,28 @@ def test_nan_at_the_guess_is_named_before_ipopt_starts(tmp_path):
     assert res.status == "error" and res.iterations == 0
     assert "Ipopt was not started" in res.message
     assert "the dynamics of v (phase main, segment 0, node 0) is nan" in res.message
+    assert "has `sqrt(x - 2)`, which needs x - 2 >= 0, and the guess gives x - 2 = -2" in res.message
+
+
+@pytest.mark.parametrize("change, named", [
+    # the objective's integrand (was: a raw Pyomo "math domain error" and a ValueError)
+    (("minimize integral(u**2)", "minimize integral(u**2 + log(x - 2.5))"),
+     "the objective's integral has `log(x - 2.5)`, which needs x - 2.5 > 0"),
+    (("minimize integral(u**2)", "minimize integral(u**2) + log(x(tf) - 2.5)"),
+     "the objective has `log(x(tf) - 2.5)`, which needs x(tf) - 2.5 > 0"),
+    # a path constraint only: its rows, not the dynamics' (once every row was blamed)
+    (("    - -1 <= u <= 1\n", "    - -1 <= u <= 1\n    - sqrt(x - 2.5) <= 2\n"),
+     "path constraint `sqrt(x - 2.5) <= 2` (line 12) has `sqrt(x - 2.5)`"),
+])
+def test_nan_at_the_guess_names_the_expression_the_phase_and_the_way_out(tmp_path, capfd, change, named):
+    p = write(tmp_path, BASE.replace(*change))
+    res = run_file(p, tmp_path / "run")
+    assert res.status == "error" and "Ipopt was not started" in res.message, res.message
+    assert named in res.message and "`guess:` of the phase" in res.message
+    assert ("at t = " in res.message and "(phase main)" in res.message) == ("(tf)" not in named)
+    assert "dynamics" not in res.message.split("Ipopt was not started")[0], res.message
+    assert "math domain error" not in res.message + capfd.readouterr().err
+    assert json.loads((tmp_path / "run" / "result.json").read_text())["status"] == "error"
 
 
 def test_an_infeasible_problem_names_the_conditions_that_cannot_be_met(tmp_path):

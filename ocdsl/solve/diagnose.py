@@ -51,8 +51,8 @@ def nonfinite_at_start(tr, nlp) -> str | None:
             f = float(nlp.objective(x0))
         except (ArithmeticError, ValueError):
             f = math.nan
-        try:
-            g = np.asarray(nlp.constraints(x0), float)
+        try:   # the rows' own values where the NLP has them: a raised error would blame every row
+            g = np.asarray(getattr(nlp, "constraint_values", nlp.constraints)(x0), float)
         except (ArithmeticError, ValueError):
             g = np.full(nlp.m, math.nan)
     if not math.isfinite(f):
@@ -71,9 +71,99 @@ def nonfinite_at_start(tr, nlp) -> str | None:
     if not parts:
         return None
     more = f" ({len(bad)} constraint rows in all)" if len(bad) > len(seen) else ""
+    try:
+        culprit = domain_at_guess(tr, objective=not math.isfinite(f), rows=[nlp.rows[r] for r in bad[:50]])
+    except Exception:  # the hint must never hide the message
+        culprit = None
+    hint = (f": {culprit}" if culprit else
+            ": change the guess (guess:) or bound the variables so that every expression is defined "
+            "there (e.g. no division by a state that starts at 0)")
     return ("the initial guess gives a value that is not a number: " + "; ".join(parts) + more +
-            ". Ipopt was not started: change the guess (guess:) or bound the variables so that every "
-            "expression is defined there (e.g. no division by a state that starts at 0)")
+            ". Ipopt was not started" + hint)
+
+
+def _domain_of(sub):
+    """(argument, what it must be, test of a bad value) for a function of ``sub``'s kind that is
+    not defined everywhere, else None."""
+    import sympy as sp
+
+    if isinstance(sub, sp.log):
+        return sub.args[0], "> 0", lambda a: a <= 0
+    if isinstance(sub, (sp.asin, sp.acos)):
+        return sub.args[0], "in [-1, 1]", lambda a: abs(a) > 1
+    if isinstance(sub, sp.Pow) and sub.exp.is_number:
+        if not sub.exp.is_integer:          # sqrt, x**1.5: complex below 0 (and 0**-0.5)
+            return (sub.base, ">= 0", lambda a: a < 0) if sub.exp > 0 else (sub.base, "> 0", lambda a: a <= 0)
+        if sub.exp < 0:
+            return sub.base, "!= 0", lambda a: a == 0
+    return None
+
+
+def domain_at_guess(tr, objective: bool, rows=()) -> str | None:
+    """The first log/sqrt/power/asin of the expressions that are NaN at the guess (the
+    objective's integrands and Mayer term, the rows' dynamics and path constraints) whose
+    argument leaves its domain there, in the file's words: which expression, which phase,
+    where, and its value; None when no such function is found."""
+    import numpy as np
+    import pyomo.core as pyo
+    import sympy as sp
+
+    from ..symbolic.model import TIME
+    from ..transcribe.solution import control_on_state_nodes, node_values, phase_times
+
+    scalars = {}
+    for s, v in tr.scalars.items():
+        try:
+            scalars[s] = float(pyo.value(v, exception=False))
+        except (ValueError, ArithmeticError, TypeError):
+            pass
+    candidates = []       # (expression, phase block or None, what it is)
+    for pb in tr.phases:
+        ph = pb.phase
+        rhs = ph.rhs()
+        wanted = {con.parent_component() for con in rows}
+        for j, x in enumerate(ph.states):
+            if getattr(pb.block, "defect", None) in wanted or getattr(pb.block, "end", None) in wanted:
+                candidates.append((rhs[j], pb, f"the dynamics of {x.name}"))
+        if getattr(pb.block, "path", None) in wanted:
+            candidates += [(c.expr, pb, f"path constraint `{c.text}`{_line(c)}") for c in ph.path]
+        if objective:
+            candidates += [(e, pb, "the objective's integral") for e in ph.integrals.values()]
+    if objective:
+        candidates.append((tr.problem.objective.expr, None, "the objective"))
+    for expr, pb, what in candidates:
+        env = dict(scalars)
+        times = None
+        if pb is not None:
+            X, U = node_values(pb)
+            t0, tf = phase_times(pb)
+            times = t0 + (tf - t0) * pb.layout.s_state
+            Us = control_on_state_nodes(pb, U)
+            env.update({s: X[:, j] for j, s in enumerate(pb.phase.states)})
+            env.update({c: Us[:, j] for j, c in enumerate(pb.phase.controls)})
+            env[TIME] = times
+        for sub in sp.preorder_traversal(expr):
+            dom = _domain_of(sub)
+            if dom is None:
+                continue
+            arg, need, is_bad = dom
+            syms = sorted(arg.free_symbols, key=str)
+            if any(s not in env for s in syms):
+                continue
+            with np.errstate(all="ignore"):
+                vals = np.broadcast_to(np.asarray(sp.lambdify(syms, arg, "numpy")(*[env[s] for s in syms]),
+                                                  float), times.shape if times is not None else ())
+                badness = np.atleast_1d(is_bad(vals) & np.isfinite(vals))
+            if not badness.any():
+                continue
+            i = int(np.argmax(badness))
+            where = f" at t = {times[i]:.4g} (phase {pb.phase.name})" if times is not None else ""
+            value = float(np.atleast_1d(vals)[i])
+            shown = sp.sstr(arg)
+            return (f"{what} has `{sp.sstr(sub)}`, which needs {shown} {need}, and the guess gives "
+                    f"{shown} = {value:.4g}{where}. Give a guess where {shown} {need} (`guess:` of the "
+                    f"phase), or bounds on the variables that keep it so")
+    return None
 
 
 def violated(tr, nlp, x, top: int = 5) -> list[tuple[str, float]]:

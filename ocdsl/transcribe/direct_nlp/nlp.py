@@ -292,10 +292,15 @@ class DirectNLP:
                        "objective gradient")
 
     def constraints(self, x):
+        return _finite(self.constraint_values(x), "constraints")
+
+    def constraint_values(self, x):
+        """The rows at ``x``, NaN where they have no value (for naming them: Ipopt gets
+        :meth:`constraints`, which raises there)."""
         self._set(x)
         self._eval_first()
         w = np.concatenate([self._acoef * self.y[self._acol], self._vcoef * self._vals[self._vsrc]])
-        return _finite(np.bincount(self._crow, weights=w, minlength=self.m), "constraints")
+        return np.bincount(self._crow, weights=w, minlength=self.m)
 
     def jacobianstructure(self):
         return self._jrows, self._jcols
