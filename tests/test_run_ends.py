@@ -132,6 +132,20 @@ def test_an_unbounded_problem_is_reported_as_probably_unbounded(tmp_path):
     assert res.status != "optimal" and "probably unbounded" in res.message, res.message
 
 
+@pytest.mark.parametrize("sense", ["minimize", "maximize"])
+def test_probably_unbounded_prints_the_objective_with_the_files_sign(tmp_path, sense):
+    """A maximisation's Ipopt history is the negated objective: the message once said "from -0
+    to -6e17" for `maximize x(tf)` running to +6e17."""
+    import re
+
+    text = UNBOUNDED.replace("minimize x(tf)", f"{sense} x(tf)")
+    res = run_file(write(tmp_path, text + "solver: {options: {max_iter: 100}}\n"), None)
+    m = re.search(r"went from (\S+) to (\S+):", res.message)
+    assert m, res.message
+    first, last = m.group(1), float(m.group(2))
+    assert first == "0" and (last > 1e3 if sense == "maximize" else last < -1e3), res.message
+
+
 def test_the_summary_of_a_failed_run_shows_no_objective_as_a_result(tmp_path):
     p = write(tmp_path, BASE.replace("    v: u\n", "    v: u + sqrt(x - 2)\n"))
     out = ocdsl("run", str(p), "--out", str(tmp_path / "run"))

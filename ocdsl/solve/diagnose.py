@@ -194,16 +194,19 @@ def infeasibility_message(tr, nlp, x) -> str:
             f"infeasibility): {listed}.")
 
 
-def diverging(history: list[tuple[int, float, float, float]]) -> str:
+def diverging(history: list[tuple[int, float, float, float]], sign: float = 1.0) -> str:
     """A hint when the objective ran away (its size grew a thousandfold and was still
-    growing over the last fifth of the iterations, or passed 1e12): probably unbounded."""
+    growing over the last fifth of the iterations, or passed 1e12): probably unbounded.
+    ``sign``: -1 for a maximisation, whose history Ipopt kept negated (the message shows the
+    objective as the file writes it)."""
     if len(history) < 10:
         return ""
     first, last = abs(history[0][1]), abs(history[-1][1])
     late = abs(history[int(0.8 * len(history))][1])
     # still growing, or stuck where Ipopt's numbers run out (about 1e19 is its infinity)
     if math.isfinite(last) and last > 1e3 * max(first, 1.0) and (last > 1.01 * late or last > 1e12):
-        return (f" The objective went from {history[0][1]:.6g} to {history[-1][1]:.6g}: the problem is "
+        shown = [sign * history[k][1] + 0.0 for k in (0, -1)]       # + 0.0: never "-0"
+        return (f" The objective went from {shown[0]:.6g} to {shown[1]:.6g}: the problem is "
                 "probably unbounded (bound the final time, the states or the controls, or check the "
                 "objective's sense).")
     return ""

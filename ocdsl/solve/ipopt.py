@@ -427,7 +427,9 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     if status in ("max_iter", "diverged", "time_limit", "error"):
         from .diagnose import diverging
 
-        msg += diverging(history)
+        objective = next(model.component_data_objects(pyo.Objective, active=True), None)
+        # Ipopt minimises: a maximisation's history is the negated objective, not the user's
+        msg += diverging(history, -1.0 if objective is not None and objective.sense == pyo.maximize else 1.0)
     obj = None
     try:
         obj = float(pyo.value(next(model.component_data_objects(pyo.Objective, active=True))))
