@@ -232,3 +232,29 @@ def test_study_workers_die_with_a_killed_client_left_a_zombie(tmp_path):
     assert not left, f"workers still alive: {left}"
     assert proc.stdout.read() is not None and proc.stderr.read() is not None   # EOF, not a deadlock
     proc.wait()
+
+
+def test_a_time_limit_during_mesh_refinement_keeps_the_best_completed_mesh(tmp_path, monkeypatch):
+    """The third mesh's solve hits the time limit: the result is the best mesh solved before it
+    (its objective, not null), the message says which, and the status stays time_limit."""
+    from ocdsl.solve import ipopt
+
+    real, calls = ipopt.solve, []
+
+    def solve(*args, **kw):
+        calls.append(1)
+        if len(calls) == 3:
+            return ipopt.SolveInfo("time_limit", "the run's time limit of 1 s was reached before this solve", 0,
+                                   None, 0.0)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(ipopt, "solve", solve)
+    text = BASE.replace("degree: 3}", "degree: 3, mesh: {tolerance: 1.0e-12, move_switches: false}}")
+    res = run_file(write(tmp_path, text), tmp_path / "run")
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert saved["status"] == "time_limit" and saved["objective"] is not None
+    hist = saved["extra"]["mesh_history"]
+    assert [h["status"] for h in hist] == ["optimal", "optimal", "time_limit"], hist
+    k = saved["extra"]["mesh"]["chosen_iteration"]
+    assert k in (1, 2) and saved["objective"] == hist[k - 1]["objective"]
+    assert f"the result is mesh iteration {k}'s solution" in res.message, res.message

@@ -399,6 +399,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         else:
             status = "mesh_not_converged"
             chosen = best
+    elif status in ("time_limit", "interrupted") and best is not None:
+        # the last solve was cut short, earlier meshes solved: the best of those is the result
+        # (its trajectory and objective), not the cut-off iterate (whose objective was lost)
+        chosen = best
+        message += (f"; the result is mesh iteration {best[1]}'s solution, the best completed mesh "
+                    f"(Ipopt {best[3].status}, J = {best[3].objective:.10g}, largest estimated error "
+                    f"{best[0]:.3e} against the tolerance {spec.tolerance:.1e})")
     else:
         chosen = last
     max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
