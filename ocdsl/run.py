@@ -140,6 +140,9 @@ def _scale(file: LoadedFile, tr) -> dict | None:
     """``scaling: {mode: auto}``: the typical magnitudes put on the model (solve/scaling.py)."""
     spec = file.spec.scaling
     if spec.mode != "auto":
+        from .solve.scaling import spread
+
+        tr.start_spread = spread(tr)       # for the hint of a failed solve (solve/failure_hints.py)
         return None
     from .solve.scaling import apply
 
@@ -150,6 +153,7 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
     import pyomo.core as pyo
 
     from .solve.costates import costates, path_multipliers
+    from .solve.failure_hints import failure_hints
     from .transcribe.solution import extract
 
     problem = file.problem
@@ -170,6 +174,7 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
         method={**file.method.model_dump(), "meshes": {k: m.describe() for k, m in meshes.items()}},
         parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
         phases=phases, problem=problem.description)
+    result.message += failure_hints(file, tr, info.status)
     result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
     if texts:
         result.extra["path_multipliers"] = texts     # phase -> {mu_<k>: constraint text}

@@ -258,3 +258,52 @@ def test_a_time_limit_during_mesh_refinement_keeps_the_best_completed_mesh(tmp_p
     k = saved["extra"]["mesh"]["chosen_iteration"]
     assert k in (1, 2) and saved["objective"] == hist[k - 1]["objective"]
     assert f"the result is mesh iteration {k}'s solution" in res.message, res.message
+
+
+ZERMELO_SI = """name: Zermelo in SI units
+model:
+  states: [x, y]
+  controls: [theta]
+  parameters: {V: 5, h: 1000}
+  dynamics: {x: V*cos(theta) - V*y/h, y: V*sin(theta)}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 3660, y(t0) == -1860, x(tf) == 0, y(tf) == 0, 1 <= tf <= 20000]
+  objective: minimize tf
+  guess: {tf: 1000, theta: 2}
+method: {transcription: LGR, segments: 8, degree: 5}
+"""
+
+
+def test_a_failed_solve_of_a_badly_scaled_file_suggests_automatic_scaling(tmp_path):
+    """Zermelo in metres and seconds (unseen #24): Ipopt fails (restoration failed) and the
+    message says to try `scaling: {mode: auto}`, which solves it; a failure of a well-scaled
+    file gets no such hint."""
+    res = run_file(write(tmp_path, ZERMELO_SI), None)
+    assert res.status in ("error", "max_iter"), res.status
+    assert "try `scaling: {mode: auto}`" in res.message and "tf against theta" in res.message, res.message
+    assert "nothing bounds" not in res.message       # theta enters through sin/cos: an angle
+    scaled = run_file(write(tmp_path, ZERMELO_SI + "scaling: {mode: auto}\n", "scaled.yaml"), None)
+    assert scaled.status == "optimal" and abs(scaled.tf - 1091.573053) < 1e-4, (scaled.status, scaled.tf)
+    small = run_file(write(tmp_path, BASE + "solver: {options: {max_iter: 2}}\n", "small.yaml"), None)
+    assert small.status == "max_iter" and "scaling" not in small.message, small.message
+
+
+@pytest.mark.parametrize("change, hint", [
+    # fuel as a state m' = abs(u) (unseen #17): the abs() hint, through mesh refinement too
+    (("    v: u\n", "    v: u\n    m: abs(u)\n"), "abs() in the dynamics of m has no derivative at 0"),
+    (("minimize integral(u**2)", "minimize abs(x(tf) - 0.1) + integral(0.01*u**2)"),
+     "abs() in the objective has no derivative at 0"),
+    # minimum time with the control bound forgotten (unseen #34)
+    (("    - -1 <= u <= 1\n", ""), "whose control u nothing bounds"),
+])
+def test_a_failed_solve_names_a_cheaply_detected_cause(tmp_path, change, hint):
+    text = BASE.replace("states: [x, v]", "states: [x, v, m]") if "m: abs" in change[1] else BASE
+    if "nothing bounds" in hint:
+        text = text.replace("time: {t0: 0, tf: 1}", "time: {t0: 0, tf: free}").replace(
+            "minimize integral(u**2)", "minimize tf")
+    text = text.replace(*change).replace("degree: 3}", "degree: 3, mesh: {tolerance: 1.0e-6}}") \
+        + "solver: {options: {max_iter: 5}}\n"
+    res = run_file(write(tmp_path, text), None)
+    assert res.status == "max_iter" and hint in res.message, res.message
+    assert "scaling" not in res.message

@@ -29,6 +29,46 @@ def _magnitude(*values) -> float | None:
     return max(finite) if finite else None
 
 
+def _phase_magnitudes(tr, given: dict, time: float | None):
+    """Per phase: ({state, control, free t0/tf: its typical magnitude}, {name: its Pyomo
+    variables}), by the rules of the module's docstring."""
+    import pyomo.core as pyo
+
+    out = []
+    for pb in tr.phases:
+        ph, b = pb.phase, pb.block
+        info: dict[str, float] = {}
+        datas: dict[str, list] = {}
+        for group, var in (("states", b.X), ("controls", b.U)):
+            names = [s.name for s in (ph.states if group == "states" else ph.controls)]
+            for j, name in enumerate(names):
+                datas[name] = [var[i, j] for i in sorted({k[0] for k in var.keys()})]
+                s = given.get(f"{ph.name}.{name}", given.get(name))
+                if s is None:
+                    s = _magnitude(datas[name][0].lb, datas[name][0].ub) or \
+                        _magnitude(*[d.value for d in datas[name]]) or 1.0
+                info[name] = s
+        for which in ("t0", "tf"):
+            comp = getattr(b, which)
+            if isinstance(comp, pyo.Var):
+                info[which] = time or _magnitude(comp.lb, comp.ub) or _magnitude(comp.value) or 1.0
+                datas[which] = [comp]
+        out.append((info, datas))
+    return out
+
+
+def spread(tr) -> tuple[float, str, str]:
+    """(largest / smallest typical magnitude, the name of the largest, of the smallest), over
+    the states, controls and free times of every phase, at the built model's start."""
+    multi = len(tr.phases) > 1
+    mags = {(f"{pb.phase.name}.{k}" if multi else k): v
+            for pb, (info, _) in zip(tr.phases, _phase_magnitudes(tr, {}, None)) for k, v in info.items()}
+    if not mags:
+        return 1.0, "", ""
+    hi, lo = max(mags, key=mags.get), min(mags, key=mags.get)
+    return mags[hi] / mags[lo], hi, lo
+
+
 def apply(tr, spec) -> dict[str, Any]:
     """Attach ``scaling_factor`` to ``tr.model`` from ``spec`` (a ScalingSpec); returns the
     magnitudes used, per phase and variable (result.json ``extra.scaling``)."""
@@ -48,25 +88,11 @@ def apply(tr, spec) -> dict[str, Any]:
         if not v.fixed:          # a fixed variable is not in the NLP
             sf[v] = 1.0 / s
 
-    for pb in tr.phases:
-        ph, b = pb.phase, pb.block
-        info: dict[str, float] = {}
-        for group, var in (("states", b.X), ("controls", b.U)):
-            names = [s.name for s in (ph.states if group == "states" else ph.controls)]
-            for j, name in enumerate(names):
-                datas = [var[i, j] for i in sorted({k[0] for k in var.keys()})]
-                s = given.get(f"{ph.name}.{name}", given.get(name))
-                if s is None:
-                    s = _magnitude(datas[0].lb, datas[0].ub) or _magnitude(*[d.value for d in datas]) or 1.0
-                for d in datas:
-                    set_var(d, s)
-                info[name] = s
-        for which in ("t0", "tf"):
-            comp = getattr(b, which)
-            if isinstance(comp, pyo.Var):
-                s = spec.time or _magnitude(comp.lb, comp.ub) or _magnitude(comp.value) or 1.0
-                set_var(comp, s)
-                info[which] = s
+    for pb, (info, datas) in zip(tr.phases, _phase_magnitudes(tr, given, spec.time)):
+        ph = pb.phase
+        for name, s in info.items():
+            for d in datas[name]:
+                set_var(d, s)
         for (_, _, j), c in pb.defects.items():
             sf[c] = 1.0 / info[ph.states[j].name]
         for (_, j), c in pb.ends.items():

@@ -52,6 +52,9 @@ class Transcription:
     # the objective expression as built: one changed later (mesh refinement's regularisation
     # adds a term) is no longer the symbolic problem's, so direct_nlp declines the model
     built_objective: Any = None
+    # the spread of the variables' typical magnitudes at the start, of an unscaled model
+    # (ocdsl/solve/scaling.py ``spread``): measured before Ipopt moves them, for the hint of a failure
+    start_spread: tuple | None = None
 
 
 def _bound(v: float):

@@ -112,6 +112,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from ...transcribe.pseudospectral import build
     from .. import ipopt
     from .. import warm_start as ws
+    from ..failure_hints import failure_hints
 
     ipopt.check_available()
     problem, spec = file.problem, file.method.mesh
@@ -433,7 +434,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
-    result.message = (message + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
+    hints = failure_hints(file, tr_c, status)
+    result.message = (message + (f".{hints}" if hints else "")
+                      + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
                       + (f"; {terminal_notes[-1]}" if terminal_notes else ""))
     result.iterations = sum(h["ipopt_iterations"] for h in history)
     err_tab = {k: [] for k in ("phase", "segment", "t_start", "t_end", "degree", "error",
