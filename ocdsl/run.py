@@ -120,13 +120,36 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         with timer.measure("build"):
             saved.restore()       # the best start's solution back in the shared model
     if best.status == "infeasible":
-        from .solve.diagnose import elastic
+        base = method.seed if seed is None else seed
+        guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed) for ph in problem.phases}
+        starts_tried = [guesses]
+        tried = "the guess" if starts == 1 else f"{starts} starts"
+        if any(ph.name not in previous for ph in problem.phases):
+            # a point of local infeasibility is a fact about one start (a guess with the controls
+            # at 0 makes z' = x u2 - y u1 degenerate): before diagnosing, one more start from
+            # seeded random controls, the one ``starts: N + 1`` would add
+            rs = base + starts
+            with timer.measure("diagnose"):
+                retry_guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=rs)
+                                 for ph in problem.phases}
+                rtr = build(problem, meshes, retry_guesses)
+                rscaled = _scale(file, rtr)
+                rinfo = ipopt.solve(rtr.model, file.spec.solver.options, verbose=verbose,
+                                    progress=ipopt.Progress(progress, "[retry]"), transcription=rtr)
+            records.append({**_start_record(starts, rs, rinfo), "retry": True})
+            tried += f" and from seeded random controls (seed {rs})"
+            starts_tried.append(retry_guesses)
+            if rinfo.status in ("optimal", "acceptable"):
+                rinfo.message += (f" (Solved from seeded random controls, seed {rs}: from {tried.split(' and ')[0]} "
+                                  "Ipopt had converged to a point of local infeasibility.)")
+                best, best_tr, scaled = rinfo, rtr, rscaled
+        if best.status == "infeasible":
+            from .solve.diagnose import elastic
 
-        with timer.measure("diagnose"):
-            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed) for ph in problem.phases}
-            named = elastic(problem, meshes, guesses, file.spec.solver.options)
-            if named:    # names the conditions themselves, not the rows Ipopt stopped on
-                best.message = best.message.split(" Constraints that Ipopt")[0] + named
+            with timer.measure("diagnose"):
+                named = elastic(problem, meshes, starts_tried, file.spec.solver.options, tried=tried)
+            # names the conditions themselves, not the rows Ipopt stopped on
+            best.message = named.strip() + " (Ipopt: " + best.message.split(" Constraints that Ipopt")[0] + ")"
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records

@@ -212,11 +212,39 @@ def diverging(history: list[tuple[int, float, float, float]], sign: float = 1.0)
     return ""
 
 
-def elastic(problem, meshes, guesses, options: dict | None = None) -> str:
+LOCAL_HINT = ("Ipopt could not find a feasible point from this guess; that does not show the problem "
+              "infeasible. Try `guess: {random: true, seed: 1}`, a guess block for the controls "
+              "(values away from 0 where the dynamics multiply a control by a state), or "
+              "`method: {starts: 4}`.")
+
+
+def max_violation(tr) -> float:
+    """The largest violation of the model's constraints at its current values, each relative
+    to max(1, |bound|): whether a solve Ipopt called optimal really meets them."""
+    import pyomo.core as pyo
+
+    worst = 0.0
+    for con in tr.model.component_data_objects(pyo.Constraint, active=True):
+        body = pyo.value(con.body, exception=False)
+        if body is None or not math.isfinite(body):
+            return math.inf
+        for bound, sign in ((con.lower, -1.0), (con.upper, 1.0)):
+            if bound is None:
+                continue
+            b = float(pyo.value(bound))
+            worst = max(worst, sign * (body - b) / max(1.0, abs(b)))
+    return worst
+
+
+def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "the guess") -> str:
     """Which boundary equalities (boundary conditions, links) cannot be met: solve again with
-    each of them moved into the objective as its squared residual (dynamics, bounds, path
-    constraints and boundary inequalities kept), and name those the solution leaves unmet,
-    with the closest value the rest of the problem allows."""
+    each of them moved into the objective as its smoothed absolute residual (dynamics, bounds,
+    path constraints and boundary inequalities kept), from each guess of ``starts`` (a list of
+    {phase: PhaseGuess}), and name those the best relaxed solution leaves unmet, with the
+    closest value the rest of the problem allows. ``tried`` says which starts of the problem
+    itself ended infeasible. Only a relaxed solve that Ipopt solved and that meets its own
+    constraints (:func:`max_violation`) is quoted; every statement is a local one (a
+    solver cannot prove infeasibility), and an inconclusive diagnosis says so."""
     import dataclasses
 
     import pyomo.core as pyo
@@ -226,29 +254,51 @@ def elastic(problem, meshes, guesses, options: dict | None = None) -> str:
     from ..transcribe.pseudospectral import build
     from . import ipopt
 
+    head = f" From {tried} Ipopt converged to a point of local infeasibility."
     equalities = [c for c in problem.boundary if c.is_equality]
     if not equalities:
-        return ""
+        return head + " " + LOCAL_HINT
     # a smooth L1 norm of the residuals: it leaves few conditions unmet (least squares would
     # spread the violation over all of them)
     penalty = sum(sp.sqrt((c.expr - c.lower) ** 2 + 1e-10) for c in equalities)
     relaxed = dataclasses.replace(problem, boundary=[c for c in problem.boundary if not c.is_equality],
                                   objective=Objective("minimize", penalty, "total boundary violation"))
-    try:
-        tr = build(relaxed, meshes, guesses)
-        info = ipopt.solve(tr.model, options, transcription=tr)
-    except Exception as e:  # the diagnosis must never lose the run
-        return f" (The diagnosis re-solve failed: {type(e).__name__}: {e}.)"
-    if info.status not in ("optimal", "acceptable"):
-        return (" Even with every boundary condition and link relaxed the problem is infeasible: the "
-                "bounds, path constraints or boundary inequalities cannot be met together with the dynamics.")
-    values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
+    from ..transcribe.guess import make_guess
+
+    # and from the relaxed problem's own default guess (states in the middle of their bounds,
+    # not on a line between the conditions that may be what cannot be met)
+    starts = list(starts) + [{ph.name: make_guess(relaxed, ph) for ph in relaxed.phases}]
+    best, ends = None, []
+    for guesses in starts:
+        try:
+            tr = build(relaxed, meshes, guesses)
+            info = ipopt.solve(tr.model, options, transcription=tr)
+        except Exception as e:  # the diagnosis must never lose the run
+            ends.append(f"failed ({type(e).__name__}: {e})")
+            continue
+        ends.append(info.status)
+        if info.status not in ("optimal", "acceptable") or max_violation(tr) > 1e-6:
+            continue
+        values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
+        if best is None or info.objective < best[0]:
+            best = (info.objective, values)
+    if best is None:
+        if all(e == "infeasible" for e in ends):
+            return (head + f" With every boundary condition and link relaxed, Ipopt still found no point "
+                    f"that meets the bounds, path constraints and boundary inequalities together with the "
+                    f"dynamics ({len(ends)} relaxed solve(s), each from one of those starts).")
+        return (head + " The relaxed re-solve (boundary conditions and links as penalties) ended "
+                + ", ".join(f"'{e}'" for e in ends) + ", so which conditions cannot be met is not known. "
+                + LOCAL_HINT)
+    values = best[1]
     unmet = []
     for c in equalities:
         got = float(c.expr.xreplace({s: sp.Float(values[s]) for s in c.expr.free_symbols if s in values}))
         if abs(got - c.lower) > 1e-4 * max(1.0, abs(c.lower)):
             unmet.append(f"`{c.text}`{_line(c)} (the nearest feasible value is {sp.sstr(c.expr)} = {got:.6g})")
     if not unmet:
-        return ""
-    return (" The boundary conditions cannot all be met: relaxed to their smallest total violation, "
-            "the problem leaves " + "; ".join(unmet) + " unmet.")
+        return (head + " Yet with the boundary conditions and links relaxed, Ipopt found a point that meets "
+                "all of them: the problem is feasible. " + LOCAL_HINT)
+    return (head + " The boundary conditions cannot all be met from these starts: relaxed to their "
+            f"smallest total violation (best of {len(ends)} relaxed solve(s), each verified to meet the "
+            "dynamics, bounds and path constraints), the problem leaves " + "; ".join(unmet) + " unmet.")

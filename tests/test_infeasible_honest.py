@@ -1,0 +1,79 @@
+"""An infeasible end is a fact about a start, not about the problem (unseen findings #18, #40):
+a run that ends at a point of local infeasibility tries seeded random controls before
+diagnosing, and the diagnosis quotes only relaxed solves that meet their own constraints."""
+from __future__ import annotations
+
+import math
+
+from ocdsl.api import run_file
+
+BROCKETT = """name: brockett
+model:
+  states: [x, y, z]
+  controls: [u1, u2]
+  dynamics: {x: u1, y: u2, z: x*u2 - y*u1}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, y(t0) == 0, z(t0) == 0, x(tf) == 0, y(tf) == 0, z(tf) == 1]
+  objective: minimize integral(u1**2 + u2**2)
+method: {transcription: LGR, segments: 10, degree: 5}
+"""
+
+ULOW = """name: ulow
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [u >= 1, x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, 0.1 <= tf <= 10]
+  objective: minimize tf
+method: {transcription: LGR, segments: 10, degree: 4}
+"""
+
+
+def test_a_feasible_problem_degenerate_at_the_default_guess_is_solved_not_declared_infeasible(tmp_path):
+    """Brockett's integrator: with x = y = 0 and the controls at 0 the z rows' Jacobian is 0,
+    so Ipopt ends 'infeasible' from the default guess; the retry from seeded random controls
+    reaches the closed-form optimum 2 pi."""
+    p = tmp_path / "b.yaml"
+    p.write_text(BROCKETT)
+    res = run_file(p, None)
+    starts = res.extra["starts"]
+    assert starts[0]["status"] == "infeasible" and starts[-1].get("retry") and starts[-1]["status"] == "optimal"
+    assert res.status == "optimal" and abs(res.objective - 2 * math.pi) < 1e-6 * 2 * math.pi, res.message
+    assert "seeded random controls" in res.message
+
+
+def test_an_infeasible_problem_is_not_said_infeasible_even_relaxed_when_the_relaxation_is_feasible(tmp_path):
+    """u >= 1 with v(0) = v(tf) = 0 cannot be met, but with the boundary conditions relaxed u = 1
+    is feasible: the diagnosis must name boundary conditions, not blame the dynamics and bounds."""
+    p = tmp_path / "u.yaml"
+    p.write_text(ULOW)
+    res = run_file(p, None)
+    assert res.status == "infeasible"
+    assert "Even with every boundary condition" not in res.message
+    assert "Ipopt still found no point" not in res.message
+    assert "cannot all be met from these starts" in res.message, res.message
+    assert res.message.startswith("From the guess and from seeded random controls"), res.message
+
+
+def test_max_violation_tells_a_solved_model_from_its_guess():
+    from ocdsl.solve import ipopt
+    from ocdsl.solve.diagnose import max_violation
+    from ocdsl.spec.compile import load
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "b.yaml"
+        p.write_text(BROCKETT)
+        f = load(p)
+    meshes = {ph.name: Mesh.uniform("LGR", 4, 4) for ph in f.problem.phases}
+    tr = build(f.problem, meshes, {ph.name: make_guess(f.problem, ph, None, seed=1) for ph in f.problem.phases})
+    assert max_violation(tr) > 1e-3          # the guess does not fly the dynamics
+    assert ipopt.solve(tr.model, {}, transcription=tr).status == "optimal"
+    assert max_violation(tr) < 1e-6
