@@ -2,6 +2,7 @@
 mesh; returns the Result with the mesh history."""
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import time
@@ -114,8 +115,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from .. import warm_start as ws
     from ..failure_hints import failure_hints
 
+    from ...run import _better, _start_record
+
     ipopt.check_available()
     problem, spec = file.problem, file.method.mesh
+    n_starts = file.method.starts
+    base_seed = file.method.seed if seed is None else seed
+    start_records: list = []
     meshes = initial_meshes(file)
     previous: dict[str, PhaseTrajectory] = {}
     snapshot = None      # the previous mesh's solution, multipliers included (warm_start.py)
@@ -155,7 +161,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
-            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
+            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name),
+                                           seed=(seed if n_starts == 1 else base_seed) if it == 1 else None)
                        for ph in problem.phases}
             built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
 
@@ -178,6 +185,23 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             bar = ipopt.Progress(progress, f"[mesh {it}]")
             info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult,
                                transcription=tr)
+            if it == 1 and n_starts > 1:
+                # ``starts:`` with ``mesh:``: the starts on the first mesh, refinement from the best
+                start_records.append(_start_record(0, base_seed, info))
+                for i in range(1, n_starts):
+                    g = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=base_seed + i)
+                         for ph in problem.phases}
+                    t = rebuild(meshes, guesses=g, collect=True)
+                    ws.prepare(t.model)
+                    res = ipopt.solve(t.model, options, verbose=verbose,
+                                      progress=ipopt.Progress(progress, f"[mesh 1, start {i + 1}/{n_starts}]"),
+                                      transcription=t)
+                    start_records.append(_start_record(i, base_seed + i, res))
+                    if _better(res, info, problem.objective.sense):
+                        tr, info = t, res
+                        # trial models of this iteration (switches.py) start from the best start's guess
+                        rebuild = functools.partial(rebuild, guesses=g)
+                        reg = getattr(tr.model, "mesh_regularisation", None)
         reg_value = None
         if reg is not None and info.objective is not None:
             # the objective of the problem itself: the regularisation term taken out
@@ -448,6 +472,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 v = getattr(e, key)
                 err_tab[key].append(names.index(v) if key == "phase" else float(v))
     result.extra["mesh_history"] = history
+    if start_records:
+        result.extra["starts"] = start_records     # the first mesh's starts (refined from the best)
     result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
                             "symbolic_notes": list(dict.fromkeys(budget.notes)),
                             "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),
