@@ -68,6 +68,8 @@ CASES = [
     ("misspelt method key", ("segments: 4", "segmnts: 4"), 18, "did you mean 'segments'"),
     ("time not a constant", ("tf: free}", "tf: 2*pix}"), 9, "`2*pix` is not a number (unknown name 'pix')"),
     ("time from a parameter", ("tf: free}", "tf: T}"), 9, "constant expression such as 2*pi"),
+    ("unit of an undeclared name", ("    v: u\n", "    v: u\n  units: {x: m, vv: m/s}\n"), 8,
+     "a unit for 'vv', which the model does not declare (did you mean 'v'?)"),
 ]
 
 
@@ -169,3 +171,17 @@ def test_a_time_may_be_a_constant_expression(tmp_path):
     ph = compile_file(p).problem.phases[0]
     assert ph.tf == pytest.approx(2 * math.pi, rel=1e-15) and ph.t0 == 0.0
     assert ph.guess["tf"] == pytest.approx(math.sqrt(2), rel=1e-15)
+
+
+def test_a_misspelt_phase_time_is_taken_for_a_misspelt_tf():
+    """`brake.tff` (an expect key, a link): did you mean tf, not "use brake.tff(t0)" alone."""
+    import sympy as sp
+
+    from ocdsl.spec.errors import ExprError
+    from ocdsl.spec.expr import Scope, parse_expression
+
+    scope = Scope({}, phases={"brake": {"t0": sp.Symbol("brake.t0"), "tf": sp.Symbol("brake.tf")}})
+    assert parse_expression("brake.tf", scope) == sp.Symbol("brake.tf")
+    with pytest.raises(ExprError) as e:
+        parse_expression("brake.tff", scope)
+    assert "did you mean 'tf'" in e.value.message and "brake.tff(tf)" in e.value.message

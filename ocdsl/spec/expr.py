@@ -385,7 +385,10 @@ class _Builder:
             names = self.scope.phases[node.value.id]
             if node.attr in ("t0", "tf") and node.attr in names:
                 return names[node.attr]
-            raise self.fail(f"'{ast.unparse(node)}': use {node.value.id}.{node.attr}(t0) or (tf) for a state")
+            # `brake.tff` is far likelier a misspelt tf than a state written without its time
+            raise self.fail(f"'{ast.unparse(node)}': a phase has t0 and tf{did_you_mean(node.attr, ['t0', 'tf'])}; "
+                            f"a state's value is written {node.value.id}.{node.attr}(t0) or "
+                            f"{node.value.id}.{node.attr}(tf)")
         raise self.fail(f"'{ast.unparse(node)}' is not allowed")
 
     def _boundary(self, phase: str | None, var: str, node: ast.Call) -> sp.Expr:

@@ -155,6 +155,10 @@ class ModelCompiler:
             if s not in covered and s in names:
                 self.issue(loc + ("states", i), f"state '{s}' has no dynamics (add `{s}: ...` under dynamics)")
                 ok = False
+        for key in m.units:       # a unit label of no declared name was dropped without a word
+            if key not in names and key not in self.spec.parameters:
+                self.issue(loc + ("units", key), f"a unit for '{key}', which the model does not declare"
+                           + did_you_mean(key, [k for k in names if k != "t"] + ["t"]))
         if not ok:
             return None
         return Model(self.spec.name, tuple(names[s] for s in m.states), tuple(names[c] for c in m.controls),
