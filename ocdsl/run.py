@@ -201,6 +201,8 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
     result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
     if texts:
         result.extra["path_multipliers"] = texts     # phase -> {mu_<k>: constraint text}
+    if info.status in ("optimal", "acceptable"):
+        result.extra["boundary_multipliers"] = boundary_multipliers(tr)
     result.expect = check_expectations(file, values, info.objective)
     _certify(file, result)
     return result
@@ -221,6 +223,21 @@ def _value(v) -> float:
         return math.nan
     finally:
         log.disabled = was
+
+
+def boundary_multipliers(tr) -> list[dict]:
+    """The NLP multiplier of every boundary constraint that is a row of the NLP (not a
+    variable bound), with its index in ``problem.boundary``, in the convention of the
+    costates (Lagrangian ``J + nu c`` of the minimisation form): the certificate adds
+    ``nu dc/ds`` to the weight of integral s's integrand in L (ocdsl/solve/certify.py)."""
+    m = tr.model
+    index = {id(c): i for i, c in enumerate(tr.problem.boundary)}
+    out = []
+    for row, c in enumerate(tr.boundary_general):
+        nu = m.dual.get(m.boundary[row + 1])
+        out.append({"index": index.get(id(c)), "text": c.text,
+                    "multiplier": None if nu is None else float(nu)})
+    return out
 
 
 def _certify(file: LoadedFile, result: Result) -> None:

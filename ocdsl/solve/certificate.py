@@ -34,6 +34,10 @@ Checks and their measured numbers (see :func:`certificate` for the dict):
   0, to the mean size of the terms ``|L| + sum |lambda_i f_i|``);
 * ``stationarity``: ``max |dH/du|`` at nodes off the bounds, relative to the size of its
   terms ``|dL/du| + sum |lambda_i df_i/du|`` (maximum over the nodes);
+* rounding: a node's ``|dH/du|`` times its share of time, and ``|H - reference|`` times
+  the duration, below ``Tolerances.rounding`` (1e-12, in the NLP's units: objective per
+  node) are zero; without that floor a zero optimum (lambda = 0, L = 0) compared rounding
+  with rounding;
 * ``switching``: the fraction of saturated nodes (within ``saturation`` x range of a bound)
   whose switching-function sign agrees with the active bound (a node near a bound whose
   ``dH/du`` vanishes to the stationarity tolerance is weakly active and agrees; counted
@@ -78,6 +82,12 @@ class Tolerances:
     sign_agreement: float = 0.99     # fraction of saturated nodes
     saturation: float = 0.01         # "at a bound": within this fraction of the bound range
     bang_bang: float = 0.95          # fraction of nodes at a bound to call a control bang-bang
+    # rounding, in the NLP's own units (objective per node: |dH/du| times the node's share of
+    # time, |H - reference| times the duration): a residual below it is zero, whatever the
+    # relative test says. Ipopt solves to 1e-8 in these units, so a residual 1e4 below that
+    # is not one the solver resolved; a zero optimum (exact tracking: lambda = 0, L = 0)
+    # otherwise compared rounding to rounding (relative 1.0, "failed")
+    rounding: float = 1e-12
 
 
 # ---------------------------------------------------------------------------------------
@@ -468,39 +478,56 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     term_scale = float(np.mean(H_terms))
     scale = abs(expected) if expected else term_scale
     dev = Hc - reference
+    h_floor = tol.rounding / float(t[-1] - t[0])     # |H - reference| below it is rounding
     h = {"expected": expected, "reference": reference, "mean": float(np.mean(Hc)),
          "min": float(np.min(Hc)), "max": float(np.max(Hc)),
          "mean_deviation": float(abs(np.mean(dev))), "max_deviation": float(np.max(np.abs(dev))),
-         "scale": scale, "term_scale": term_scale, "time_dependent": bool(num.time_dependent)}
-    if scale > 0 and term_scale > 0:
+         "scale": scale, "term_scale": term_scale, "rounding_floor": h_floor,
+         "time_dependent": bool(num.time_dependent)}
+    if h["max_deviation"] <= h_floor:   # e.g. zero costates and a zero integrand (J = 0)
+        h.update(relative_mean_deviation=_f(h["mean_deviation"] / scale) if scale > 0 else None,
+                 relative_max_deviation=_f(h["max_deviation"] / scale) if scale > 0 else None,
+                 passed=True, note="H deviates from its reference by rounding only")
+    elif scale > 0 and term_scale > 0:
         h["relative_mean_deviation"] = h["mean_deviation"] / scale
         h["relative_max_deviation"] = h["max_deviation"] / scale
         h["passed"] = bool(h["relative_max_deviation"] <= tol.hamiltonian_max
-                           and (expected is None or h["relative_mean_deviation"] <= tol.hamiltonian_mean))
-    else:   # zero costates and zero integrand: nothing is certified
+                           and (expected is None or h["relative_mean_deviation"] <= tol.hamiltonian_mean
+                                or h["mean_deviation"] <= h_floor))
+    else:   # zero costates and zero integrand, yet H moves: nothing is certified
         h.update(relative_mean_deviation=None, relative_max_deviation=None, passed=False,
                  note="Hamiltonian terms vanish (trivial costates)")
     out["hamiltonian"] = h
 
     # ---- stationarity on interior arcs and switching functions on bound arcs ----------
     side = _side(U, bounds, tol.saturation)
+    # each node's share of time: |dH/du| times it is the NLP's residual in that control
+    share = np.empty(N)
+    share[1:-1] = 0.5 * (t[2:] - t[:-2])
+    share[0], share[-1] = 0.5 * (t[1] - t[0]), 0.5 * (t[-1] - t[-2])
+    u_floor = tol.rounding / share                 # |dH/du| below it is rounding
     st_per, sw_per, bb_per = {}, {}, {}
-    n_int = n_sat = n_agree = 0
+    n_int = n_sat = n_agree = n_round = 0
     max_rel = max_abs = 0.0
     for j, c in enumerate(model.controls):
         S = dHdu[:, j]
         interior = side[:, j] == 0
+        rounding = interior & (np.abs(S) <= u_floor)
+        judged = interior & ~rounding
         cscale = float(np.max(dHdu_terms[:, j]))
         ma = float(np.max(np.abs(S[interior]))) if interior.any() else 0.0
-        mr = ma / cscale if cscale > 0 else (0.0 if ma == 0 else math.inf)
-        st_per[c.name] = {"interior_nodes": int(interior.sum()), "max_abs": ma, "max_relative": _f(mr)}
+        mj = float(np.max(np.abs(S[judged]))) if judged.any() else 0.0
+        mr = mj / cscale if cscale > 0 else (0.0 if mj == 0 else math.inf)
+        st_per[c.name] = {"interior_nodes": int(interior.sum()), "rounding_nodes": int(rounding.sum()),
+                          "max_abs": ma, "max_relative": _f(mr)}
         n_int += int(interior.sum())
+        n_round += int(rounding.sum())
         max_abs, max_rel = max(max_abs, ma), max(max_rel, mr)
 
         # at a bound PMP needs side * dH/du <= 0; dH/du = 0 (weakly active: the node is
         # near the bound but stationary) counts as agreeing, with its own count
         sat = side[:, j] != 0
-        weak = sat & (np.abs(S) <= tol.stationarity * cscale)
+        weak = sat & ((np.abs(S) <= tol.stationarity * cscale) | (np.abs(S) <= u_floor))
         strict = sat & ~weak & (side[:, j] * S < 0)
         agree = int(strict.sum() + weak.sum())
         sw_per[c.name] = {"saturated_nodes": int(sat.sum()), "agreeing_nodes": agree,
@@ -515,7 +542,8 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
             times, seq = _switches(t, side[:, j], S)
             bb_per[c.name] = {"fraction_at_bound": frac, "bang_bang": bool(frac >= tol.bang_bang),
                               "switch_count": len(times), "switch_times": times, "sequence": seq}
-    out["stationarity"] = {"interior_nodes": n_int, "max_abs": max_abs, "max_relative": _f(max_rel),
+    out["stationarity"] = {"interior_nodes": n_int, "rounding_nodes": n_round, "max_abs": max_abs,
+                           "max_relative": _f(max_rel),
                            "per_control": st_per, "passed": bool(max_rel <= tol.stationarity)}
     agreement = n_agree / n_sat if n_sat else None
     out["switching"] = {"saturated_nodes": n_sat, "agreeing_nodes": n_agree, "agreement": agreement,

@@ -1,7 +1,8 @@
 """Attach the optimality certificate to a pseudospectral Result (per phase).
 
 Turns the Problem's objective into the minimisation form the certificate expects:
-``L`` is the integrand weighted by the objective's derivative in each integral, and for a
+``L`` is the integrand weighted by the derivative in each integral of the objective plus
+the integral constraints times their NLP multipliers (``J + nu^T c``), and for a
 free final time the expected Hamiltonian is ``-dPhi/dtf`` (``-1`` for ``minimize tf``).
 A phase's path constraints enter with their multipliers (``PhaseTrajectory.extra``
 ``mu_<k>``, see ``costates.path_multipliers``) when the back end gave them.
@@ -18,16 +19,37 @@ from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
 
 
-def certify_result(problem: Problem, result: Result) -> dict:
+def _endpoint_lagrangian(problem: Problem, result: Result) -> sp.Expr | str:
+    """``J + sum_c nu_c c`` (minimisation form) over the boundary constraints that hold an
+    integral, with their NLP multipliers (run.boundary_multipliers); a reason (str) when
+    one is missing. An integral constraint weights its integrand in L by ``nu dc/ds``:
+    without it, a Mayer objective with ``integral(u**2) <= E`` has L = 0 and dH/du =
+    lambda^T f_u != 0 on the whole arc."""
     sign = 1.0 if problem.objective.sense == "minimize" else -1.0
     J = sign * problem.objective.expr
+    integrals = set(problem.integrals)
+    nus = {m.get("index"): m.get("multiplier") for m in result.extra.get("boundary_multipliers") or []}
+    for i, c in enumerate(problem.boundary):
+        if not (c.expr.free_symbols & integrals):
+            continue
+        nu = nus.get(i)
+        if nu is None or not math.isfinite(nu):
+            return f"no multiplier for the integral constraint '{c.text}'"
+        J = J + sp.Float(nu) * c.expr
+    return J
+
+
+def certify_result(problem: Problem, result: Result) -> dict:
+    J = _endpoint_lagrangian(problem, result)
+    if isinstance(J, str):
+        return {"passed": False, "skipped": J}
     per_phase = {}
     for ph, traj in zip(problem.phases, result.phases):
         L = sp.Integer(0)
         for s, integrand in ph.integrals.items():
             coef = sp.diff(J, s)
             if coef.free_symbols:
-                return {"passed": False, "skipped": "objective is nonlinear in an integral"}
+                return {"passed": False, "skipped": "objective or an integral constraint is nonlinear in an integral"}
             L += coef * integrand
         params = {str(k): float(v) for k, v in ph.constants.items()}
         params.update({s.name: float(result.parameters[s.name]) for s in problem.free_parameters

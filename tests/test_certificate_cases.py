@@ -1,0 +1,87 @@
+"""The certificate on problems where it once failed a correct optimum (unseen_findings #14,
+#37), and on wrong answers to the same problems, where it must still fail."""
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocdsl.api import compile_file, run_file
+from ocdsl.solve.certify import certify_result
+
+DATA = Path(__file__).parent / "data"
+NU = np.sqrt(0.0234375)    # int_0^1.5 ((0.75 - t) / (2 nu))^2 dt = 3
+
+
+@pytest.fixture(scope="module")
+def energy():
+    path = DATA / "cert_energy_budget.yaml"
+    return compile_file(path).problem, run_file(path, None)
+
+
+@pytest.fixture(scope="module")
+def zero():
+    path = DATA / "cert_zero_optimum.yaml"
+    return compile_file(path).problem, run_file(path, None)
+
+
+def test_integral_constraint_multiplier_enters_the_hamiltonian(energy):
+    _, res = energy
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(np.sqrt(6) * 1.5**2 / 6, rel=1e-8)
+    (nu,) = res.extra["boundary_multipliers"]
+    assert nu["text"] == "integral(u**2) <= 3" and nu["multiplier"] == pytest.approx(NU, rel=1e-6)
+    cert = res.certificate
+    assert cert["passed"], cert["failed"]
+    assert cert["stationarity"]["max_relative"] < 1e-6
+
+
+def _with_phase(res, **arrays):
+    res = copy.deepcopy(res)
+    ph = res.phases[0]
+    for k, v in arrays.items():
+        (ph.costates if k.startswith("lambda_") else ph.states if k in ph.states else ph.controls)[
+            k.removeprefix("lambda_")] = v
+    return res
+
+
+def test_energy_budget_wrong_answers_fail(energy):
+    problem, res = energy
+    t = res.phases[0].time
+    # a feasible control that is not optimal: bang-bang +-sqrt(2) (energy 3), x(tf) = 0.795;
+    # its costates (lambda_x = -1, lambda_v = t - 0.75) do not depend on u here
+    u = np.where(t < 0.75, np.sqrt(2), -np.sqrt(2))
+    v = np.where(t < 0.75, np.sqrt(2) * t, np.sqrt(2) * (1.5 - t))
+    x = np.where(t < 0.75, np.sqrt(2) * t**2 / 2, np.sqrt(2) * (0.5625 - (1.5 - t) ** 2 / 2))
+    wrong = _with_phase(res, x=x, v=v, u=u, lambda_x=-np.ones_like(t), lambda_v=t - 0.75)
+    cert = certify_result(problem, wrong)
+    assert not cert["passed"] and "stationarity" in cert["failed"]
+    # the right trajectory with a multiplier twice too large
+    doubled = copy.deepcopy(res)
+    doubled.extra["boundary_multipliers"][0]["multiplier"] *= 2
+    cert = certify_result(problem, doubled)
+    assert not cert["passed"] and "stationarity" in cert["failed"]
+    # no multiplier recorded (a run folder of an older ocdsl): not judged, never failed
+    missing = copy.deepcopy(res)
+    missing.extra.pop("boundary_multipliers")
+    assert "no multiplier" in certify_result(problem, missing)["skipped"]
+
+
+def test_zero_optimum_passes_at_rounding(zero):
+    _, res = zero
+    assert res.status == "optimal" and res.verified and abs(res.objective) < 1e-20
+    cert = res.certificate
+    assert cert["passed"], cert["failed"]
+    assert "rounding" in cert["hamiltonian"]["note"]
+
+
+def test_zero_optimum_wrong_answer_fails(zero):
+    problem, res = zero
+    t = res.phases[0].time
+    # x off the target by 0.1 with its own costate: lambda' = -2 (x - sin 3t) = -0.2,
+    # lambda(1) = 0, so dH/du = lambda = 0.2 (1 - t), far above rounding
+    x = np.sin(3 * t) + 0.1
+    wrong = _with_phase(res, x=x, u=3 * np.cos(3 * t), lambda_x=0.2 * (1 - t))
+    cert = certify_result(problem, wrong)
+    assert not cert["passed"] and "stationarity" in cert["failed"]
+    assert cert["stationarity"]["rounding_nodes"] < cert["stationarity"]["interior_nodes"]
