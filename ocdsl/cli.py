@@ -139,8 +139,13 @@ def _summary(result, out: Path) -> None:
     vstatus = v.get("status", "not run")
     vcolour = {"verified": "green", "not_applicable": "white"}.get(vstatus, "red")
     warn = " (mode warn: does not fail the run)" if v.get("mode") == "warn" and vstatus != "verified" else ""
+    from .result import certificate_failures, certificate_verdict
+
+    # a failed certificate fails the run (Result.ok): the headline says so, not only the last line
+    cfail = (f", certificate [red]failed[/red] ({', '.join(certificate_failures(result.certificate))})"
+             if certificate_verdict(result.certificate) == "failed" else "")
     con.print(f"[bold]{result.name}[/bold]: solver [{ok}]{result.status}[/{ok}], "
-              f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}")
+              f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}{cfail}")
     if vstatus not in ("verified", "not_applicable") and v.get("summary"):
         con.print(f"  {v['summary']}", markup=False)
     if result.status not in ("optimal",) and result.message:
@@ -173,22 +178,15 @@ def _summary(result, out: Path) -> None:
         mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
         con.print(f"  expect {c['name']}: {c['value']:.10g} vs {c['reference']:.10g} "
                   f"({expect_error_text(c)}) {mark}")
-    cert = result.certificate
-    if cert and "passed" in cert:
-        mark = "[green]pass[/green]" if cert["passed"] else "[yellow]not passed[/yellow]"
-        why = "" if cert["passed"] else f" ({_certificate_reason(cert)})"
-        con.print(f"  optimality certificate (necessary conditions): {mark}{why}")
+    verdict = certificate_verdict(result.certificate)
+    if verdict is not None:
+        from .report.status import certificate_reason
 
-
-def _certificate_reason(cert: dict) -> str:
-    if cert.get("error"):
-        return cert["error"]
-    if cert.get("skipped"):
-        return cert["skipped"]
-    if "phases" in cert:
-        return "; ".join(f"{name}: {_certificate_reason(c)}" for name, c in cert["phases"].items()
-                         if not c.get("passed"))
-    return "failed: " + ", ".join(cert.get("failed", [])) if cert.get("failed") else "not passed"
+        mark = {"passed": "[green]pass[/green]", "failed": "[red]failed[/red]"}.get(
+            verdict, f"[yellow]{'not evaluated' if verdict == 'error' else verdict}[/yellow]")
+        why = (", ".join(certificate_failures(result.certificate)) if verdict == "failed"
+               else certificate_reason(result.certificate))
+        con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
 
 
 @main.command()

@@ -30,6 +30,42 @@ STATUSES = ("optimal", "acceptable", "infeasible", "max_iter", "error", "mesh_no
             "feasible", "stable", "unstable", "not_run", "time_limit", "diverged", "interrupted")
 
 
+def certificate_verdict(cert: Any) -> str | None:
+    """The optimality certificate's verdict: ``passed``, ``failed`` (it ran and a necessary
+    condition does not hold), ``inconclusive`` (a condition it cannot judge for this class
+    of solution did not hold; ``inconclusive`` holds the reason), ``skipped`` (it does not
+    apply; ``skipped`` holds the reason), ``error`` (it could not be evaluated), or None
+    when there is none. Several phases: failed when one fails, passed when all pass."""
+    if not isinstance(cert, dict) or not cert:
+        return None
+    if cert.get("error"):
+        return "error"
+    if cert.get("skipped"):
+        return "skipped"
+    phases = cert.get("phases")
+    if isinstance(phases, dict) and phases:
+        verdicts = [certificate_verdict(c) for c in phases.values()]
+        for v in ("failed", "error", "inconclusive", "skipped", None):
+            if v in verdicts:
+                return v
+        return "passed"
+    if cert.get("inconclusive"):
+        return "inconclusive"
+    if isinstance(cert.get("passed"), bool):
+        return "passed" if cert["passed"] else "failed"
+    return None
+
+
+def certificate_failures(cert: Any) -> list[str]:
+    """The names of the failed checks (``phase: check`` with several phases)."""
+    if not isinstance(cert, dict):
+        return []
+    if isinstance(cert.get("phases"), dict):
+        return [f"{p}: {k}" for p, c in cert["phases"].items() if certificate_verdict(c) == "failed"
+                for k in (c.get("failed") or [])]
+    return list(cert.get("failed") or []) if certificate_verdict(cert) == "failed" else []
+
+
 @dataclass
 class PhaseTrajectory:
     """Time histories of one phase, each array indexed like ``time``."""
@@ -86,11 +122,13 @@ class Result(ResultViews):
     # ---- Python API -------------------------------------------------------------
     @property
     def ok(self) -> bool:
-        """The CLI's exit code 0: the solver converged, every expect check passed, and the
+        """The CLI's exit code 0: the solver converged, every expect check passed, the
         independent verification passed (or does not apply to the back end, or the file
-        asked for ``verify: {mode: warn}``)."""
+        asked for ``verify: {mode: warn}``), and the optimality certificate, where one ran,
+        did not fail (a skipped or inconclusive one does not count against the run)."""
         good = self.status in ("optimal", "stable", "feasible")
-        return good and all(c.get("passed", False) for c in self.expect) and self.verification_ok
+        return (good and all(c.get("passed", False) for c in self.expect) and self.verification_ok
+                and certificate_verdict(self.certificate) != "failed")
 
     @property
     def verified(self) -> bool:
@@ -128,6 +166,9 @@ class Result(ResultViews):
                            "nodes": int(len(p.time)), "control_interpolation": p.control_interpolation}
                           for p in self.phases]
         data["tables"] = sorted(self.tables)
+        # the status stays the solver's; the certificate's verdict and the exit code's beside it
+        data["certificate_verdict"] = certificate_verdict(self.certificate)
+        data["ok"] = self.ok
         return _jsonable(data)
 
     def write(self, run_dir: str | os.PathLike, extra_files: dict[str, str] | None = None, *,

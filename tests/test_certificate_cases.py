@@ -85,3 +85,51 @@ def test_zero_optimum_wrong_answer_fails(zero):
     cert = certify_result(problem, wrong)
     assert not cert["passed"] and "stationarity" in cert["failed"]
     assert cert["stationarity"]["rounding_nodes"] < cert["stationarity"]["interior_nodes"]
+
+
+# ---- a failed certificate fails the run ----------------------------------------------------
+@pytest.mark.parametrize("name, check", [("cert_fuller", "stationarity"),             # J 1.1e-3 high
+                                         ("cert_reorient_default", "hamiltonian")])   # tf 34.3, not 28.63
+def test_failed_certificate_exits_1_and_names_it(name, check, tmp_path):
+    import json
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / name
+    proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(DATA / f"{name}.yaml"), "--out", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert f"solver optimal, verification verified, certificate failed ({check})" in proc.stdout
+    data = json.loads((out / "result.json").read_text())
+    assert data["status"] == "optimal" and data["certificate_verdict"] == "failed" and data["ok"] is False
+    from ocdsl.report.status import badges
+    from ocdsl.result import Result
+
+    overall = badges(Result.read(out))[-1]
+    assert overall.text == "not ok (exit 1)" and f"certificate failed: {check}" in overall.title
+
+
+def test_bang_bang_hamiltonian_is_inconclusive_not_failed():
+    # switch on a breakpoint: the NLP's lambda_v is t - 1 shifted by 0.13, H = -1 -+ 0.13
+    res = run_file(Path(__file__).parents[1] / "configs" / "mesh_double_integrator.yaml", None)
+    cert = res.certificate
+    assert res.status == "optimal" and res.verified
+    assert cert["hamiltonian"]["passed"] is None and "bang-bang" in cert["inconclusive"]
+    assert cert["switching"]["passed"] and not cert["failed"]
+    assert res.ok
+
+
+def test_ok_counts_only_a_failed_certificate():
+    from ocdsl.result import Result, certificate_verdict
+
+    base = dict(name="r", status="optimal", verification={"status": "verified"})
+    assert not Result(**base, certificate={"passed": False, "failed": ["hamiltonian"]}).ok
+    assert not Result(**base, certificate={"passed": False, "phases": {
+        "a": {"passed": True, "failed": []}, "b": {"passed": False, "failed": ["stationarity"]}}}).ok
+    for cert, verdict in [({"passed": True, "failed": []}, "passed"),
+                          ({"passed": False, "failed": [], "inconclusive": "bang-bang"}, "inconclusive"),
+                          ({"passed": False, "skipped": "nonlinear"}, "skipped"),
+                          ({"passed": False, "error": "ValueError"}, "error"), (None, None)]:
+        assert certificate_verdict(cert) == verdict
+        assert Result(**base, certificate=cert).ok

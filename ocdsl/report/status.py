@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ocdsl.result import Result
+from ocdsl.result import Result, certificate_verdict
 
 SOLVER_GOOD = ("optimal", "acceptable", "feasible", "stable")
 # verification status -> badge class (docs/verification.md)
@@ -30,19 +30,9 @@ class Badge:
 
 
 def certificate_passed(cert: Any) -> bool | None:
-    """The certificate's own verdict (``passed``; several phases: every phase's); None when
-    there is none or it was skipped."""
-    if not isinstance(cert, dict) or not cert:
-        return None
-    if cert.get("skipped"):
-        return None
-    if isinstance(cert.get("passed"), bool):
-        return cert["passed"]
-    phases = cert.get("phases")
-    if isinstance(phases, dict) and phases:
-        flags = [certificate_passed(c) for c in phases.values()]
-        return None if any(f is None for f in flags) else all(flags)
-    return None
+    """The certificate's own verdict: True passed, False failed, None when there is none,
+    it was skipped, inconclusive or could not be evaluated (ocdsl.result.certificate_verdict)."""
+    return {"passed": True, "failed": False}.get(certificate_verdict(cert))
 
 
 def certificate_reason(cert: Any) -> str:
@@ -52,11 +42,19 @@ def certificate_reason(cert: Any) -> str:
         return f"could not be evaluated: {cert['error']}"
     if cert.get("skipped"):
         return f"skipped: {cert['skipped']}"
-    failed = cert.get("failed")
-    if isinstance(cert.get("phases"), dict):
-        failed = [f"{p}: {', '.join(c.get('failed') or [])}" for p, c in cert["phases"].items()
-                  if isinstance(c, dict) and c.get("passed") is False]
-    return ("failed: " + "; ".join(map(str, failed))) if failed else ""
+    phases = cert.get("phases") if isinstance(cert.get("phases"), dict) else {"": cert}
+    parts = []
+    for p, c in phases.items():
+        if not isinstance(c, dict):
+            continue
+        pre = f"{p}: " if p else ""
+        if c.get("error"):
+            parts.append(f"{pre}could not be evaluated: {c['error']}")
+        elif c.get("failed"):
+            parts.append(f"{pre}failed: {', '.join(map(str, c['failed']))}")
+        elif c.get("inconclusive"):
+            parts.append(f"{pre}inconclusive: {c['inconclusive']}")
+    return "; ".join(parts)
 
 
 def badges(res: Result) -> list[Badge]:
@@ -72,10 +70,11 @@ def badges(res: Result) -> list[Badge]:
         cls, text = "warn", f"{text} (warn only)"
     out.append(Badge("verification", text, cls, (v or {}).get("summary", "") if v else
                      "this run folder was written before ocdsl verified its results"))
-    cp = certificate_passed(res.certificate)
+    cv = certificate_verdict(res.certificate)
     if res.certificate:
-        out.append(Badge("certificate", {True: "pass", False: "failed", None: "not evaluated"}[cp],
-                         {True: "pass", False: "fail", None: "neutral"}[cp], certificate_reason(res.certificate)))
+        out.append(Badge("certificate", {"passed": "pass", "failed": "failed", "inconclusive": "inconclusive",
+                                         "skipped": "skipped"}.get(cv, "not evaluated"),
+                         {"passed": "pass", "failed": "fail"}.get(cv, "neutral"), certificate_reason(res.certificate)))
     if res.expect:
         n_ok = sum(bool(c.get("passed")) for c in res.expect)
         out.append(Badge("expect", f"{n_ok} of {len(res.expect)} pass",
@@ -96,6 +95,8 @@ def overall(res: Result) -> Badge:
     if not res.verification_ok:
         vs = (res.verification or {}).get("status")
         reasons.append("not verified" if vs is None else f"verification {VERIFICATION_TEXT.get(vs, vs)}")
+    if certificate_verdict(res.certificate) == "failed":
+        reasons.append(f"certificate {certificate_reason(res.certificate)}")
     if res.ok:
         return Badge("overall", "ok (exit 0)", "pass")
     return Badge("overall", "not ok (exit 1)", "fail", "; ".join(reasons))

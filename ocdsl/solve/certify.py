@@ -19,6 +19,12 @@ from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
 
 
+def _at_bound(value, bounds) -> bool:
+    if value is None or not math.isfinite(float(value)):
+        return False
+    return any(math.isfinite(b) and abs(float(value) - b) <= 1e-9 * max(1.0, abs(b)) for b in bounds)
+
+
 def _endpoint_lagrangian(problem: Problem, result: Result) -> sp.Expr | str:
     """``J + sum_c nu_c c`` (minimisation form) over the boundary constraints that hold an
     integral, with their NLP multipliers (run.boundary_multipliers); a reason (str) when
@@ -56,7 +62,12 @@ def certify_result(problem: Problem, result: Result) -> dict:
                        if s.name in result.parameters})
         kw = {}
         linked = any(ph.tf_symbol in c.expr.free_symbols for c in problem.boundary)
-        if ph.tf is None and linked:
+        tf_value = (result.tf.get(ph.name) if isinstance(result.tf, dict) else result.tf)
+        if ph.tf is None and _at_bound(tf_value, ph.tf_bounds):
+            # a final time held by its bound (``tf == 0.093`` in a phase): its multiplier
+            # enters H(tf), so only constancy is checked
+            kind = "fixed_tf"
+        elif ph.tf is None and linked:
             # a final time tied to other quantities (a junction with the next phase): H is
             # continuous across the junction, so its value is not -dPhi/dtf of this phase
             kind = "fixed_tf"
