@@ -196,7 +196,8 @@ def test_failed_certificate_shows_on_the_badge_and_in_the_index(tmp_path):
     make_report(run, formats=("html",))
     head = (run / "report.html").read_text().split("</header>")[0]
     assert re.search(r'certificate <span class="badge fail"[^>]*>failed</span>', head)
-    assert re.search(r'overall <span class="badge pass"[^>]*>ok \(exit 0\)</span>', head)   # = Result.ok
+    # a failed certificate fails the run (Result.ok, exit 1; docs/verification.md)
+    assert re.search(r'overall <span class="badge fail"[^>]*>not ok \(exit 1\)</span>', head)
     assert "expected 0;" in build_run_html(run) or "expected 0<" in build_run_html(run)    # not -0
     index = make_index([run], tmp_path / "index.html", []).read_text()
     item = re.search(r"<li>.*?</li>", index, re.S).group(0)
