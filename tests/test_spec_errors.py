@@ -60,6 +60,8 @@ CASES = [
     ("integral in a path constraint", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - integral(x) <= x"), 12,
      "cannot mix an integral"),
     ("constant link of a chain", ("- -1 <= u <= 1", "- u <= 1 <= 2"), 11, "the link `1 <= 2` of this chain"),
+    # `-1 <= u >= 1` means u >= 1 (was: accepted silently)
+    ("chain pointing both ways", ("- -1 <= u <= 1", "- -1 <= u >= 1"), 11, "must point one way"),
     ("boundary value outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x >= 2"), 13,
      "contradicts the bound `x >= 2` (line 12)"),
     ("boundary range outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x <= 0.5"), 13,

@@ -102,6 +102,12 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
     sizes = {len(t) for t in terms if is_vector(t)}
     if len(sizes) > 1:
         raise ExprError(f"vectors of different sizes {sorted(sizes)} in one relation", str(text))
+    directions = {type(op) for op in tree.ops} - {ast.Eq}
+    if len(directions) > 1:
+        # `-1 <= u >= 1` is legal Python (u >= 1) but never what a bound means: a typo
+        raise ExprError("a chain's inequalities must point one way (all <= or all >=): this one "
+                        "mixes them, so it does not bound the middle from both sides; write e.g. "
+                        "-1 <= u <= 1, or two constraints", str(text))
     out = []
     for i, op in enumerate(tree.ops):
         if type(op) not in ops:
