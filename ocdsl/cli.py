@@ -154,6 +154,10 @@ def _summary(result, out: Path) -> None:
     # a failed run's objective is its last iterate's (or the guess's): never shown as a result
     if result.objective is not None and result.status in ("optimal", "acceptable"):
         t.add_row("objective", f"{result.objective:.10g}")
+    elif result.objective is not None and _best_completed_mesh(result):
+        it, st = _best_completed_mesh(result)
+        t.add_row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
+                  "refinement cut short, so not a converged result)")
     elif result.objective is not None and result.iterations:
         t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
     if isinstance(result.tf, dict):
@@ -187,6 +191,14 @@ def _summary(result, out: Path) -> None:
         why = (", ".join(certificate_failures(result.certificate)) if verdict == "failed"
                else certificate_reason(result.certificate))
         con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
+
+
+def _best_completed_mesh(result) -> tuple[int, str] | None:
+    """(iteration, Ipopt status) of the mesh a cut-short refinement reports, when that solve completed."""
+    mesh = result.extra.get("mesh") or {}
+    if result.status in ("time_limit", "interrupted") and mesh.get("chosen_status") in ("optimal", "acceptable"):
+        return mesh.get("chosen_iteration"), mesh["chosen_status"]
+    return None
 
 
 @main.command()

@@ -234,7 +234,7 @@ def test_study_workers_die_with_a_killed_client_left_a_zombie(tmp_path):
     proc.wait()
 
 
-def test_a_time_limit_during_mesh_refinement_keeps_the_best_completed_mesh(tmp_path, monkeypatch):
+def test_a_time_limit_during_mesh_refinement_keeps_the_best_completed_mesh(tmp_path, monkeypatch, capsys):
     """The third mesh's solve hits the time limit: the result is the best mesh solved before it
     (its objective, not null), the message says which, and the status stays time_limit."""
     from ocdsl.solve import ipopt
@@ -258,6 +258,17 @@ def test_a_time_limit_during_mesh_refinement_keeps_the_best_completed_mesh(tmp_p
     k = saved["extra"]["mesh"]["chosen_iteration"]
     assert k in (1, 2) and saved["objective"] == hist[k - 1]["objective"]
     assert f"the result is mesh iteration {k}'s solution" in res.message, res.message
+    # that solution is a completed solve: it is verified like any other (a verdict, not 'skipped'),
+    # and the summary names it as the best completed mesh, not as a last iterate
+    assert saved["extra"]["mesh"]["chosen_status"] == "optimal"
+    assert saved["verification"]["status"] in ("verified", "failed"), saved["verification"]
+    from ocdsl.cli import _summary
+
+    capsys.readouterr()
+    _summary(res, tmp_path / "run")
+    shown = capsys.readouterr().out
+    assert "best completed mesh" in shown and f"mesh iteration {k}, Ipopt optimal" in shown, shown
+    assert "last iterate" not in shown, shown
 
 
 ZERMELO_SI = """name: Zermelo in SI units

@@ -475,6 +475,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     if start_records:
         result.extra["starts"] = start_records     # the first mesh's starts (refined from the best)
     result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
+                            "chosen_status": info_c.status,
                             "symbolic_notes": list(dict.fromkeys(budget.notes)),
                             "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),
                             "max_error": max_err,
