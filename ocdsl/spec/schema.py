@@ -6,9 +6,9 @@ with the safe parser of :mod:`ocdsl.spec.expr`. The JSON Schema printed by
 """
 from __future__ import annotations
 
-from typing import Any, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator, model_validator
 
 Expr = Union[str, int, float]
 Number = Union[int, float]
@@ -86,10 +86,22 @@ def constant_number(value):
                      "such as 2*pi or sqrt(2)/3 (no parameters), or `free`")
 
 
+# what a file may write (the JSON Schema of `ocdsl schema`): a number, `free`, or a constant
+# expression such as 2*pi, which the "before" validators turn into a number
+_EXPRESSION = {"type": "string", "description": "a constant expression such as 2*pi (no names but pi)"}
+TimeValue = Annotated[Union[float, Literal["free"]], WithJsonSchema(
+    {"anyOf": [{"type": "number"}, {"const": "free", "type": "string"}, _EXPRESSION]})]
+# a constraints/links item may itself be a list (`- *bounds`, an anchored list of shared
+# relations), spliced in its place by the validator (spec/validate.py splice_lists)
+Relations = Annotated[list[str], WithJsonSchema(
+    {"type": "array", "items": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]}})]
+GuessTime = Annotated[Union[float, None], WithJsonSchema({"anyOf": [{"type": "number"}, _EXPRESSION, {"type": "null"}]})]
+
+
 class TimeSpec(Strict):
-    t0: Union[float, Literal["free"]] = Field(0.0, description="initial time (a number or a constant expression "
+    t0: TimeValue = Field(0.0, description="initial time (a number or a constant expression "
                                               "such as 2*pi), or `free` (e.g. a later phase linked to the one before)")
-    tf: Union[float, Literal["free"]] = Field(..., description="final time (a number or a constant expression such "
+    tf: TimeValue = Field(..., description="final time (a number or a constant expression such "
                                               "as 2*pi), or `free` (bounds as a constraint `lo <= tf <= hi`)")
 
     @field_validator("t0", "tf", mode="before")
@@ -105,7 +117,7 @@ class GuessSpec(Strict):
     """Initial guess: per variable a constant, ``[start, end]`` (linear) or ``{t: [...], values: [...]}``."""
 
     model_config = ConfigDict(extra="allow")
-    tf: float | None = None
+    tf: GuessTime = None
 
     @field_validator("tf", mode="before")
     @classmethod
@@ -126,14 +138,14 @@ class PhaseSpec(Strict):
     parameters: dict[str, float] = Field(default_factory=dict, description="this phase's values of constants "
                                          "of its model or of the file, e.g. {T: 4.5e6} (one model, several phases)")
     time: TimeSpec
-    constraints: list[str] = Field(default_factory=list)
+    constraints: Relations = Field(default_factory=list)
     guess: GuessSpec = Field(default_factory=GuessSpec)
     objective: str | None = Field(None, description="phase contribution, e.g. integral(u**2)")
 
 
 class ProblemSpec(Strict):
     time: TimeSpec
-    constraints: list[str] = Field(default_factory=list)
+    constraints: Relations = Field(default_factory=list)
     objective: str = Field(..., description="`minimize EXPR` or `maximize EXPR`")
     guess: GuessSpec = Field(default_factory=GuessSpec)
 
@@ -318,7 +330,7 @@ class ProblemFile(Strict):
     model: ModelSpec | None = None
     problem: ProblemSpec | None = None
     phases: dict[str, PhaseSpec] | None = None
-    links: list[str] = Field(default_factory=list, description="relations between phases")
+    links: Relations = Field(default_factory=list, description="relations between phases")
     objective: str | None = Field(None, description="objective of a multi-phase problem")
     parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict, description="problem-level parameters (free or constant)")
     tables: dict[str, TableSpec] = Field(default_factory=dict, description="interpolation tables, "
