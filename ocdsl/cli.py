@@ -150,6 +150,8 @@ def _summary(result, out: Path) -> None:
         con.print(f"  {v['summary']}", markup=False)
     if result.status not in ("optimal",) and result.message:
         con.print(f"  {result.message.splitlines()[0]}", markup=False)     # "controls [up, um]" is text
+    for note in result.extra.get("notes", []):
+        con.print(f"  note: {note}", markup=False)
     t = Table(show_header=False, box=None, padding=(0, 2))
     # a failed run's objective is its last iterate's (or the guess's): never shown as a result
     if result.objective is not None and result.status in ("optimal", "acceptable"):

@@ -64,6 +64,33 @@ def previous_phases(file: LoadedFile, warm_start=None) -> dict:
     return previous
 
 
+def warm_start_notes(file: LoadedFile, previous: dict) -> list[str]:
+    """What a warm start (``--warm-start`` or ``guess: {from:}``) did not match: a phase it has
+    no trajectory for, states or controls it lacks (they keep the file's guess) or has that this
+    problem does not (an unrelated run, probably): said, never silent."""
+    if not previous:
+        return []
+    notes = []
+    for ph in file.problem.phases:
+        prev = previous.get(ph.name)
+        if prev is None:
+            notes.append(f"the warm start has no trajectory of phase '{ph.name}': it keeps the file's guess")
+            continue
+        names = [v.name for v in ph.states + ph.controls]
+        given = [*prev.states, *prev.controls]
+        missing = [n for n in names if n not in given]
+        foreign = [n for n in given if n not in names]
+        if missing or foreign:
+            where = f"phase '{ph.name}': " if len(file.problem.phases) > 1 else ""
+            parts = []
+            if missing:
+                parts.append(f"it has no {', '.join(missing)} (kept at the file's guess)")
+            if foreign:
+                parts.append(f"its {', '.join(foreign)} are not in this problem (a run of another problem?)")
+            notes.append(f"{where}warm start: " + "; ".join(parts))
+    return notes
+
+
 def solve_built(file: LoadedFile, tr, meshes, timer, *, verbose=False, progress=False) -> Result:
     """Solve an already built (and started) transcription once and make its Result (the
     reused-model path of a study point, ocdsl/solve/reuse.py)."""
@@ -153,6 +180,9 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
+        notes = warm_start_notes(file, previous)
+        if notes:
+            result.extra["notes"] = notes
         if scaled:
             result.extra["scaling"] = scaled
     result.wall_time_s = timer.breakdown()

@@ -152,3 +152,20 @@ def test_mesh_refinement_multipliers_fewer_iterations_same_result(configs):
     assert [h["warm_start"] for h in hm] == ["none"] + ["multipliers"] * (len(hm) - 1)
     assert [h["warm_start"] for h in hp] == ["none"] + ["primal"] * (len(hp) - 1)
     assert sum(h["ipopt_iterations"] for h in hm) < sum(h["ipopt_iterations"] for h in hp)
+
+
+def test_a_warm_start_from_another_problem_is_named_in_a_note(configs, tmp_path):
+    """--warm-start from a brachistochrone run (states x, y, v; control theta) into the double
+    integrator (x, v; u): the shared names are used and the mismatch is said, on the plain and
+    the adaptive-mesh route (it was silent); a warm start from the same problem has no note."""
+    from ocdsl.api import run_file
+
+    source = run_file(configs / "brachistochrone.yaml", tmp_path / "brach")
+    assert source.status == "optimal"
+    for name in ("double_integrator.yaml", "mesh_double_integrator.yaml"):
+        res = run_file(configs / name, tmp_path / name, warm_start=tmp_path / "brach")
+        notes = res.extra.get("notes", [])
+        assert len(notes) == 1, notes
+        assert "it has no u" in notes[0] and "its y, theta are not in this problem" in notes[0], notes
+        same = run_file(configs / name, tmp_path / f"again_{name}", warm_start=tmp_path / name)
+        assert "notes" not in same.extra, same.extra.get("notes")

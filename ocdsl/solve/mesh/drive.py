@@ -123,10 +123,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     base_seed = file.method.seed if seed is None else seed
     start_records: list = []
     meshes = initial_meshes(file)
-    previous: dict[str, PhaseTrajectory] = {}
     snapshot = None      # the previous mesh's solution, multipliers included (warm_start.py)
-    if warm_start is not None:
-        previous = {p.name: p for p in Result.read(warm_start).phases}
+    from ...run import previous_phases, warm_start_notes
+
+    previous: dict[str, PhaseTrajectory] = previous_phases(file, warm_start)
+    notes = warm_start_notes(file, previous)
     options = dict(file.spec.solver.options)
     # the NLP must be solved well below the mesh tolerance, or solver noise (Ipopt's
     # relaxation of the bounds, its stopping tolerance) is what the estimate measures
@@ -472,6 +473,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 v = getattr(e, key)
                 err_tab[key].append(names.index(v) if key == "phase" else float(v))
     result.extra["mesh_history"] = history
+    if notes:
+        result.extra["notes"] = notes
     if start_records:
         result.extra["starts"] = start_records     # the first mesh's starts (refined from the best)
     result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
