@@ -156,12 +156,19 @@ def _summary(result, out: Path) -> None:
     # a failed run's objective is its last iterate's (or the guess's): never shown as a result
     if result.objective is not None and result.status in ("optimal", "acceptable"):
         t.add_row("objective", f"{result.objective:.10g}")
+    elif result.objective is not None and result.status == "mesh_not_converged":
+        # a solved mesh that missed the refinement's tolerance: a solution, not a last iterate
+        t.add_row("objective", f"{result.objective:.10g} (on the reported mesh; refinement not converged)")
     elif result.objective is not None and _best_completed_mesh(result):
         it, st = _best_completed_mesh(result)
         t.add_row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
                   "refinement cut short, so not a converged result)")
     elif result.objective is not None and result.iterations:
         t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
+    free = result.extra.get("free_parameters", [])
+    if free and result.status in ("optimal", "acceptable", "mesh_not_converged"):
+        t.add_row("free parameters", ", ".join(f"{n} {result.parameters[n]:.10g}" for n in free
+                                               if n in result.parameters))
     if isinstance(result.tf, dict):
         t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()))
     elif result.tf is not None:

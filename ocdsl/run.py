@@ -228,6 +228,8 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
         parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
         phases=phases, problem=problem.description)
     result.message += failure_hints(file, tr, info.status)
+    if problem.free_parameters:
+        result.extra["free_parameters"] = [s.name for s in problem.free_parameters]
     result.extra["ipopt_history"] = [list(h) for h in info.history[-200:]]
     if texts:
         result.extra["path_multipliers"] = texts     # phase -> {mu_<k>: constraint text}

@@ -1,0 +1,44 @@
+"""The run summary's lines say what the numbers are: a free parameter's optimum is shown, and
+a mesh that missed the refinement's tolerance is a solution, not a 'last iterate'."""
+from ocdsl.api import run_file
+from ocdsl.cli import _summary
+from ocdsl.result import Result
+
+PROJECTILE = """name: projectile, launch angle free
+model:
+  states: [x, y, vx, vy]
+  controls: []
+  parameters: {g: 9.81, V: 10, gamma: {value: 0.5, free: true, bounds: [0.1, 1.5]}}
+  dynamics: {x: vx, y: vy, vx: 0, vy: -g}
+problem:
+  time: {t0: 0, tf: free}
+  constraints:
+    - x(t0) == 0
+    - y(t0) == 0
+    - vx(t0) == V*cos(gamma)
+    - vy(t0) == V*sin(gamma)
+    - y(tf) == 0
+    - 0.1 <= tf <= 5
+  objective: maximize x(tf)
+method: {transcription: LGR, segments: 2, degree: 3}
+"""
+
+
+def test_a_free_parameters_optimum_is_in_the_summary(tmp_path, capsys):
+    p = tmp_path / "projectile.yaml"
+    p.write_text(PROJECTILE)
+    res = run_file(p, tmp_path / "run")
+    assert res.status == "optimal" and abs(res.parameters["gamma"] - 0.7853981634) < 1e-7
+    assert res.extra["free_parameters"] == ["gamma"]
+    capsys.readouterr()
+    _summary(res, tmp_path / "run")
+    out = capsys.readouterr().out
+    assert "free parameters" in out and "gamma 0.78539816" in out, out
+
+
+def test_a_mesh_not_converged_objective_is_not_called_a_last_iterate(tmp_path, capsys):
+    res = Result(name="t", status="mesh_not_converged", message="mesh refinement did not reach it",
+                 objective=1.25, tf=2.0, iterations=12, nlp={}, method={}, parameters={}, phases=[])
+    _summary(res, tmp_path)
+    out = capsys.readouterr().out
+    assert "last iterate" not in out and "1.25 (on the reported mesh; refinement not converged)" in out, out
