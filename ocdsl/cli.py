@@ -199,6 +199,8 @@ def _summary(result, out: Path) -> None:
             verdict, f"[yellow]{'not evaluated' if verdict == 'error' else verdict}[/yellow]")
         why = (", ".join(certificate_failures(result.certificate)) if verdict == "failed"
                else certificate_reason(result.certificate))
+        if why.startswith(f"{verdict}: "):      # "inconclusive (inconclusive: ...)" said once
+            why = why[len(verdict) + 2:]
         con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
 
 

@@ -135,3 +135,21 @@ def test_ok_counts_only_a_failed_certificate():
                           ({"passed": False, "error": "ValueError"}, "error"), (None, None)]:
         assert certificate_verdict(cert) == verdict
         assert Result(**base, certificate=cert).ok
+
+
+def test_a_state_constrained_arc_makes_the_hamiltonian_inconclusive_not_failed():
+    """The speed-limited double integrator (unseen2 #7), LG with breakpoints on the arc's ends:
+    tf = 2.5 exact and verified, but H from the NLP's costates is -1.34 on the bang arcs and
+    -0.77 on the arc at v = 0.5 (the bound multipliers there leave the costates undetermined):
+    inconclusive, and the run is ok (it was 'certificate failed', exit 1)."""
+    res = run_file(DATA / "cert_speed_limited.yaml", None)
+    cert = res.certificate
+    assert res.status == "optimal" and res.verified and abs(res.tf - 2.5) < 1e-6
+    assert cert["hamiltonian"]["passed"] is None and "v <= 0.5" in cert["inconclusive"], cert.get("inconclusive")
+    assert not cert["failed"] and res.ok
+    # without the state bound's arc (the same H against the certificate alone) it would fail
+    from ocdsl.solve.certificate import _state_arcs
+
+    problem = compile_file(DATA / "cert_speed_limited.yaml").problem
+    assert _state_arcs(problem.phases[0].model, np.array([[0.0, 0.4], [0.1, 0.5], [0.2, 0.4]]),
+                       {"v": (-0.5, 0.5)}) == []          # one node at the bound: a touch, not an arc

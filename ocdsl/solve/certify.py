@@ -86,6 +86,7 @@ def certify_result(problem: Problem, result: Result) -> dict:
                   "costates": {k: v * nan for k, v in traj.costates.items()}}
         bounds = {c.name: tuple(None if not math.isfinite(b) else b for b in ph.control_bounds.get(c, (-math.inf, math.inf)))
                   for c in ph.controls}
+        kw["state_bounds"] = {x.name: ph.bounds_of(x) for x in ph.states}
         # path constraints with their multipliers (costates.path_multipliers): H_aug
         mus = {f"mu_{k}": traj.extra.get(f"mu_{k}") for k in range(len(ph.path))}
         if ph.path and all(v is not None for v in mus.values()):
