@@ -1,5 +1,7 @@
 """The independent verification (ocdsl/verify) on analytic trajectories and on solves it
 must catch: every number it reports could fail."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -350,3 +352,37 @@ def test_free_final_time_held_by_an_active_bound_is_not_asked_to_be_stationary(t
     assert res.status == "optimal" and res.verified, res.verification.get("summary")
     assert res.objective == pytest.approx(-0.255, rel=1e-7) and res.tf == pytest.approx(0.3, rel=1e-7)
     assert not [c for c in res.verification["checks"] if c["name"] == "free final time"]
+
+
+def test_a_path_through_an_obstacle_between_the_dense_points_is_not_verified(tmp_path):
+    """unseen2 #17: the NLP's straight line y = 0 runs through a disc of radius 0.1 that no row
+    and no dense point falls in; the states interpolated between the dense points see it."""
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "verify_small_obstacle.yaml", None)
+    assert res.status == "optimal" and abs(res.tf - 4.0) < 1e-6     # the infeasible straight line
+    assert not res.verified
+    path = [c for c in res.verification["checks"] if c["name"] == "path constraints"]
+    assert path and not path[0]["passed"] and "r**2" in path[0]["where"], path
+
+
+def test_between_points_interpolate_a_cubic_exactly_and_respect_a_control_jump():
+    """The Hermite points between the grid are exact for x = t**3 (x' = 3 t**2 given as the rate),
+    and take each interval's rates from inside it (a control jump on a grid point)."""
+    import numpy as np
+
+    from ocdsl.verify.functions import between_points
+
+    class Funcs:
+        def f(self, t, X, U):
+            return np.column_stack([3 * t**2 + 0 * X[:, 0], U[:, 0]])
+
+    class Jump:        # u = 0 up to t = 1, then -1
+        def at(self, t):
+            return np.where(np.asarray(t) < 1.0, 0.0, -1.0)[:, None]
+
+    grid = np.array([0.0, 0.5, 1.0, 1.5])
+    X = np.column_stack([grid**3, np.where(grid <= 1.0, 0.5, 0.5 - (grid - 1.0))])
+    ts, Xs = between_points(Funcs(), Jump(), grid, X, 5)
+    assert np.allclose(Xs[:, 0], ts**3, atol=1e-12)
+    assert np.allclose(Xs[:, 1], np.where(ts <= 1.0, 0.5, 0.5 - (ts - 1.0)), atol=1e-12)

@@ -36,7 +36,7 @@ from ..symbolic.model import TIME
 from ..symbolic.problem import INF
 from .checks import (evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
                      state_scale, worst)
-from .functions import PhaseFunctions
+from .functions import PhaseFunctions, between_points
 from .integrate import IntegrationFailure, reintegrate, time_budget
 from .interpolate import (_Tabulated, bounds_of, breakpoints, control_interpolant, control_rows,
                           declared_interpolation)
@@ -56,6 +56,8 @@ class VerifySettings:
     mode: str = "enforce"          # or "warn": reported, does not fail the run
     rtol: float = 1e-10            # the integrator's (well below tolerance)
     per_interval: int = 3          # dense points between consecutive rows
+    between: int = 8               # Hermite-interpolated points between dense points, for the
+                                   # bound and path checks (functions.between_points)
     open_loop: bool = True         # also fly the control from x(t0); off for closed-loop runs
     time_limit: float = 600.0      # wall seconds for the whole verification of one result
 
@@ -243,8 +245,14 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
             table[n] = glob.Y[:, j]
             table[f"err_{n}"] = np.interp(glob.t, t, eg[:, j])
         tables[f"reintegration_{pname}"] = table
-    # bounds and path constraints on the dense grid, with the piece-by-piece states
+    # bounds and path constraints on the dense grid, with the piece-by-piece states, and
+    # between its points (an obstacle smaller than the grid's spacing sat between them)
     grid, Yl = local.t, local.Y
+    if funcs.n and len(grid) >= 2:
+        fine_t, fine_X = between_points(funcs, uf, grid, Yl[:, :funcs.n], settings.between)
+        order = np.argsort(np.concatenate([grid, fine_t]), kind="stable")
+        grid = np.concatenate([grid, fine_t])[order]
+        Yl = np.concatenate([Yl[:, :funcs.n], fine_X])[order]
     Ug = uf.at(grid)
     sbounds = bounds_of(ph, names_x, "states")
     if any(math.isfinite(b) for lo_hi in sbounds for b in lo_hi):
