@@ -153,3 +153,19 @@ def test_a_state_constrained_arc_makes_the_hamiltonian_inconclusive_not_failed()
     problem = compile_file(DATA / "cert_speed_limited.yaml").problem
     assert _state_arcs(problem.phases[0].model, np.array([[0.0, 0.4], [0.1, 0.5], [0.2, 0.4]]),
                        {"v": (-0.5, 0.5)}) == []          # one node at the bound: a touch, not an arc
+
+
+@pytest.mark.parametrize("value", ["-1", "1"])
+def test_a_control_fixed_by_an_equality_has_no_sign_condition(value, tmp_path):
+    """unseen2 #2: `u == -1` failed the switching check (its 'lower bound' sign) while `u == 1`
+    passed; a fixed control is a constant of the problem, so neither is judged."""
+    text = (DATA / "cert_fixed_control.yaml").read_text().replace("u == -1", f"u == {value}")
+    if value == "1":
+        text = text.replace("x(t0) == 1", "x(t0) == -1")
+    p = tmp_path / "fixed.yaml"
+    p.write_text(text)
+    res = run_file(p, None)
+    assert res.status == "optimal" and res.verified and abs(res.tf - 1.0) < 1e-8, (res.status, res.tf)
+    cert = res.certificate
+    assert cert["passed"] and cert["switching"]["per_control"]["u"]["fixed"] == float(value), cert["switching"]
+    assert res.ok

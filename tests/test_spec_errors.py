@@ -62,6 +62,7 @@ CASES = [
     ("constant link of a chain", ("- -1 <= u <= 1", "- u <= 1 <= 2"), 11, "the link `1 <= 2` of this chain"),
     # `-1 <= u >= 1` means u >= 1 (was: accepted silently)
     ("chain pointing both ways", ("- -1 <= u <= 1", "- -1 <= u >= 1"), 11, "must point one way"),
+    ("strict link of a chain", ("- 0.1 <= tf <= 10", "- 0.1 <= tf < 10"), 16, "only <=, >= and =="),
     ("boundary value outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x >= 2"), 13,
      "contradicts the bound `x >= 2` (line 12)"),
     ("boundary range outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x <= 0.5"), 13,

@@ -518,6 +518,14 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     n_int = n_sat = n_agree = n_round = 0
     max_rel = max_abs = 0.0
     for j, c in enumerate(model.controls):
+        if bounds[j][0] == bounds[j][1]:
+            # fixed (`u == -1`): a constant of the problem, no condition on dH/du (at its
+            # "lower" bound it failed the switching sign the upper one passed)
+            st_per[c.name] = {"fixed": bounds[j][0], "interior_nodes": 0, "rounding_nodes": 0,
+                              "max_abs": 0.0, "max_relative": 0.0}
+            sw_per[c.name] = {"fixed": bounds[j][0], "saturated_nodes": 0, "agreeing_nodes": 0,
+                              "weakly_active_nodes": 0, "agreement": None}
+            continue
         S = dHdu[:, j]
         interior = side[:, j] == 0
         rounding = interior & (np.abs(S) <= u_floor)

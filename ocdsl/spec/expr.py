@@ -102,6 +102,9 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
     sizes = {len(t) for t in terms if is_vector(t)}
     if len(sizes) > 1:
         raise ExprError(f"vectors of different sizes {sorted(sizes)} in one relation", str(text))
+    if any(type(op) not in ops for op in tree.ops):
+        raise ExprError("only <=, >= and == are allowed in relations (strict < and > have no "
+                        "meaning for a continuous optimiser)", str(text))
     directions = {type(op) for op in tree.ops} - {ast.Eq}
     if len(directions) > 1:
         # `-1 <= u >= 1` is legal Python (u >= 1) but never what a bound means: a typo
