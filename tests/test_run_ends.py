@@ -318,3 +318,21 @@ def test_a_failed_solve_names_a_cheaply_detected_cause(tmp_path, change, hint):
     res = run_file(write(tmp_path, text), None)
     assert res.status == "max_iter" and hint in res.message, res.message
     assert "scaling" not in res.message
+
+
+def test_a_root_of_zero_at_the_guess_is_a_diagnosed_failure_with_a_run_folder(tmp_path):
+    """unseen2 #3: minimize sqrt(integral(u**2)) from the default guess u = 0 took the PyNumero
+    route, whose ASL printed "can't evaluate sqrt'(0)" and ended the process: no run folder.
+    Now Ipopt is not started, the message names the root in the file's words, the folder is
+    written and the exit code is 1."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(Path(__file__).parent / "data" /
+                           "root_of_zero_objective.yaml"), "--out", str(out)], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    saved = json.loads((out / "result.json").read_text())
+    assert saved["status"] == "error"
+    assert "`sqrt(integral(u**2))`" in saved["message"] and "Ipopt was not started" in saved["message"]

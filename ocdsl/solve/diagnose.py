@@ -82,10 +82,15 @@ def nonfinite_at_start(tr, nlp) -> str | None:
             ". Ipopt was not started" + hint)
 
 
-def _domain_of(sub):
+def _domain_of(sub, derivative: bool = False):
     """(argument, what it must be, test of a bad value) for a function of ``sub``'s kind that is
-    not defined everywhere, else None."""
+    not defined everywhere (``derivative``: whose derivative is not: sqrt at 0), else None."""
     import sympy as sp
+
+    if derivative:
+        if isinstance(sub, sp.Pow) and sub.exp.is_number and not sub.exp.is_integer and 0 < sub.exp < 1:
+            return sub.base, "> 0", lambda a: a <= 0
+        return None
 
     if isinstance(sub, sp.log):
         return sub.args[0], "> 0", lambda a: a <= 0
@@ -99,7 +104,16 @@ def _domain_of(sub):
     return None
 
 
-def domain_at_guess(tr, objective: bool, rows=()) -> str | None:
+def root_of_zero_at_guess(tr) -> str | None:
+    """A square root (any power in (0, 1)) of something the guess makes 0 in the objective,
+    its integrands or the phases' dynamics and path constraints: the ASL of the PyNumero route
+    ends the process on its infinite derivative (sqrt(integral(u**2)) with u = 0)."""
+    rows = [c for pb in tr.phases for c in (getattr(pb.block, "defect", None), getattr(pb.block, "path", None))
+            if c is not None]
+    return domain_at_guess(tr, objective=True, rows=rows, derivative=True)
+
+
+def domain_at_guess(tr, objective: bool, rows=(), derivative: bool = False) -> str | None:
     """The first log/sqrt/power/asin of the expressions that are NaN at the guess (the
     objective's integrands and Mayer term, the rows' dynamics and path constraints) whose
     argument leaves its domain there, in the file's words: which expression, which phase,
@@ -143,7 +157,7 @@ def domain_at_guess(tr, objective: bool, rows=()) -> str | None:
             env.update({c: Us[:, j] for j, c in enumerate(pb.phase.controls)})
             env[TIME] = times
         for sub in sp.preorder_traversal(expr):
-            dom = _domain_of(sub)
+            dom = _domain_of(sub, derivative)
             if dom is None:
                 continue
             arg, need, is_bad = dom
@@ -159,8 +173,10 @@ def domain_at_guess(tr, objective: bool, rows=()) -> str | None:
             i = int(np.argmax(badness))
             where = f" at t = {times[i]:.4g} (phase {pb.phase.name})" if times is not None else ""
             value = float(np.atleast_1d(vals)[i])
-            shown = sp.sstr(arg)
-            return (f"{what} has `{sp.sstr(sub)}`, which needs {shown} {need}, and the guess gives "
+            # the file's words: integral(u**2), not the NLP's symbol for it
+            words = {q: sp.Function("integral")(e) for p_ in tr.phases for q, e in p_.phase.integrals.items()}
+            shown = sp.sstr(arg.xreplace(words))
+            return (f"{what} has `{sp.sstr(sub.xreplace(words))}`, which needs {shown} {need}, and the guess gives "
                     f"{shown} = {value:.4g}{where}. Give a guess where {shown} {need} (`guess:` of the "
                     f"phase), or bounds on the variables that keep it so")
     return None

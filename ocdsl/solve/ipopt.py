@@ -393,6 +393,9 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
             if direct is not None:
                 msg, nlp_info, code = _solve_direct_nlp(direct, opts, verbose, callback, multipliers,
                                                         transcription)
+            elif transcription is not None and (root := _root_of_zero(transcription)):
+                raise _BadStart("the initial guess puts a root at 0, where its derivative is infinite "
+                                f"(the NLP evaluator would stop the process): {root}. Ipopt was not started")
             elif multipliers is not None:
                 msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
             else:
@@ -465,6 +468,15 @@ def _start_multipliers(multipliers: Multipliers, constraints, variables, lower, 
     zl[~np.isfinite(lower) | (lower <= -1e19)] = 0.0
     zu[~np.isfinite(upper) | (upper >= 1e19)] = 0.0
     return {"lagrange": lam, "zl": zl, "zu": zu}
+
+
+def _root_of_zero(transcription) -> str | None:
+    from . import diagnose
+
+    try:
+        return diagnose.root_of_zero_at_guess(transcription)
+    except Exception:  # noqa: BLE001  (a check that fails must not stop a solve it cannot judge)
+        return None
 
 
 class _BadStart(Exception):
