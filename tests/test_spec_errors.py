@@ -62,6 +62,11 @@ CASES = [
     ("constant link of a chain", ("- -1 <= u <= 1", "- u <= 1 <= 2"), 11, "the link `1 <= 2` of this chain"),
     # `-1 <= u >= 1` means u >= 1 (was: accepted silently)
     ("chain pointing both ways", ("- -1 <= u <= 1", "- -1 <= u >= 1"), 11, "must point one way"),
+    # a bare state or control has no one value (was: accepted, nan at the run)
+    ("expect of a bare state", ("method: {", "expect: {x: {value: 1, rtol: 1.0e-6}}\nmethod: {"), 18,
+     "`x` varies along the phase, so `x` is no single number: expect a value at an end, e.g. x(tf)"),
+    ("expect of a bare control", ("method: {", "expect: {u: {value: 1, rtol: 1.0e-6}}\nmethod: {"), 18,
+     "expect an integral such as integral(u)"),
     ("strict link of a chain", ("- 0.1 <= tf <= 10", "- 0.1 <= tf < 10"), 16, "only <=, >= and =="),
     ("boundary value outside the state's bound", ("- -1 <= u <= 1", "- -1 <= u <= 1\n    - x >= 2"), 13,
      "contradicts the bound `x >= 2` (line 12)"),

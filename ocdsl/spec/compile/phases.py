@@ -197,4 +197,16 @@ class PhaseCompiler:
             return sym("objective")
         multi = self.spec.phases is not None
         ph = None if multi else problem.phases[0]
-        return self.expression(key, ph, problem.phases)
+        e = self.expression(key, ph, problem.phases)
+        # a state or control alone is a function of time, no one number to compare (it was
+        # accepted, then nan at the run)
+        along = sorted({str(v) for p_ in problem.phases for v in (*p_.states, *p_.controls)
+                        if v in getattr(e, "free_symbols", set())} | ({"t"} if TIME in getattr(e, "free_symbols", set()) else set()))
+        if along:
+            name = along[0]
+            state = any(str(x) == name for p_ in problem.phases for x in p_.states)
+            ends = f"a value at an end, e.g. {name}(tf) or {name}(t0), " if state else ""
+            raise ExprError(f"`{name}` varies along the phase, so `{key}` is no single number: expect {ends}"
+                            f"an integral such as integral({name}), a final time, a parameter or the "
+                            "objective", key)
+        return e
