@@ -235,3 +235,35 @@ def test_a_node_function_outside_its_domain_is_an_evaluation_error(tmp_path):
             call(x)
     res = ocdsl.load(path).solve()
     assert res.status == "optimal" and res.nlp["evaluation"].startswith("direct")
+
+
+@pytest.mark.parametrize("name", ["seed0_rendezvous", "two_phase_double_integrator", "moon_landing"])
+def test_evaluation_buffers_are_not_stale_or_shared(configs, name):
+    """The evaluations write into buffers kept by the NLP (values, first and second derivatives,
+    the Hessian's multipliers): interleaved calls at alternating points and multipliers give,
+    entry for entry, what a fresh NLP gives at each point, and two NLPs of one model do not share
+    them. Seed 0 at its own 20-segment mesh takes the C route."""
+    file = compile_file(configs / f"{name}.yaml")
+    tr = _built(configs, name, segments=file.method.segments)
+    a = _compare_with_pynumero(tr, trials=1)
+    b, _ = direct_nlp.DirectNLP.of(tr)
+    rng = np.random.default_rng(5)
+    points = [(a.x0 * (1 + 0.05 * rng.standard_normal(a.n)) + 0.01 * rng.standard_normal(a.n),
+               rng.standard_normal(a.m), float(rng.uniform(0.1, 2.0))) for _ in range(3)]
+
+    def all_of(nlp, x, lam, sigma):
+        return [np.atleast_1d(nlp.objective(x)), nlp.gradient(x), nlp.constraint_values(x), nlp.jacobian(x),
+                nlp.hessian(x, lam, sigma)]
+
+    expected = []
+    for x, lam, sigma in points:
+        fresh, _ = direct_nlp.DirectNLP.of(tr)
+        expected.append(all_of(fresh, x, lam, sigma))
+    for k in (0, 1, 0, 2, 2, 1):
+        x, lam, sigma = points[k]
+        b.hessian(points[(k + 1) % 3][0], points[(k + 1) % 3][1], 0.3)   # the other NLP, elsewhere
+        got = [a.hessian(x, lam, sigma), np.atleast_1d(a.objective(x)), a.jacobian(x), a.gradient(x),
+               a.constraint_values(x)]
+        want = expected[k]
+        for g, w in zip(got, [want[4], want[0], want[3], want[1], want[2]]):
+            assert np.array_equal(g, w)

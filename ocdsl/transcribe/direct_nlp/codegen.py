@@ -206,20 +206,21 @@ class _Family:
                    fns["values"], fns["first"], fns["second"], how)
 
     @staticmethod
-    def _stack(fn, n_rows, cols, nodes) -> np.ndarray:
-        """``cols``: the C-ordered float64 (arguments, nodes) array of w and S."""
+    def _stack(fn, n_rows, cols, nodes, out=None) -> np.ndarray:
+        """``cols``: the C-ordered float64 (arguments, nodes) array of w and S; ``out``, when
+        given, the C-ordered (rows, nodes) array written (a view of the NLP's buffer)."""
         if fn is None or n_rows == 0:
             return np.zeros((0, nodes))
-        return fn(cols, np.empty((n_rows, nodes)))
+        return fn(cols, np.empty((n_rows, nodes)) if out is None else out)
 
-    def values(self, cols, nodes):
-        return self._stack(self._values, self.n_out, cols, nodes)
+    def values(self, cols, nodes, out=None):
+        return self._stack(self._values, self.n_out, cols, nodes, out)
 
-    def first(self, cols, nodes):
-        return self._stack(self._first, len(self.jac), cols, nodes)
+    def first(self, cols, nodes, out=None):
+        return self._stack(self._first, len(self.jac), cols, nodes, out)
 
-    def second(self, cols, nodes):
-        return self._stack(self._second, len(self.hess), cols, nodes)
+    def second(self, cols, nodes, out=None):
+        return self._stack(self._second, len(self.hess), cols, nodes, out)
 
 
 @dataclass
@@ -242,9 +243,9 @@ class _Scalars:
         """index in y of each non-integral symbol (the first arguments)"""
         return [ref for kind, ref in self.symbols if kind == "y"]
 
-    def evaluate(self, z, which):
+    def evaluate(self, z, which, out=None):
         fn = {"values": self._values, "first": self._first, "second": self._second}[which]
         if fn is None:
             return np.zeros(0)
         n = {"values": self.n_out, "first": len(self.jac), "second": len(self.hess)}[which]
-        return fn(*z, np.empty(n))
+        return fn(*z, np.empty(n) if out is None else out)

@@ -105,11 +105,14 @@ class DirectNLP:
         jrow, jcol, jsrc, jcoef = [], [], [], []      # Jacobian contributions
         grow_col, grow_src, grow_coef = [], [], []    # objective gradient contributions
         hr, hc, hsrc = [], [], []                     # Hessian contributions (value = source)
+        hmu = []                                      # each one's multiplier slot in the weights
         lin_rows, lin_cols, lin_coef = [], [], []
         vrow, vsrc, vcoef = [], [], []                # constraint value contributions
         off_j = 0        # offsets into the Jacobian source vector
         off_v = 0        # into the value source vector
         off_h = 0        # into the Hessian source vector
+        off_w = 0        # into the Hessian weight vector (a multiplier per output and node)
+        self._w_of = []  # per phase: the weight offsets of G, g, H
         if self._extra_lin:
             r, y, k = zip(*self._extra_lin)
             lin_rows.append(np.array(r, int)); lin_cols.append(np.array(y, int)); lin_coef.append(np.array(k, float))
@@ -130,7 +133,10 @@ class DirectNLP:
             off_j += len(G.jac) * C
             for e, (o, a, b) in enumerate(G.hess):
                 hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + np.arange(C))
+                hmu.append(off_w + o * C + np.arange(C))
             off_h += len(G.hess) * C
+            w_of = {"G": off_w, "mu_index": t_out * C + t_node}
+            off_w += G.n_out * C
             # path constraints g_c(w_n): row = path_base + n * npath + c
             if g is not None:
                 npath = g.n_out
@@ -146,7 +152,10 @@ class DirectNLP:
                 off_j += len(g.jac) * C
                 for e, (o, a, b) in enumerate(g.hess):
                     hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + nodes)
+                    hmu.append(off_w + o * C + nodes)
                 off_h += len(g.hess) * C
+                w_of["g"] = off_w
+                off_w += npath * C
             # integrals I_q = sum_n weight_n H_q(w_n): enter rows/objective with constant coefficients
             if H is not None:
                 for out, ph_i, q, coef in self.scalars.integral_coef:
@@ -164,7 +173,11 @@ class DirectNLP:
                 off_j += len(H.jac) * C
                 for e, (o, a, b) in enumerate(H.hess):
                     hr.append(W[:, a]); hc.append(W[:, b]); hsrc.append(off_h + e * C + np.arange(C))
+                    hmu.append(off_w + o * C + np.arange(C))
                 off_h += len(H.hess) * C
+                w_of["H"] = off_w
+                off_w += H.n_out * C
+            self._w_of.append(w_of)
         # scalar level: objective (output 0) and boundary rows
         s = self.scalars
         y_of = s.y_of
@@ -183,7 +196,13 @@ class DirectNLP:
         off_v += s.n_out
         for e, (out, a, b) in enumerate(s.hess):
             hr.append(np.array([y_of[a]])); hc.append(np.array([y_of[b]])); hsrc.append(np.array([off_h + e]))
+            hmu.append(np.array([off_w + out]))
         off_h += len(s.hess)
+        self._w_scalar = off_w
+        off_w += s.n_out
+        # buffers the evaluations write into (no concatenation per call); _eval_first's own
+        # and the Hessian's, so that a Hessian never overwrites the values and first derivatives
+        self._vbuf, self._jbuf, self._hbuf, self._wbuf = (np.zeros(k) for k in (off_v, off_j, off_h, off_w))
 
         cat = lambda parts, dtype=float: (np.concatenate(parts).astype(dtype) if parts  # noqa: E731
                                           else np.zeros(0, dtype))
@@ -213,14 +232,14 @@ class DirectNLP:
         self._gcol, self._gsrc, self._gcoef = gc_[keep], cat(grow_src, int)[keep], cat(grow_coef)[keep]
         # Hessian (lower triangle in x)
         a, b = xmap[cat(hr, int)], xmap[cat(hc, int)]
-        hs = cat(hsrc, int)
+        hs, hm = cat(hsrc, int), cat(hmu, int)
         keep = (a >= 0) & (b >= 0)
-        a, b, hs = a[keep], b[keep], hs[keep]
+        a, b, hs, hm = a[keep], b[keep], hs[keep], hm[keep]
         r, cc = np.maximum(a, b), np.minimum(a, b)
         key = r.astype(np.int64) * max(n, 1) + cc
         uniq, slot = np.unique(key, return_inverse=True)
         self._hrows, self._hcols = (uniq // max(n, 1)).astype(np.int32), (uniq % max(n, 1)).astype(np.int32)
-        self._hslot, self._hsrc = slot, hs
+        self._hslot, self._hsrc, self._hmu = slot, hs, hm
 
     def _boundary_row(self, out: int) -> int:
         return self.boundary_base + out - 1
@@ -258,27 +277,37 @@ class DirectNLP:
         return z
 
     def _eval_first(self) -> None:
+        """Values and first derivatives of every family at the current x, written in place into
+        the value and Jacobian source buffers (the order of the offsets of :meth:`_assemble`)."""
         if self._vals is not None:
             return
-        vparts, jparts = [], []
+        vbuf, jbuf = self._vbuf, self._jbuf
+        ov = oj = 0
         self._integrals = {}
+
+        def view(buf, off, rows, C):
+            return buf[off: off + rows * C].reshape(rows, C)
+
         with np.errstate(all="ignore"):
             for ph in self.phases:
                 C, cols = ph["nodes"], self._cols(ph)
-                vparts.append(ph["G"].values(cols, C).ravel())
-                jparts.append(ph["G"].first(cols, C).ravel())
-                if ph["g"] is not None:
-                    vparts.append(ph["g"].values(cols, C).ravel())
-                    jparts.append(ph["g"].first(cols, C).ravel())
+                for F in (ph["G"], ph["g"]):
+                    if F is None:
+                        continue
+                    F.values(cols, C, view(vbuf, ov, F.n_out, C))
+                    F.first(cols, C, view(jbuf, oj, len(F.jac), C))
+                    ov += F.n_out * C
+                    oj += len(F.jac) * C
                 if ph["H"] is not None:
-                    Hv = ph["H"].values(cols, C)
-                    self._integrals[ph["index"]] = Hv @ ph["weights"]
-                    jparts.append(ph["H"].first(cols, C).ravel())
+                    H = ph["H"]
+                    self._integrals[ph["index"]] = H.values(cols, C) @ ph["weights"]
+                    H.first(cols, C, view(jbuf, oj, len(H.jac), C))
+                    oj += len(H.jac) * C
             z = self._scalar_z()
-            vparts.append(self.scalars.evaluate(z, "values"))
-            jparts.append(self.scalars.evaluate(z, "first"))
-        self._vals = np.concatenate(vparts)
-        self._firsts = np.concatenate(jparts)
+            s = self.scalars
+            s.evaluate(z, "values", vbuf[ov: ov + s.n_out])
+            s.evaluate(z, "first", jbuf[oj: oj + len(s.jac)])
+        self._vals, self._firsts = vbuf, jbuf
 
     def objective(self, x):
         self._set(x)
@@ -315,35 +344,51 @@ class DirectNLP:
         return self._hrows, self._hcols
 
     def hessian(self, x, lagrange, obj_factor):
+        """sum over the Hessian sources of (second derivative) x (its output's multiplier at its
+        node), scattered: the second derivatives and the multipliers are written into two
+        buffers and multiplied entry by entry in the scatter (the products and their order of
+        summation are the same as weighting each family's rows first)."""
         self._set(x)
         self._eval_first()
         lam = np.asarray(lagrange, float)
-        parts = []
+        hbuf, wbuf = self._hbuf, self._wbuf
+        oh = 0
         with np.errstate(all="ignore"):
-            for ph in self.phases:
+            for ph, w_of in zip(self.phases, self._w_of):
                 C, cols = ph["nodes"], self._cols(ph)
                 G = ph["G"]
+                G.second(cols, C, hbuf[oh: oh + len(G.hess) * C].reshape(-1, C))
+                oh += len(G.hess) * C
                 # mu_{j,n}: the rows' multipliers gathered onto each node's G_j
-                mu = np.bincount(ph["t_out"] * C + ph["t_node"], weights=ph["t_coef"] * lam[ph["t_row"]],
-                                 minlength=G.n_out * C).reshape(G.n_out, C)
-                parts.append((G.second(cols, C) * mu[G.hess[:, 0]]).ravel())
+                o = w_of["G"]
+                wbuf[o: o + G.n_out * C] = np.bincount(w_of["mu_index"], weights=ph["t_coef"] * lam[ph["t_row"]],
+                                                       minlength=G.n_out * C)
                 if ph["g"] is not None:
                     g = ph["g"]
-                    lp = lam[ph["path_base"]: ph["path_base"] + g.n_out * C].reshape(C, g.n_out).T
-                    parts.append((g.second(cols, C) * lp[g.hess[:, 0]]).ravel())
+                    g.second(cols, C, hbuf[oh: oh + len(g.hess) * C].reshape(-1, C))
+                    oh += len(g.hess) * C
+                    o = w_of["g"]
+                    wbuf[o: o + g.n_out * C].reshape(g.n_out, C)[:] = \
+                        lam[ph["path_base"]: ph["path_base"] + g.n_out * C].reshape(C, g.n_out).T
                 if ph["H"] is not None:
                     H = ph["H"]
+                    H.second(cols, C, hbuf[oh: oh + len(H.hess) * C].reshape(-1, C))
+                    oh += len(H.hess) * C
                     mq = np.zeros(H.n_out)
                     for out, ph_i, q, coef in self.scalars.integral_coef:
                         if ph_i == ph["index"]:
                             mq[q] += coef * (obj_factor if out == 0 else lam[self._boundary_row(out)])
-                    parts.append((H.second(cols, C) * (mq[H.hess[:, 0]][:, None] * ph["weights"][None, :])).ravel())
+                    o = w_of["H"]
+                    wbuf[o: o + H.n_out * C].reshape(H.n_out, C)[:] = mq[:, None] * ph["weights"][None, :]
             s = self.scalars
-            w_out = np.array([obj_factor] + [lam[self._boundary_row(o)] for o in range(1, s.n_out)])
-            hv = s.evaluate(self._scalar_z(), "second")
-            parts.append(hv * w_out[np.array([h[0] for h in s.hess], int)] if len(s.hess) else np.zeros(0))
-        source = np.concatenate(parts)
-        return _finite(np.bincount(self._hslot, weights=source[self._hsrc], minlength=len(self._hrows)), "Hessian")
+            if len(s.hess):
+                s.evaluate(self._scalar_z(), "second", hbuf[oh: oh + len(s.hess)])
+            o = self._w_scalar
+            wbuf[o] = obj_factor
+            for out in range(1, s.n_out):
+                wbuf[o + out] = lam[self._boundary_row(out)]
+            source = hbuf[self._hsrc] * wbuf[self._hmu]
+        return _finite(np.bincount(self._hslot, weights=source, minlength=len(self._hrows)), "Hessian")
 
     def intermediate(self, *args):
         return True
