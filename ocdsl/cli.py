@@ -159,8 +159,8 @@ def _summary(result, out: Path) -> None:
     elif result.objective is not None and result.status == "mesh_not_converged":
         # a solved mesh that missed the refinement's tolerance: a solution, not a last iterate
         t.add_row("objective", f"{result.objective:.10g} (on the reported mesh; refinement not converged)")
-    elif result.objective is not None and _best_completed_mesh(result):
-        it, st = _best_completed_mesh(result)
+    elif result.objective is not None and (kept := _best_completed_mesh(result)):
+        it, st = kept
         t.add_row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
                   "refinement cut short, so not a converged result)")
     elif result.objective is not None and result.iterations:

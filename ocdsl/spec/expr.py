@@ -113,9 +113,6 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
                         "-1 <= u <= 1, or two constraints", str(text))
     out = []
     for i, op in enumerate(tree.ops):
-        if type(op) not in ops:
-            raise ExprError("only <=, >= and == are allowed in relations (strict < and > have no "
-                            "meaning for a continuous optimiser)", str(text))
         a, b = terms[i], terms[i + 1]
         if is_vector(a) or is_vector(b):
             # a vector relation holds component by component (a number applies to each)

@@ -117,13 +117,12 @@ def between_points(funcs: PhaseFunctions, uf, grid: np.ndarray, X: np.ndarray, p
         keep = keep[:: int(math.ceil(len(keep) * per / MAX_BETWEEN))]
     # the rates at each interval's ends with the controls from inside it: at a breakpoint the
     # control jumps, and the other side's rate bends the interpolant (0.008 past v <= 0.5)
-    a, b, inside = grid[keep], grid[keep + 1], 1e-7 * h[keep]
-    Fa = funcs.f(a, X[keep], uf.at(a + inside))
-    Fb = funcs.f(b, X[keep + 1], uf.at(b - inside))
+    start, end, hk = grid[keep], grid[keep + 1], h[keep][:, None]
+    Fa = funcs.f(start, X[keep], uf.at(start + 1e-7 * hk[:, 0]))
+    Fb = funcs.f(end, X[keep + 1], uf.at(end - 1e-7 * hk[:, 0]))
     s = np.arange(1, per + 1) / (per + 1)
     basis = [2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2]
-    hk = h[keep][:, None, None]
-    terms = [X[keep], hk[:, 0] * Fa, X[keep + 1], hk[:, 0] * Fb]
-    Xs = sum(b[None, :, None] * v[:, None, :] for b, v in zip(basis, terms))
-    ts = grid[keep][:, None] + h[keep][:, None] * s[None, :]
+    terms = [X[keep], hk * Fa, X[keep + 1], hk * Fb]
+    Xs = sum(w[None, :, None] * v[:, None, :] for w, v in zip(basis, terms))
+    ts = start[:, None] + hk * s[None, :]
     return ts.ravel(), Xs.reshape(-1, X.shape[1])

@@ -200,12 +200,12 @@ class PhaseCompiler:
         e = self.expression(key, ph, problem.phases)
         # a state or control alone is a function of time, no one number to compare (it was
         # accepted, then nan at the run)
-        along = sorted({str(v) for p_ in problem.phases for v in (*p_.states, *p_.controls)
-                        if v in getattr(e, "free_symbols", set())} | ({"t"} if TIME in getattr(e, "free_symbols", set()) else set()))
+        used = getattr(e, "free_symbols", set())
+        states = {x for p_ in problem.phases for x in p_.states}
+        along = sorted(used & (states | {c for p_ in problem.phases for c in p_.controls} | {TIME}), key=str)
         if along:
-            name = along[0]
-            state = any(str(x) == name for p_ in problem.phases for x in p_.states)
-            ends = f"a value at an end, e.g. {name}(tf) or {name}(t0), " if state else ""
+            name = "t" if along[0] == TIME else str(along[0])
+            ends = f"a value at an end, e.g. {name}(tf) or {name}(t0), " if along[0] in states else ""
             raise ExprError(f"`{name}` varies along the phase, so `{key}` is no single number: expect {ends}"
                             f"an integral such as integral({name}), a final time, a parameter or the "
                             "objective", key)
