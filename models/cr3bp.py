@@ -25,7 +25,6 @@ from __future__ import annotations
 import sympy as sp
 
 from ocdsl.symbolic.model import Model, syms
-from ocdsl.simulate.sundman import sundman
 from ocdsl.symbolic.registry import register
 
 MU = 0.0121506683
@@ -89,6 +88,8 @@ def _maybe_sundman(model: Model, options: dict, distance: sp.Expr) -> Model:
     k = options.get("sundman_k")
     if k is None:
         return model
+    from ocdsl.simulate.sundman import sundman     # with ocdsl.simulate: only for this option
+
     return sundman(model, distance, float(k), float(options.get("sundman_c", 1.0)))
 
 

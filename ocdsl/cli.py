@@ -69,8 +69,11 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
 
     --out must be a new folder, an empty one or an earlier ocdsl run folder (it is
     replaced in one step); any other folder is refused and left as it is."""
-    from .api import run_file
-    from .solve.ipopt import interruptible
+    from .startup import loading
+
+    with loading("cli run"):
+        from .api import run_file
+        from .solve.ipopt import interruptible
 
     _cache_off(no_cache)
     out = Path(out) if out else Path("runs") / Path(file).stem
@@ -348,6 +351,9 @@ def entry() -> None:
     the commands themselves. Not in ``main``, which tests call in-process."""
     import gc
 
+    from .startup import one_command_process
+
+    one_command_process()
     try:
         main()
     finally:

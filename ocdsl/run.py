@@ -108,13 +108,16 @@ def solve_built(file: LoadedFile, tr, meshes, timer, *, verbose=False, progress=
 
 def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None, verbose=False,
                          progress=False, meshes=None) -> Result:
-    from .solve import ipopt
-    from .solve.reuse import SolvedState, restart
-    from .transcribe.guess import make_guess
-    from .transcribe.mesh import Mesh
-    from .transcribe.pseudospectral import build
+    from .startup import loading
 
-    ipopt.check_available()
+    with loading("pseudospectral"):     # Pyomo, cyipopt: the rest of a run's start-up (startup.py)
+        from .solve import ipopt
+        from .solve.reuse import SolvedState, restart
+        from .transcribe.guess import make_guess
+        from .transcribe.mesh import Mesh
+        from .transcribe.pseudospectral import build
+
+        ipopt.check_available()
     problem, method = file.problem, file.method
     meshes = meshes or {ph.name: Mesh.uniform(method.transcription, method.segments, method.degree)
                         for ph in problem.phases}

@@ -87,9 +87,11 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
     def build_tables(self) -> dict:
         """The file's ``tables:``, each a function for expressions; a call is shown as
         ``NAME(args)`` in the report (``self.table_calls``), not as its spline expansion."""
+        out, self.table_calls = {}, {}
+        if not self.spec.tables:
+            return out                  # the spline code (ocdsl.symbolic.tables) stays unloaded
         from ..tables import TableError, build_table
 
-        out, self.table_calls = {}, {}
         for name, tspec in self.spec.tables.items():
             if not NAME_RE.match(name) or name in RESERVED:
                 self.issue(("tables", name), f"'{name}' cannot name a table (reserved or not an identifier)")
