@@ -4,14 +4,14 @@ Importing SymPy, pydantic, NumPy and Pyomo makes some hundred thousand long-live
 (modules, classes, functions); the cyclic collector walks them again and again while they
 load and frees none of them: 50-100 ms of CPU of a small ``ocdsl run`` (about 260
 collections). In a process that is one command (the console script, ``cli.entry``) the
-collector pauses while they load, and what is loaded is then frozen (``gc.freeze``: left
-out of every later collection), as CPython's documentation suggests for start-up objects.
+collector pauses while they load, and what was made meanwhile is then handed straight to
+the oldest generation (``gc.freeze`` + ``gc.unfreeze``, as ``transcribe/pseudospectral.py``
+does after a build) instead of being walked by young collections and promoted generation
+by generation. Nothing is kept alive longer: a full collection still sees all of it.
 
-In-process callers (the Python API, tests calling ``cli.main``) are left as they are:
-freezing there would keep for the life of that process any garbage then waiting for
-collection. Each window acts once per process (a later solve in the same process, e.g.
-a pareto file's points, finds its modules loaded), so what a freeze can keep is bounded
-by the garbage of the start of one run.
+In-process callers (the Python API, tests calling ``cli.main``) keep the collector as it
+was. Each window acts once per process: a later solve in the same process (a pareto
+file's points) finds its modules loaded.
 """
 from __future__ import annotations
 
@@ -31,9 +31,9 @@ def one_command_process() -> None:
 
 @contextmanager
 def loading(window: str) -> Iterator[None]:
-    """Around a command's imports: no collection while they run, then freeze what is loaded
-    (only in a one-command process, where the collector is on, the first time ``window``
-    is entered)."""
+    """Around a command's imports: no collection while they run, then what they made goes
+    to the oldest generation (only in a one-command process, where the collector is on,
+    the first time ``window`` is entered)."""
     if not _one_command or not gc.isenabled() or window in _used:
         yield
         return
@@ -43,4 +43,5 @@ def loading(window: str) -> Iterator[None]:
         yield
     finally:
         gc.freeze()
+        gc.unfreeze()
         gc.enable()

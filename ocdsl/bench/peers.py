@@ -65,7 +65,10 @@ def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | No
     unmeasured run first; ocdsl/cache.py) and the CasADi script."""
     yml, script, log_o, log_c = prepare(problem_file, work, segments)
     cold, warm = work / "cache_cold", work / "cache_warm"
-    base = {k: v for k, v in os.environ.items() if k != "OCDSL_NO_CACHE"}
+    # PYTHONDONTWRITEBYTECODE would have every ocdsl run compile ocdsl's own modules from
+    # source (~0.1 s of CPU on a source checkout) while CasADi loads its installed bytecode:
+    # both children run as an installed package would, with bytecode (written by the fill run)
+    base = {k: v for k, v in os.environ.items() if k not in ("OCDSL_NO_CACHE", "PYTHONDONTWRITEBYTECODE")}
     runs_of: dict[str, list] = {"cold": [], "warm": [], "casadi": []}
 
     def ocdsl_run(cache_dir: Path) -> dict:
@@ -272,7 +275,7 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             scale_text, _ = scaling(Path(scaling_file), scaling_segments, tmp, repeat=scaling_repeat)
     text = (f"# ocdsl against a generated CasADi script\n\n{machine()}, {time.strftime('%Y-%m-%d %H:%M')}, "
             f"{runs} runs each, alternating, medians; seconds.\n\n"
-            "Whole processes. ocdsl: start-up+imports = process wall minus `ocdsl run`'s own total, plus the "
+            "Whole processes, with Python's bytecode cache (PYTHONDONTWRITEBYTECODE is not passed on). ocdsl: start-up+imports = process wall minus `ocdsl run`'s own total, plus the "
             "lazy imports inside it (Pyomo, cyipopt); hand-over = solve stage minus Ipopt's own total "
             "(the NLP set-up of the route the solve took, `result.json` nlp.evaluation: the direct NumPy "
             "route's SymPy compile and index assembly, or PyNumero's NL writer + ASL; cyipopt set-up); "
