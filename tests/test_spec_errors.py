@@ -193,3 +193,16 @@ def test_a_misspelt_phase_time_is_taken_for_a_misspelt_tf():
     with pytest.raises(ExprError) as e:
         parse_expression("brake.tff", scope)
     assert "did you mean 'tf'" in e.value.message and "brake.tff(tf)" in e.value.message
+
+
+def test_reversed_bounds_of_a_free_parameter_say_so(tmp_path):
+    """`p: {free: true, bounds: [2, -2]}` is a ParameterSpec with empty bounds, not a number
+    that failed to parse: the validator's message, not the float member's (unseen3 e07)."""
+    text = ("name: t\nparameters:\n  p: {value: 0.5, free: true, bounds: [2, -2]}\n"
+            "model:\n  states: [x]\n  controls: [u]\n  dynamics: {x: u}\n"
+            "problem:\n  time: {t0: 0, tf: 1}\n  constraints:\n    - x(t0) == 0\n    - x(tf) == p\n"
+            "  objective: minimize integral(u**2)\n")
+    issues = _issues(tmp_path, text)
+    first = issues[0]
+    assert first.line == 3 and "bounds reversed" in first.message, issues
+    assert not any("valid number" in i.message for i in issues), issues

@@ -23,6 +23,10 @@ def _schema_issues(located: Located, errors: list, root: tuple | None = None) ->
     """One issue per location: a value that is none of a union's types (text or a number)
     fails each of them, which is one mistake. ``root``: (location prefix, pydantic class)
     of a block validated by its own class (`method:`), for the did-you-mean of its keys."""
+    # a validator's own message first: the value passed that member's types, so it is the
+    # member meant (`p: {free: true, bounds: [2, -2]}` was "Input should be a valid number",
+    # the float member's complaint, not "bounds reversed")
+    errors = sorted(errors, key=lambda err: err.get("type") != "value_error")
     locs = [_document_loc(err["loc"]) for err in errors]
     out, seen = [], set()
     for err, loc in zip(errors, locs):
