@@ -206,3 +206,38 @@ def test_reversed_bounds_of_a_free_parameter_say_so(tmp_path):
     first = issues[0]
     assert first.line == 3 and "bounds reversed" in first.message, issues
     assert not any("valid number" in i.message for i in issues), issues
+
+
+_FIXED_TIME = ("name: t\nmodel:\n  states: [x, v]\n  controls: [u]\n  dynamics: {x: v, v: u}\n"
+               "problem:\n  time: {t0: 0, tf: 2}\n  constraints:\n    - -1 <= u <= 1\n"
+               "    - x(t0) == 1\n    - v(t0) == 0\n    - x(tf) == 0\n    - v(tf) == 0\n"
+               "  objective: minimize tf\n")
+
+
+def test_an_objective_fixed_to_a_constant_is_refused(tmp_path):
+    """`minimize tf` with `tf: 2` optimises nothing: it was accepted, and the run failed with a
+    mesh hint and an arbitrary control (unseen3 e17). Check refuses it at the objective's line."""
+    issues = _issues(tmp_path, _FIXED_TIME)
+    assert len(issues) == 1, issues
+    assert issues[0].line == 14 and "constant (tf = 2, fixed)" in issues[0].message, issues
+
+
+def test_a_bare_number_objective_and_a_free_time_are_accepted(tmp_path):
+    """The refusal is for an objective that names something fixed: `minimize 0` (a
+    feasibility problem) and `minimize tf` with tf free still load."""
+    for text in (_FIXED_TIME.replace("minimize tf", "minimize 0"),
+                 _FIXED_TIME.replace("tf: 2}", "tf: free}")):
+        path = tmp_path / "ok.yaml"
+        path.write_text(text)
+        compile_file(path)
+
+
+def test_an_unknown_phase_in_an_expect_key_is_named(tmp_path):
+    """`rech.tf` in `expect:` of a multi-phase file said "'rech.tf' is not allowed"; a misspelt
+    phase is now named as such, with the phase it most likely means (unseen3)."""
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "configs" / "lit_bryson_denham_three_phase.yaml").read_text()
+    assert "\nexpect:\n" in text
+    issues = _issues(tmp_path, text.replace("\nexpect:\n", "\nexpect:\n  rech.tf: {value: 1.0}\n"))
+    assert len(issues) == 1 and "unknown phase 'rech' (did you mean 'reach'?)" in issues[0].message, issues

@@ -395,6 +395,9 @@ class _Builder:
             raise self.fail(f"'{ast.unparse(node)}': a phase has t0 and tf{did_you_mean(node.attr, ['t0', 'tf'])}; "
                             f"a state's value is written {node.value.id}.{node.attr}(t0) or "
                             f"{node.value.id}.{node.attr}(tf)")
+        if isinstance(node.value, ast.Name) and self.scope.phases and node.attr in ("t0", "tf"):
+            phase = node.value.id
+            raise self.fail(f"unknown phase '{phase}'{did_you_mean(phase, self.scope.phases)}")
         raise self.fail(f"'{ast.unparse(node)}' is not allowed")
 
     def _boundary(self, phase: str | None, var: str, node: ast.Call) -> sp.Expr:

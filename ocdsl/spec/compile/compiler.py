@@ -185,12 +185,35 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                     part = self.guarded(("phases", ph.name, "objective"), self.expression, extra, ph, phases)
                     if part is not None:
                         obj.expr = obj.expr + (part if obj.sense == "minimize" else -part)
+        if obj is not None:
+            self.check_objective_varies(obj, phases, ("problem", "objective") if spec.problem is not None else ("objective",))
         self.check_resolved(phases, boundary, obj)
         self.check_contradictions(boundary, phases)
         if self.issues:
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)
         return Problem(spec.name, phases, obj, boundary, self.free, self.boundary_values, desc)
+
+    def check_objective_varies(self, obj: Objective, phases: list[Phase], loc: tuple) -> None:
+        """Refuse an objective that names something yet is one number once fixed times and
+        constants are put in (`minimize tf` with `tf: 1`): nothing is optimised, and the run
+        then failed with a mesh hint and an arbitrary answer. A bare number (`minimize 0`,
+        a feasibility problem or a multi-phase file whose phases add their own costs) is meant."""
+        fixed: dict = {}
+        label: dict = {}
+        multi = len(phases) > 1
+        for ph in phases:
+            fixed.update(ph.constants)
+            for end, value, symbol in (("t0", ph.t0, ph.t0_symbol), ("tf", ph.tf, ph.tf_symbol)):
+                if value is not None:
+                    fixed[symbol] = value
+                    label[symbol] = f"{ph.name}.{end}" if multi else end
+        named = obj.expr.free_symbols
+        if not named or sp.sympify(obj.expr.xreplace(fixed)).free_symbols:
+            return
+        shown = ", ".join(sorted(f"{label.get(s, s.name)} = {_shown_number(fixed.get(s))}" for s in named))
+        self.issue(loc, f"the objective is a constant ({shown}, fixed), so it does not depend on the solution: "
+                        "free what it names (e.g. `time: {tf: free}`) or write another objective", obj.text)
 
     @staticmethod
     def time_runs_forward(phases: list[Phase]) -> list[Constraint]:
@@ -244,3 +267,10 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             t0, tf = (sp.Symbol(f"t_{{{k},{ph.name}}}" if multi else f"t_{k}") for k in ("0", "f"))
             subs.update({s: sp.Integral(e, (TIME, t0, tf)) for s, e in ph.integrals.items()})
         return expr.xreplace(subs)
+
+
+def _shown_number(value) -> str:
+    try:
+        return f"{float(value):g}"
+    except (TypeError, ValueError):
+        return str(value)
