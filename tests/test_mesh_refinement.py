@@ -380,3 +380,12 @@ def test_objective_agreement_rule():
     assert "iterations [3, 4]" in _objective_disagreement([entry(3, 2.0), entry(4, 2.00001)], 1e-6)
     # near zero the floor 1e-8 keeps rounding noise from counting
     assert _objective_disagreement([entry(3, 1e-30), entry(4, 1e-20)], 1e-6) is None
+
+
+def test_features_off_the_breakpoints_are_shown_as_normalised_times_per_phase():
+    """The mesh_not_converged message printed the raw dict {'main': [0.793...]} of normalised
+    times without saying what they were (unseen3); a phase with none located is left out."""
+    from ocdsl.solve.mesh.drive import _features_shown
+
+    text = _features_shown({"main": [0.79312345678, 0.05], "coast": []})
+    assert text == "phase 'main' at 0.793123, 0.05 (normalised time: 0 at t0, 1 at tf)"

@@ -450,7 +450,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                  f"at the terminal condition {history[it_c - 1].get('terminal_where')} "
                  f"({history[it_c - 1].get('terminal_flown')}) "
                  f"({term_c:.3e})" if term_c > spec.tolerance else
-                 f"within tolerance but located switches/corners {off_c} are off the breakpoints")
+                 "within tolerance, but located switches/corners lie off the breakpoints by more than "
+                 f"corner_tolerance {spec.corner_tolerance:g}: {_features_shown(off_c)}")
         message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
                    f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
                    f"largest estimated error {max_err:.3e} {where}. "
@@ -489,3 +490,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.wall_time_s = timer.breakdown()
     stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result
+
+
+def _features_shown(off: dict) -> str:
+    """Features per phase as a user reads them: normalised time is 0 at t0 and 1 at tf."""
+    parts = [f"phase '{k}' at " + ", ".join(f"{v:.6g}" for v in vs) for k, vs in off.items() if vs]
+    return "; ".join(parts) + " (normalised time: 0 at t0, 1 at tf)"
