@@ -117,9 +117,10 @@ class GuessSpec(Strict):
     """Initial guess: per variable a constant, ``[start, end]`` (linear) or ``{t: [...], values: [...]}``."""
 
     model_config = ConfigDict(extra="allow")
+    t0: GuessTime = None
     tf: GuessTime = None
 
-    @field_validator("tf", mode="before")
+    @field_validator("t0", "tf", mode="before")
     @classmethod
     def _constant(cls, v):
         return constant_number(v)

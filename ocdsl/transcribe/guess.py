@@ -71,7 +71,8 @@ def make_guess(problem: Problem, ph: Phase, previous=None, seed: int | None = No
     """The guess of ``ph``; ``previous`` is a PhaseTrajectory of an earlier run (warm start)."""
     given = ph.guess.get("values", {})
     fixed = _fixed_boundary(problem, ph)
-    t0 = ph.t0 if ph.t0 is not None else _mid(*ph.t0_bounds)
+    t0_guess = ph.guess.get("t0")
+    t0 = ph.t0 if ph.t0 is not None else (float(t0_guess) if t0_guess is not None else _mid(*ph.t0_bounds))
     tf_guess = ph.guess.get("tf")
     if ph.tf is not None:
         tf = ph.tf

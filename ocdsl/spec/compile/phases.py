@@ -59,7 +59,7 @@ class PhaseCompiler:
         check_guess(self.path, guess, loc, self.issue)
         # a problem file, or a transform, is a chain (ocdsl/chain): its stages give `from` at run time
         chained = guess.from_ is not None and (is_problem_file(guess.from_) or guess.transform is not None)
-        guess_dict = {"values": guess_items, "tf": guess.tf, "from": None if chained else guess.from_,
+        guess_dict = {"values": guess_items, "t0": guess.t0, "tf": guess.tf, "from": None if chained else guess.from_,
                       "random": guess.random, "seed": guess.seed,
                       "chain": {"from": guess.from_, "transform": guess.transform, "reuse": guess.reuse,
                                 "file": str(self.path)} if chained else None}
