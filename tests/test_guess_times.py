@@ -47,3 +47,6 @@ def test_a_guessed_free_t0_solves_to_the_optimum(tmp_path):
     assert res.status == "optimal", res.message
     assert res.objective == pytest.approx(T + 12 / T ** 3, rel=1e-7)
     assert res.phases[0].time[0] == pytest.approx(5 - T, rel=1e-6)
+    # a free start is printed, as a free final time is
+    row = next(line for line in res.summary().splitlines() if "initial time" in line)
+    assert float(row.split()[-1]) == pytest.approx(5 - T, rel=1e-6)
