@@ -241,3 +241,19 @@ def test_an_unknown_phase_in_an_expect_key_is_named(tmp_path):
     assert "\nexpect:\n" in text
     issues = _issues(tmp_path, text.replace("\nexpect:\n", "\nexpect:\n  rech.tf: {value: 1.0}\n"))
     assert len(issues) == 1 and "unknown phase 'rech' (did you mean 'reach'?)" in issues[0].message, issues
+
+
+def test_a_bare_number_in_expect_is_the_value_with_the_default_tolerance(tmp_path):
+    """`expect: {tf: 2.0}` said "Input should be a valid dictionary or instance of ExpectItem"
+    (unseen2): it is the value, checked with the documented default rtol 1e-6."""
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "configs" / "minimal_double_integrator.yaml").read_text()
+    assert "  tf: {value: 2.0, rtol: 1.0e-4}\n" in text
+    path = tmp_path / "f.yaml"
+    path.write_text(text.replace("  tf: {value: 2.0, rtol: 1.0e-4}\n", "  tf: 2.0\n"))
+    item = compile_file(path).spec.expect["tf"]
+    assert (item.value, item.rtol, item.atol, item.compare) == (2.0, None, None, "equal")
+    path.write_text(text.replace("  tf: {value: 2.0, rtol: 1.0e-4}\n", "  tf: true\n"))
+    with pytest.raises(SpecError):
+        compile_file(path)

@@ -266,6 +266,14 @@ class ExpectItem(Strict):
     atol: float | None = Field(None, ge=0)
     compare: Literal["equal", "at_most", "at_least"] = "equal"
 
+    @model_validator(mode="before")
+    @classmethod
+    def _bare_number(cls, v):
+        # `tf: 2.0` is how a user first writes a published value: the value, default tolerance
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return {"value": v}
+        return v
+
 
 class VerifySpec(Strict):
     """Independent verification of the returned trajectory (ocdsl/verify, docs/verification.md)."""
