@@ -396,9 +396,11 @@ class _Builder:
                             f"a state's value is written {node.value.id}.{node.attr}(t0) or "
                             f"{node.value.id}.{node.attr}(tf)")
         if isinstance(node.value, ast.Name) and self.scope.phases and node.attr in ("t0", "tf"):
-            phase = node.value.id
-            raise self.fail(f"unknown phase '{phase}'{did_you_mean(phase, self.scope.phases)}")
+            raise self._unknown_phase(node.value.id)
         raise self.fail(f"'{ast.unparse(node)}' is not allowed")
+
+    def _unknown_phase(self, phase: str) -> ExprError:
+        return self.fail(f"unknown phase '{phase}'{did_you_mean(phase, self.scope.phases)}")
 
     def _boundary(self, phase: str | None, var: str, node: ast.Call) -> sp.Expr:
         if self.scope.boundary is None:
@@ -406,7 +408,7 @@ class _Builder:
         if len(node.args) != 1 or not isinstance(node.args[0], ast.Name) or node.args[0].id not in ("t0", "tf"):
             raise self.fail(f"'{ast.unparse(node)}': a boundary value is written {var}(t0) or {var}(tf)")
         if phase is not None and phase not in self.scope.phases:
-            raise self.fail(f"unknown phase '{phase}'{did_you_mean(phase, self.scope.phases)}")
+            raise self._unknown_phase(phase)
         try:
             return self.scope.boundary(phase, var, node.args[0].id)
         except ExprError as e:

@@ -112,8 +112,10 @@ class _Mapped:
         self.flatmaps = {}
         for ph in problem.phases:
             g = _guess_tables(problem, ph)
-            t0g = ph.t0 if ph.t0 is not None else float(ph.guess["t0"]) if ph.guess.get("t0") is not None else (
-                0.5 * sum(ph.t0_bounds) if all(map(math.isfinite, ph.t0_bounds)) else prev_end)
+            # make_guess's start (the file's t0, its guess, or the middle of finite bounds);
+            # an unbounded free start without a guess follows the phase before
+            given = ph.t0 is not None or ph.guess.get("t0") is not None or all(map(math.isfinite, ph.t0_bounds))
+            t0g = g.t0 if given else prev_end
             tfg = ph.tf if ph.tf is not None else ph.guess.get("tf")
             lo, hi = self.duration_bounds[ph.name]
             if tfg is not None and float(tfg) > t0g:

@@ -211,7 +211,8 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         named = obj.expr.free_symbols
         if not named or sp.sympify(obj.expr.xreplace(fixed)).free_symbols:
             return
-        shown = ", ".join(sorted(f"{label.get(s, s.name)} = {_shown_number(fixed.get(s))}" for s in named))
+        # every name was replaced by a number (times and constants are floats)
+        shown = ", ".join(sorted(f"{label.get(s, s.name)} = {fixed[s]:g}" for s in named))
         self.issue(loc, f"the objective is a constant ({shown}, fixed), so it does not depend on the solution: "
                         "free what it names (e.g. `time: {tf: free}`) or write another objective", obj.text)
 
@@ -267,10 +268,3 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             t0, tf = (sp.Symbol(f"t_{{{k},{ph.name}}}" if multi else f"t_{k}") for k in ("0", "f"))
             subs.update({s: sp.Integral(e, (TIME, t0, tf)) for s, e in ph.integrals.items()})
         return expr.xreplace(subs)
-
-
-def _shown_number(value) -> str:
-    try:
-        return f"{float(value):g}"
-    except (TypeError, ValueError):
-        return str(value)
