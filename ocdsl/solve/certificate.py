@@ -67,6 +67,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from ocdsl.solve import pchip
 from ocdsl.symbolic.model import TIME, Model, sym
 
 OBJECTIVE_KINDS = ("min_tf", "max_tf", "free_tf", "fixed_tf")
@@ -480,7 +481,11 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     Hc = H.copy()
     if num.time_dependent:   # H(t) + int_t^tf dH/dt|explicit is constant (= H(tf))
         Ht = num.Ht_nodes(t, X, U, Lam, Mu)
-        Hc = H + _integral_to_end(t, Ht)
+        # int_t^tf by the monotone cubic through the nodes (PCHIP): the trapezoid rule's
+        # O(h^2) error on a fast-varying dH/dt (a data table's residual) was 9 % of H's term
+        # scale and failed a correct fit; a global cubic spline rings across the jump a path
+        # multiplier puts into dH/dt (a state constraint's junction), PCHIP does not
+        Hc = H + pchip.integral_to_end(t, Ht)
     expected = EXPECTED_H[objective] if expected_hamiltonian is None else float(expected_hamiltonian)
     reference = expected if expected is not None else float(np.mean(Hc))
     term_scale = float(np.mean(H_terms))
@@ -619,20 +624,6 @@ def _state_arcs(model: Model, X, state_bounds, run: int = 2) -> list[str]:
             if longest >= run:
                 held.append(f"{st.name} {op} {b:g}")
     return held
-
-
-def _integral_to_end(t, y):
-    """``int_t^tf y`` at every node, by the local monotone cubic through the nodes (PCHIP):
-    the trapezoid rule's O(h^2) error on a fast-varying dH/dt (a data table's residual) was
-    9 % of H's term scale and failed a correct fit; a global cubic spline rings across the
-    jump a path multiplier puts into dH/dt (a state constraint's junction), PCHIP does not."""
-    if len(t) < 3:
-        seg = 0.5 * (y[1:] + y[:-1]) * np.diff(t)
-        return np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
-    from scipy.interpolate import PchipInterpolator
-
-    F = PchipInterpolator(t, y).antiderivative()(t)
-    return F[-1] - F
 
 
 def _path_item(c) -> tuple:
