@@ -334,6 +334,55 @@ def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
         click.echo(f"wrote {f}")
 
 
+@main.group()
+def serve() -> None:
+    """A server with ocdsl loaded, so that each command skips the imports (opt-in).
+
+    While one runs, the `ocdsl` command hands every other command to it; each runs in a fresh
+    fork of the server, in this folder with this environment. A changed ocdsl or
+    environment is never served by an older server. See docs/architecture.md.
+    """
+
+
+@serve.command("start")
+@click.option("--idle", type=click.FloatRange(min=1), default=1800.0, show_default=True,
+              metavar="SECONDS", help="exit after this long without a command")
+def serve_start(idle):
+    """Start the server of this code (nothing happens if it runs)."""
+    from .serve.server import ServeError, start
+
+    try:
+        st = start(idle)
+    except ServeError as e:
+        raise click.ClickException(str(e)) from None
+    click.echo(f"ocdsl serve: pid {st['pid']}, socket {st['socket']}")
+
+
+@serve.command("stop")
+@click.option("--all", "every", is_flag=True, help="also servers of other code or environments")
+def serve_stop(every):
+    """Stop the server of this code."""
+    from .serve.server import stop
+
+    pids = stop(every)
+    click.echo("ocdsl serve: stopped " + (", ".join(f"pid {p}" for p in pids) if pids else "nothing"))
+
+
+@serve.command("status")
+def serve_status():
+    """Whether a server of this code runs (exit 0) or not (exit 1)."""
+    from .serve.server import status
+
+    st = status()
+    if st["pid"]:
+        click.echo(f"ocdsl serve: running, pid {st['pid']}, socket {st['socket']}")
+    else:
+        click.echo(f"ocdsl serve: no server of this code (socket {st['socket']})")
+    for o in st["other_servers"]:
+        click.echo(f"  a server of other code or environment: pid {o['pid']} (ocdsl serve stop --all)")
+    sys.exit(0 if st["pid"] else 1)
+
+
 def _register_bench() -> None:
     from .bench.cli import bench  # imports only click at module level
 
