@@ -59,31 +59,50 @@ def prepare(problem_file: Path, work: Path, segments: int | None = None) -> tupl
     return yml, script, log_o, log_c
 
 
-def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | None = None) -> dict:
+def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | None = None,
+               serve_dir: Path | None = None) -> dict:
     """``runs`` rounds of three whole processes, alternating their order: ``ocdsl run`` on a
     cold disk cache (emptied before each run), ``ocdsl run`` on a warm one (filled by one
-    unmeasured run first; ocdsl/cache.py) and the CasADi script."""
+    unmeasured run first; ocdsl/cache.py) and the CasADi script; with ``serve_dir`` (the
+    folder of a running ``ocdsl serve``) a fourth, ``ocdsl run`` served on the warm cache,
+    whose CPU is its own process's plus the worker's (``OCDSL_SERVE_LOG``)."""
     yml, script, log_o, log_c = prepare(problem_file, work, segments)
     cold, warm = work / "cache_cold", work / "cache_warm"
     # PYTHONDONTWRITEBYTECODE would have every ocdsl run compile ocdsl's own modules from
     # source (~0.1 s of CPU on a source checkout) while CasADi loads its installed bytecode:
     # both children run as an installed package would, with bytecode (written by the fill run)
     base = {k: v for k, v in os.environ.items() if k not in ("OCDSL_NO_CACHE", "PYTHONDONTWRITEBYTECODE")}
-    runs_of: dict[str, list] = {"cold": [], "warm": [], "casadi": []}
+    base["OCDSL_NO_SERVE"] = "1"          # the cold and warm rows run in processes of their own
+    runs_of: dict[str, list] = {"cold": [], "warm": [], "casadi": [], "served": []}
+    served_log = work / "served.jsonl"
 
-    def ocdsl_run(cache_dir: Path) -> dict:
+    def ocdsl_run(cache_dir: Path, served: bool = False) -> dict:
         out = work / "run"
         shutil.rmtree(out, ignore_errors=True)
-        r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work,
-                 {**base, "OCDSL_CACHE": str(cache_dir)})
+        env = {**base, "OCDSL_CACHE": str(cache_dir)}
+        if served:
+            env.pop("OCDSL_NO_SERVE")
+            env.update(OCDSL_SERVE_DIR=str(serve_dir), OCDSL_SERVE_LOG=str(served_log))
+            n = len(served_log.read_text().splitlines()) if served_log.exists() else 0
+        r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work, env)
+        if served:
+            lines = served_log.read_text().splitlines() if served_log.exists() else []
+            if len(lines) != n + 1:
+                raise RuntimeError(f"ocdsl serve did not serve {yml} (is the server running?): {r['stdout'][-2000:]}")
+            worker = json.loads(lines[-1])
+            r["cpu"] += worker["worker_cpu_s"]
+            r["rss_mb"] = max(r["rss_mb"], worker["worker_rss_mb"])
         r["result"] = json.loads((out / "result.json").read_text()) if (out / "result.json").exists() else {}
         r["ipopt"] = ipopt_log.parse(log_o)
         return r
 
     ocdsl_run(warm)                                   # fills the warm cache, not measured
+    order = ("cold", "casadi", "warm") + (("served",) if serve_dir else ())
     for i in range(runs):
-        for who in (("cold", "casadi", "warm") if i % 2 == 0 else ("warm", "casadi", "cold")):
-            if who == "cold":
+        for who in (order if i % 2 == 0 else order[::-1]):
+            if who == "served":
+                runs_of["served"].append(ocdsl_run(warm, served=True))
+            elif who == "cold":
                 shutil.rmtree(cold, ignore_errors=True)
                 runs_of["cold"].append(ocdsl_run(cold))
             elif who == "warm":
@@ -96,6 +115,7 @@ def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | No
                 runs_of["casadi"].append(r)
     return {"name": problem_file.stem if segments is None else f"{problem_file.stem} K={segments}",
             "ocdsl": summarize(runs_of["cold"], "ocdsl"), "ocdsl_warm": summarize(runs_of["warm"], "ocdsl"),
+            "ocdsl_served": summarize(runs_of["served"], "ocdsl") if serve_dir else None,
             "casadi": summarize(runs_of["casadi"], "casadi")}
 
 
@@ -144,6 +164,7 @@ def table(cases: list[dict]) -> str:
     for c in cases:
         k = c["casadi"]
         tools = [("ocdsl cold", c["ocdsl"])] + ([("ocdsl warm", c["ocdsl_warm"])] if c.get("ocdsl_warm") else [])
+        tools += [("ocdsl served", c["ocdsl_served"])] if c.get("ocdsl_served") else []
         for who, s in tools + [("CasADi", k)]:
             o = s
             ratio_w = f"{o['wall'] / k['wall']:.2f}" if who != "CasADi" and k["wall"] else ""
@@ -256,20 +277,43 @@ def scaling(problem_file: Path, segments: list[int], work: Path, repeat: int = 3
     return "\n".join(lines), fit
 
 
+def _serve_env(serve_dir: Path) -> dict:
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("OCDSL_NO_CACHE", "PYTHONDONTWRITEBYTECODE", "OCDSL_NO_SERVE")}
+    return {**env, "OCDSL_SERVE_DIR": str(serve_dir)}
+
+
+def _start_server(serve_dir: Path) -> tuple[Path | None, dict | None]:
+    """A server for the served rows (its start measured, as a whole process), or None where
+    the console script is not installed."""
+    cmd = _ocdsl_cmd()
+    if len(cmd) != 1:
+        return None, None
+    r = _run(cmd + ["serve", "start", "--idle", "3600"], serve_dir, _serve_env(serve_dir))
+    return (serve_dir if r["rc"] == 0 else None), r
+
+
 def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("reports/bench/peers.md"),
                scaling_file: Path | None = None, scaling_segments: list[int] | None = None,
                series_solve: list[int] | None = None, scaling_repeat: int = 3) -> str:
     from .core import machine
 
     cases = []
-    with tempfile.TemporaryDirectory(prefix="ocdsl-bench-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="ocdsl-bench-") as tmp, \
+            tempfile.TemporaryDirectory(prefix="osb", dir="/tmp") as serve_dir:   # AF_UNIX: short
         tmp = Path(tmp)
-        for i, f in enumerate(files):
-            print(f"  {f}", file=sys.stderr)
-            cases.append(bench_case(Path(f), tmp / f"case{i}", runs))
-        for K in series_solve or []:
-            print(f"  {scaling_file} K={K}", file=sys.stderr)
-            cases.append(bench_case(Path(scaling_file), tmp / f"series{K}", runs, segments=K))
+        serve_dir, serve_start = _start_server(Path(serve_dir))
+        try:
+            for i, f in enumerate(files):
+                print(f"  {f}", file=sys.stderr)
+                cases.append(bench_case(Path(f), tmp / f"case{i}", runs, serve_dir=serve_dir))
+            for K in series_solve or []:
+                print(f"  {scaling_file} K={K}", file=sys.stderr)
+                cases.append(bench_case(Path(scaling_file), tmp / f"series{K}", runs, segments=K,
+                                        serve_dir=serve_dir))
+        finally:
+            if serve_dir is not None:
+                _run(_ocdsl_cmd() + ["serve", "stop"], tmp, _serve_env(serve_dir))
         scale_text = ""
         if scaling_file is not None and scaling_segments:
             scale_text, _ = scaling(Path(scaling_file), scaling_segments, tmp, repeat=scaling_repeat)
@@ -287,7 +331,14 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
             "over iterations; outside Ipopt = share of the process wall not in Ipopt (with or without "
             "function evaluations). Ratios are ocdsl/CasADi. With `method.starts` > 1 both run every start, but Ipopt rewrites its "
             "output file per solve, so the Ipopt columns are the last start's and the other starts' "
-            "Ipopt time falls into hand-over.\n\n" + table(cases) + "\n")
+            "Ipopt time falls into hand-over. "
+            + ("ocdsl served: `ocdsl run` with an `ocdsl serve` running (ocdsl/serve; warm cache): "
+               "CPU = the console script's process plus the forked worker that ran the command; "
+               "peak MB = the worker's, which Linux counts with the server's pages; start-up+imports = "
+               "the client's process and the fork. The server's own start, paid once and not in these "
+               f"rows: {serve_start['wall']:.2f} s wall, {serve_start['cpu']:.2f} s CPU (`ocdsl serve start`)."
+               if serve_dir is not None else "No `ocdsl serve` rows: the console script is not installed.")
+            + "\n\n" + table(cases) + "\n")
     if scale_text:
         text += (f"\n## Scaling: build time and memory against segments ({Path(scaling_file).stem}, no solve)\n\n"
                  + scale_text + "\n")

@@ -109,6 +109,6 @@ def served(argv: list[str]) -> int | None:
     if log:
         with open(log, "a") as f:
             f.write(json.dumps({"argv": argv[1:], "rc": status["rc"], "worker_pid": pid,
-                                "worker_cpu_s": status["cpu_s"],
+                                "worker_cpu_s": status["cpu_s"], "worker_rss_mb": status["rss_mb"],
                                 "wall_s": time.perf_counter() - t0}) + "\n")
     return int(status["rc"])

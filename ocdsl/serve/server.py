@@ -277,8 +277,10 @@ def _worker(conn: socket.socket) -> None:
             me = resource.getrusage(resource.RUSAGE_SELF)
             kids = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+            # peak resident memory as Linux counts it for a fork: the server's pages included
+            rss = max(me.ru_maxrss, kids.ru_maxrss) / 1024.0
             try:
-                conn.sendall(json.dumps({"rc": rc, "cpu_s": cpu}).encode() + b"\n")
+                conn.sendall(json.dumps({"rc": rc, "cpu_s": cpu, "rss_mb": rss}).encode() + b"\n")
             except OSError:
                 pass
         os._exit(rc if 0 <= rc < 256 else 1)
