@@ -154,7 +154,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     if not spec.symbolic:
         budget.notes.append("symbolic steps off (mesh: {symbolic: false}): no boundary controls, "
                             "state-constrained arcs located from the control polynomials only")
-    switch_memory: dict = {}   # per phase: previous (breakpoint, dJ*/ds) of each pinned switch (switches.py)
+    switch_memory: dict = {}   # per phase: records (breakpoint, dJ*/ds, lo, hi) of the pinned switches (switches.py)
     noted = 0            # budget notes already printed
     from ...progress import Stage
 

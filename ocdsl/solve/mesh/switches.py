@@ -18,7 +18,10 @@ free initial or final time only (see ``move_switches``). The partial derivatives
 the breakpoint moved by ``DELTA`` (same nodes, same variables, same constraints: only the node
 times and segment widths change), evaluated by the two models' NumPy NLPs where they have one. The stationary breakpoint is then found by a secant on
 s_b -> dJ*/ds_b across mesh iterations (``memory``), its first step a fixed fraction of the
-neighbouring segments (no curvature known yet).
+neighbouring segments (no curvature known yet). A record of the memory is paired with the switch
+whose breakpoint it belongs to (``_pair_records``), not with the switch's order among those located:
+a locator that misses one switch, or finds a spurious one, would pair one switch's derivative with
+another's breakpoint and make the secant's target meaningless.
 """
 from __future__ import annotations
 
@@ -99,13 +102,38 @@ def _moved(tr, phase: str, q: int, step: float) -> dict:
     return meshes
 
 
+def _pair_records(records: list, points) -> list:
+    """For each breakpoint in ``points`` (one per switch located this iteration), the index in
+    ``records`` of the previous record of the same switch, or None. A record is
+    ``(breakpoint, dJ*/ds, lo, hi)``, lo and hi the neighbouring breakpoints when it was
+    written (the outer ends of its two segments). Criterion: a record can belong to a breakpoint only when the breakpoint lies
+    strictly inside the record's (lo, hi) -- ``move_switches`` clamps every move within those two
+    segments, and ``refine`` puts the breakpoint on the moved target, so the same switch is found
+    there next iteration whatever refinement did to the segments around it, while a switch beyond
+    a neighbouring breakpoint of the record is another one. Among those candidates the nearest
+    pairs first, and each record serves one switch at most (two located switches never share
+    one, and a spurious switch between two real ones gets a record only a real one left)."""
+    pts = [float(b) for b in points]
+    cand = sorted((abs(r[0] - b), i, j) for i, b in enumerate(pts) for j, r in enumerate(records)
+                  if r[2] < b < r[3])
+    out: list = [None] * len(pts)
+    used = set()
+    for _, i, j in cand:
+        if out[i] is None and j not in used:
+            out[i] = j
+            used.add(j)
+    return out
+
+
 def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, memory: dict,
                   objective: float) -> dict:
     """Per phase: the features with those on breakpoint-pinned switches replaced by the
     breakpoint the secant on dJ*/ds predicts (left as they are when that is within
     ``corner_tolerance`` or the derivative is insignificant). ``switches``: per phase, the
-    bound-to-bound switches located this iteration; ``memory``: per phase and switch order,
-    the previous (breakpoint, derivative). ``resolve(meshes)``: the objective of a
+    bound-to-bound switches located this iteration; ``memory``: per phase, the list of previous
+    records (breakpoint, derivative, lo, hi) of the switches (``_pair_records``), replaced by this
+    iteration's: a record no located switch is paired with is dropped, one whose switch is
+    located but not moved this time is kept. ``resolve(meshes)``: the objective of a
     warm-started solve on other meshes (None when it fails)."""
     import pyomo.core as pyo
 
@@ -124,9 +152,15 @@ def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, me
             continue
         bps = np.asarray(pb.layout.mesh.breakpoints, float)
         feats = list(features.get(name, []))
-        mem = memory.setdefault(name, {})
-        for order, f in enumerate(sorted(switches.get(name, []))):
-            q = int(np.argmin(np.abs(bps - f)))
+        located = sorted(switches.get(name, []))
+        qs = [int(np.argmin(np.abs(bps - f))) for f in located]
+        records = list(memory.get(name, []))
+        pairing = _pair_records(records, [bps[q] for q in qs])
+        # the switches located this time keep their records until replaced below; the records
+        # of switches not located this time (missed, or never real) are dropped
+        mem = {k: records[j] for k, j in enumerate(pairing) if j is not None}   # by order, this time
+        for order, f in enumerate(located):
+            q = qs[order]
             if not (0 < q < len(bps) - 1):
                 continue
             width = min(bps[q] - bps[q - 1], bps[q + 1] - bps[q])
@@ -140,7 +174,7 @@ def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, me
             if not math.isfinite(g):
                 continue
             prev = mem.get(order)
-            mem[order] = (bps[q], g)
+            mem[order] = (float(bps[q]), g, float(bps[q - 1]), float(bps[q + 1]))
             # insignificant: moving the breakpoint by corner_tolerance changes J by far less
             # than the tolerance asks of it
             if pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
@@ -174,5 +208,6 @@ def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, me
             elif not pinned:
                 # the secant says the breakpoint is where it belongs: the switch counts as on it
                 feats = [float(bps[q]) if abs(x - f) <= tol else x for x in feats]
+        memory[name] = [mem[k] for k in sorted(mem)]
         out[name] = sorted(feats)
     return out
