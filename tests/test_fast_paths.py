@@ -161,8 +161,9 @@ def test_lagrange_cost_with_free_time_keeps_the_hessian_sparse(configs, tmp_path
 
 @pytest.mark.ipopt
 def test_console_entry_writes_the_whole_run_folder_and_keeps_exit_codes(configs, tmp_path):
-    """The console script skips CPython's final collection (ocdsl.cli.entry); the run folder
-    must still be complete and the exit codes unchanged."""
+    """The console script (ocdsl.serve.client.entry: ocdsl.cli.entry when no server runs)
+    skips CPython's final collection; the run folder must still be complete and the exit
+    codes unchanged."""
     import csv
     import json
     import subprocess
@@ -170,7 +171,7 @@ def test_console_entry_writes_the_whole_run_folder_and_keeps_exit_codes(configs,
     import tomllib
 
     scripts = tomllib.loads((configs.parent / "pyproject.toml").read_text())["project"]["scripts"]
-    assert scripts["ocdsl"] == "ocdsl.cli:entry"
+    assert scripts["ocdsl"] == "ocdsl.serve.client:entry"
     out = tmp_path / "run"
     proc = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", "-q", str(configs / "brachistochrone.yaml"),
                            "--out", str(out)], capture_output=True, text=True)

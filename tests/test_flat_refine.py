@@ -71,11 +71,11 @@ def test_paper_setting_is_not_verified_and_refinement_reaches_the_optimum():
     # the paper's numbers are kept: within the printed row's 0.1 kg / 0.5 %
     assert paper["objective"] == pytest.approx(153.747, abs=0.1)
     # the refinement stops once two verified levels agree in the objective (to the tolerance);
-    # the Result is the coarser of the two, the one the finer level confirmed
-    last, finer = levels[-2], levels[-1]
-    assert last["verification"] == finer["verification"] == "verified"
+    # the Result is the finer of the two
+    previous, last = levels[-2], levels[-1]
+    assert previous["verification"] == last["verification"] == "verified"
     assert all(lv["verification"] == "failed" for lv in levels[:-2])
-    assert abs(last["objective"] - finer["objective"]) <= 1e-6 * max(1.0, abs(last["objective"]))
+    assert abs(previous["objective"] - last["objective"]) <= 1e-6 * max(1.0, abs(last["objective"]))
     assert res.extra["refinement"]["objective_settled"] is True and res.status == "optimal"
     assert res.extra["refinement"]["tolerance"] == 1e-6
     assert last["reintegration_miss"] <= 1e-6 < paper["reintegration_miss"]
