@@ -172,3 +172,29 @@ def test_ctrl_c_reaches_the_worker(server, tmp_path):
     assert p.returncode == 130, err[-2000:]
     if (tmp_path / "big" / "result.json").exists():
         assert json.loads((tmp_path / "big" / "result.json").read_text())["status"] == "interrupted"
+
+
+def test_a_server_that_does_not_answer_is_not_waited_for_nor_run_twice(server, tmp_path, monkeypatch, capfd):
+    """A stopped server (SIGSTOP): the client gives up after its timeout with exit 1 and a
+    message, and does not also run the command itself; the request left behind is not run
+    when the server resumes (the worker's hello meets a closed socket)."""
+    from ocdsl.serve import client
+
+    folder, env = server
+    (pid_file,) = folder.glob("*.pid")
+    pid = int(pid_file.read_text())
+    monkeypatch.setattr(address, "code_key", lambda: pid_file.stem)
+    monkeypatch.setattr(client, "HELLO_TIMEOUT", 1.0)
+    monkeypatch.setenv(address.ENV_DIR, str(folder))
+    out = tmp_path / "never"
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        rc = client.served(["ocdsl", "run", str(DI), "--out", str(out), "-q"])
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    assert rc == 1 and "did not answer" in capfd.readouterr().err
+    time.sleep(3.0)
+    assert not out.exists()
+    # and the server still serves
+    ok = _ocdsl(env, "run", str(DI), "--out", str(tmp_path / "after"), "-q")
+    assert ok.returncode == 0 and _served(folder)[-1]["rc"] == 0

@@ -25,6 +25,7 @@ from . import address
 
 # the worker forwards these to the command as it would arrive at a process of its own
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+HELLO_TIMEOUT = 20.0
 
 
 def entry() -> None:
@@ -73,6 +74,9 @@ def served(argv: list[str]) -> int | None:
         return None
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     t0 = time.perf_counter()
+    # the server forks at once and the worker answers within milliseconds; a stopped
+    # (SIGSTOP) or swamped server is not waited for
+    sock.settimeout(HELLO_TIMEOUT)
     try:
         sock.connect(str(path))
         umask = os.umask(0)
@@ -82,12 +86,21 @@ def served(argv: list[str]) -> int | None:
         socket.send_fds(sock, [b"F"], [0, 1, 2])
         sock.sendall(len(request).to_bytes(8, "little") + request)
         hello = _read_line(sock)
+    except socket.timeout:
+        # the request may still reach a worker later: running the command here too could run
+        # it twice, so say so and stop
+        sock.close()
+        print(f"ocdsl: the server at {path} did not answer within {HELLO_TIMEOUT:g} s; "
+              f"run `ocdsl serve stop`, or set {address.ENV_OFF}=1 to run without it",
+              file=sys.stderr)
+        return 1
     except OSError:
         sock.close()
         return None
     if not hello:           # the worker never started the command: run it here
         sock.close()
         return None
+    sock.settimeout(None)   # the command itself takes as long as it takes
     pid = json.loads(hello)["pid"]
 
     def forward(signum, _frame):
