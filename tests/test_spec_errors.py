@@ -257,3 +257,15 @@ def test_a_bare_number_in_expect_is_the_value_with_the_default_tolerance(tmp_pat
     path.write_text(text.replace("  tf: {value: 2.0, rtol: 1.0e-4}\n", "  tf: true\n"))
     with pytest.raises(SpecError):
         compile_file(path)
+
+
+def test_a_name_declared_as_a_scalar_is_one_error_not_a_knock_on(tmp_path):
+    """`controls: u` (not a list) is one error with the list it meant; the dynamics' use of
+    `u` is not reported as an unknown name, while an independent mistake still is."""
+    text = GOOD.replace("controls: [u]", "controls: u")
+    assert text != GOOD
+    issues = _issues(tmp_path, text)
+    assert [i.message for i in issues] == ["model.controls: a list of names is expected, e.g. controls: [u]"], issues
+    issues = _issues(tmp_path, text.replace("v: u\n", "v: u + q\n"))
+    assert [i.message.split(" (")[0] for i in issues] == [
+        "model.controls: a list of names is expected, e.g. controls: [u]", "unknown name 'q'"], issues

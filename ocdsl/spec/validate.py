@@ -3,6 +3,7 @@ most specific one per location, and what is left valid for the compiler to check
 (so that a file's independent mistakes come in one pass)."""
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import pydantic
@@ -40,6 +41,7 @@ def _schema_issues(located: Located, errors: list, root: tuple | None = None) ->
 
 
 SPLICED = ("constraints", "links")
+DECLARED_LISTS = ("states", "controls")
 
 
 def splice_lists(located: Located) -> None:
@@ -107,6 +109,15 @@ def _set_aside(data, loc: tuple) -> None:
         else:
             return
     if isinstance(parent, dict) and loc and loc[-1] in parent:
+        value = parent[loc[-1]]
+        if loc[-1] in DECLARED_LISTS and isinstance(value, (str, dict)):
+            # `controls: u`: its error is reported; the names it meant stay declared for the
+            # rest of the compile, so their uses are not reported as unknown names too
+            names = re.findall(r"[A-Za-z_]\w*", value) if isinstance(value, str) else \
+                [k for k in value if isinstance(k, str)]
+            if names:          # (a repaired value that still fails is deleted next round)
+                parent[loc[-1]] = names
+                return
         del parent[loc[-1]]
 
 
@@ -125,11 +136,19 @@ def _issue_from_pydantic(located: Located, err: dict, root: tuple | None = None)
                 msg += did_you_mean(loc[-1], _known_keys(loc[:-1]))
     elif err["type"] == "missing":
         msg = f"missing required key '{loc[-1]}'"
+    elif err["type"] == "list_type" and loc and loc[-1] in DECLARED_LISTS:
+        msg = f"a list of names is expected, e.g. {loc[-1]}: [{_example_names(err.get('input'))}]"
     if loc and isinstance(loc[-1], str) and ("(" in loc[-1]) != (")" in loc[-1]):
         # YAML split `{a: f(x, y)}` at the comma: the tail became a key
         msg += "; inside { } a comma ends the value: quote an expression with commas, e.g. {a: 'f(x, y)'}"
     where = ".".join(str(p) for p in loc) or "top level"
     return located.issue(loc, f"{where}: {msg}", _source_line(located, loc))
+
+
+def _example_names(value) -> str:
+    names = re.findall(r"[A-Za-z_]\w*", value) if isinstance(value, str) else \
+        [k for k in value if isinstance(k, str)] if isinstance(value, dict) else []
+    return ", ".join(names) or "x, v"
 
 
 def _document_loc(loc) -> tuple:
