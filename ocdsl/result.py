@@ -121,6 +121,17 @@ class Result(ResultViews):
 
     # ---- Python API -------------------------------------------------------------
     @property
+    def t0(self) -> float | dict[str, float] | None:
+        """The initial time where the problem leaves it free (the trajectory's first row; per
+        phase name when several phases have one, as ``tf``), else None."""
+        described = (self.problem or {}).get("phases", {})
+        free = {p.name: float(p.time[0]) for p in self.phases
+                if len(p.time) and (described.get(p.name) or {}).get("t0") == "free"}
+        if not free:
+            return None
+        return free["main"] if len(self.phases) == 1 and list(free) == ["main"] else free
+
+    @property
     def ok(self) -> bool:
         """The CLI's exit code 0: the solver converged, every expect check passed, the
         independent verification passed (or does not apply to the back end, or the file
@@ -159,7 +170,11 @@ class Result(ResultViews):
 
     # ---- run folder ---------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
-        data = asdict(self)
+        data = {}
+        for key, value in asdict(self).items():
+            data[key] = value
+            if key == "tf":     # a free initial time beside the final time (every back end)
+                data["t0"] = self.t0
         data.pop("phases")
         data.pop("tables")
         data["phases"] = [{"name": p.name, "file": _trajectory_file(p.name, len(self.phases)),

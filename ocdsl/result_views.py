@@ -73,12 +73,11 @@ class ResultViews:
         rows = []
         if self.objective is not None:
             rows.append(("objective", f"{self.objective:.10g}"))
-        described = (self.problem or {}).get("phases", {})
-        free_start = [p for p in self.phases if len(p.time) and (described.get(p.name) or {}).get("t0") == "free"]
-        if len(free_start) == 1 and len(self.phases) == 1:
-            rows.append(("initial time", f"{free_start[0].time[0]:.10g}"))
-        elif free_start:
-            rows.append(("initial times", ", ".join(f"{p.name} {p.time[0]:.8g}" for p in free_start)))
+        t0 = getattr(self, "t0", None)
+        if isinstance(t0, dict):
+            rows.append(("initial times", ", ".join(f"{k} {v:.8g}" for k, v in t0.items())))
+        elif t0 is not None:
+            rows.append(("initial time", f"{t0:.10g}"))
         if isinstance(self.tf, dict):
             rows.append(("final times", ", ".join(f"{k} {v:.8g}" for k, v in self.tf.items())))
         elif self.tf is not None:

@@ -50,3 +50,14 @@ def test_a_guessed_free_t0_solves_to_the_optimum(tmp_path):
     # a free start is printed, as a free final time is
     row = next(line for line in res.summary().splitlines() if "initial time" in line)
     assert float(row.split()[-1]) == pytest.approx(5 - T, rel=1e-6)
+    # and written to result.json beside tf, read back by ocdsl.read; a fixed start has none
+    import json
+
+    import ocdsl
+
+    assert json.loads((tmp_path / "run" / "result.json").read_text())["t0"] == pytest.approx(5 - T, rel=1e-6)
+    assert ocdsl.read(tmp_path / "run").t0 == pytest.approx(5 - T, rel=1e-6)
+    fixed_start = tmp_path / "g.yaml"
+    fixed_start.write_text(_FREE_T0.replace("t0: free", "t0: 1"))
+    fixed = run_file(fixed_start, out_dir=tmp_path / "fixed")
+    assert fixed.t0 is None and json.loads((tmp_path / "fixed" / "result.json").read_text())["t0"] is None
