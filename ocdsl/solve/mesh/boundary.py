@@ -48,7 +48,7 @@ def _derive(ph, max_order: int) -> dict:
 
 def _numeric_root(c_fun, lo: float, hi: float):
     """x..., t, p... -> the control u in [lo, hi] with c(x, u, t, p) = 0 (NaN without one)."""
-    from scipy.optimize import brentq
+    from .roots import brentq
 
     a = lo if math.isfinite(lo) else -1e6
     b = hi if math.isfinite(hi) else 1e6

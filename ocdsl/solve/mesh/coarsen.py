@@ -138,7 +138,7 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=
     (``boundary_controls``), when it stays within ``threshold`` (relative, as the error
     estimate) of the collocated states on the arc's nodes and within the control's bounds;
     else None. Phases with free parameters are not tried."""
-    from scipy.integrate import solve_ivp
+    from ...verify import dop853
 
     ph, lay = pb.phase, pb.layout
     X, U, t0, tf = solution_arrays(pb)
@@ -167,8 +167,7 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=
         x0 = state_at(lay, X, U, a)
         try:
             with np.errstate(all="ignore"):
-                sol = solve_ivp(rhs, (ta, tb), x0, method="DOP853", t_eval=t_eval,
-                                rtol=1e-11, atol=1e-11 * xscale)
+                sol = dop853.solve(rhs, (ta, tb), x0, t_eval, 1e-11, 1e-11 * xscale)
         except Exception:
             continue
         if not sol.success or sol.y.shape[1] != len(t_eval):

@@ -56,7 +56,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
     either way the collocated state is that close to a trajectory of the system; the
     smoothing keeps node-to-node chattering of a weakly determined control (singular arcs)
     from being taken for a state error and split forever."""
-    from scipy.integrate import solve_ivp
+    from ...verify import dop853
 
     from ...transcribe.nodes import legendre_gauss_lobatto
 
@@ -105,8 +105,8 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
             # the integrals ride along from 0: their increment over the segment against the
             # NLP's quadrature of it (a control that zigzags between the nodes can make the
             # quadrature of sqrt(1 + u^2) or |u| far from its integral: hanging chain, L1 costs)
-            sol = solve_ivp(rhs, (ta, tb), np.concatenate([x_start, np.zeros(nq)]), method="DOP853",
-                            t_eval=t_f, rtol=rtol, atol=rtol * np.concatenate([scale, scale_q]))
+            sol = dop853.solve(rhs, (ta, tb), np.concatenate([x_start, np.zeros(nq)]), t_f,
+                               rtol, rtol * np.concatenate([scale, scale_q]))
             ok = sol.success and sol.y.shape[1] == len(t_f)
             x_int = sol.y[:nx].T if ok else np.full_like(x_poly, np.nan)
             if nq:
@@ -127,8 +127,8 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
                      for j in range(nu))
         if smooth_above is not None and disc > smooth_above and h > 0 and nu and inside:
             usm = _smoothed_control(lay, k, U, ulo, uhi, t0, tf)
-            sol2 = solve_ivp(lambda t, x: np.asarray(f(*x, *usm(t), t, *pvals), float).reshape(-1),
-                             (ta, tb), x_start, method="DOP853", t_eval=t_f, rtol=rtol, atol=rtol * scale)
+            sol2 = dop853.solve(lambda t, x: np.asarray(f(*x, *usm(t), t, *pvals), float).reshape(-1),
+                                (ta, tb), x_start, t_f, rtol, rtol * scale)
             if sol2.success and sol2.y.shape[1] == len(t_f):
                 rel2 = np.abs(sol2.y.T - x_poly) / scale
                 if np.isfinite(rel2).all() and float(np.max(rel2)) < disc:
@@ -239,7 +239,7 @@ def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
     """The phase re-integrated from x(t0) over all its segments (see ``PhaseEnd``): what the
     terminal conditions and the integrals really are at the returned t_f. ``start``: another
     initial state (``flight_amplification``)."""
-    from scipy.integrate import solve_ivp
+    from ...verify import dop853
 
     from ...verify.checks import state_scale
 
@@ -277,8 +277,8 @@ def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
                 return dx
             return np.concatenate([dx, np.asarray(qf(*z[:nx], *u, t, *pvals), float).reshape(-1)])
 
-        sol = solve_ivp(rhs, (ta, tb), y, method="DOP853", rtol=rtol, atol=atol)
-        if not sol.success:
+        sol = dop853.solve(rhs, (ta, tb), y, np.array([tb]), rtol, atol)
+        if not sol.success or sol.y.shape[1] != 1:
             y = np.full_like(y, np.nan)
             break
         y = sol.y[:, -1]

@@ -86,7 +86,7 @@ def _corner(mesh, k, errors, controls, tol):
     not used: there the discrete solution smears the corner over the nodes next to
     whatever breakpoint is nearest. A jump (bang-bang) gives no crossing: None.
     """
-    from scipy.optimize import brentq
+    from .roots import brentq
 
     sides = _smooth_neighbours(mesh, k, errors) if controls is not None else None
     if sides is None:
@@ -128,7 +128,7 @@ def _jump(mesh, k, errors, controls, U, lay):
     the quadrature of the collocated control (the same impulse as ``locate_switches``, with
     the neighbours' controls in place of the bounds), for the control with the largest jump.
     """
-    from scipy.optimize import brentq
+    from .roots import brentq
 
     sides = _smooth_neighbours(mesh, k, errors) if controls is not None else None
     if sides is None:
@@ -189,7 +189,7 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
     (exact for a linear map; measured on configs/mesh_bryson_denham.yaml: the entry
     1.1e-5 -> 9.1e-6 by the plain estimate, then 3.6e-10 by one secant step).
     """
-    from scipy.optimize import brentq
+    from .roots import brentq
 
     ph, lay = pb.phase, pb.layout
     mesh = lay.mesh

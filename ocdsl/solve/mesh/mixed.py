@@ -47,7 +47,7 @@ def locate_mixed_junctions(pb, params: dict) -> list[float]:
     around the breakpoint 7e-5 (normalised) before the exit were refined to degree 11 without
     meeting the tolerance.
     """
-    from scipy.optimize import brentq
+    from .roots import brentq
 
     ph, lay = pb.phase, pb.layout
     idx = _mixed(ph)
