@@ -63,6 +63,20 @@ def test_cold_and_warm_runs_import_no_scipy_and_agree(configs, tmp_path, name):
 
 
 
+@pytest.mark.ipopt
+@pytest.mark.parametrize("name", ["mesh_double_integrator", "mesh_bryson_denham"])
+def test_adaptive_mesh_runs_import_no_scipy(configs, tmp_path, name):
+    """The mesh stage's estimates, switch and corner location and coarsening use ocdsl's
+    DOP853 and Brent root finder (importing scipy.integrate and scipy.optimize was 0.4-0.8 s)."""
+    import os
+
+    mods = _run(configs / f"{name}.yaml", tmp_path / "run", {**os.environ})
+    assert not _loaded(mods, HEAVY), _loaded(mods, HEAVY)
+    res = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert res["status"] == "optimal" and res["verification"]["status"] == "verified"
+    assert res["extra"]["mesh"]["iterations"] >= 2           # the refinement ran
+
+
 _WINDOWS = """
 import gc, sys
 from ocdsl import startup
