@@ -269,3 +269,15 @@ def test_a_name_declared_as_a_scalar_is_one_error_not_a_knock_on(tmp_path):
     issues = _issues(tmp_path, text.replace("v: u\n", "v: u + q\n"))
     assert [i.message.split(" (")[0] for i in issues] == [
         "model.controls: a list of names is expected, e.g. controls: [u]", "unknown name 'q'"], issues
+
+
+def test_a_dynamics_mistake_does_not_hide_the_objectives(tmp_path):
+    """An unknown name in the dynamics and an unknown function in the objective: both are
+    reported in one pass (the objective used to go unchecked until the dynamics were fixed),
+    and nothing else."""
+    text = ("name: two\nmodel:\n  states: [x]\n  controls: [u]\n  dynamics: {x: u + yy}\n"
+            "problem:\n  time: {t0: 0, tf: 1}\n  constraints: [x(t0) == 0, x(tf) == 1]\n"
+            "  objective: minimize integral(u**2 + sinn(x))\n")
+    issues = _issues(tmp_path, text)
+    assert [(i.line, i.message.split(" (")[0]) for i in issues] == [
+        (5, "unknown name 'yy'"), (9, "unknown function 'sinn'")], issues

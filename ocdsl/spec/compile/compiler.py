@@ -137,7 +137,6 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
 
     def build_problem(self) -> Problem:
         spec = self.spec
-        before = len(self.issues)     # the method's issues do not stop the problem's checks
         self.used_overrides: set[str] = set()
         self.constants_in_force: dict[str, float] = {}
         top_params = self.parameters(spec.parameters, ("parameters",))
@@ -158,10 +157,13 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 mdl = self.model(ph.model, ("phases", name, "model")) if ph.model else base_model
                 phases.append(self.phase(name, mdl, ph.time, ph.constraints, ph.guess, ("phases", name), top_params,
                                          ph.parameters))
-        dropped = None in phases      # its error may be a table's, reported before `before`
+        dropped = None in phases      # its error may be a table's, reported before
         phases = [p for p in phases if p is not None]
-        if len(self.issues) > before or (dropped and self.issues):
+        if dropped and self.issues:
             raise SpecError(self.issues)
+        # every phase stands (its names declared; a right-hand side that did not compile is
+        # recorded): its constraints and the objective are compiled too, so that their own
+        # mistakes come in the same pass; the file is refused at the end all the same
         boundary: list[Constraint] = []
         for ph, (phase_spec_loc, texts) in zip(phases, self._phase_constraint_texts()):
             boundary += self.constraints(ph, phases, texts, phase_spec_loc)

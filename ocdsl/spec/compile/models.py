@@ -115,7 +115,6 @@ class ModelCompiler:
                 continue
             e = self.guarded(loc + ("expressions", name), parse_expression, text, scope, True)
             if e is None or e.free_symbols & failed:
-                ok = False
                 names[name] = placeholder = sp.Dummy(name)
                 failed.add(placeholder)
                 continue
@@ -127,6 +126,7 @@ class ModelCompiler:
             names[name] = s      # later expressions and the dynamics may use it
         dynamics: dict[sp.Symbol, sp.Expr] = {}
         covered: set[str] = set()
+        unparsed = bool(failed)
         for name, text in m.dynamics.items():
             if name in m.states and name not in names:     # an invalid state name, reported above
                 ok = False
@@ -138,7 +138,7 @@ class ModelCompiler:
             covered.update(targets)
             e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope, len(targets) > 1)
             if e is None or e.free_symbols & failed:
-                ok = False
+                unparsed = True     # reported (or its root is); the declarations still hold
                 continue
             values = list(e) if is_vector(e) else [e]
             if len(values) != len(targets):
@@ -161,6 +161,13 @@ class ModelCompiler:
                            + did_you_mean(key, [k for k in names if k != "t"] + ["t"]))
         if not ok:
             return None
+        if unparsed:
+            # a right-hand side or named expression that did not compile: the model's names
+            # are sound, so the constraints and the objective are still compiled and their own
+            # mistakes reported in the same pass; the file is refused all the same (the issue
+            # is recorded), and the stand-in right-hand sides are never solved
+            for s in m.states:
+                dynamics.setdefault(names[s], sp.S.Zero)
         return Model(self.spec.name, tuple(names[s] for s in m.states), tuple(names[c] for c in m.controls),
                      dynamics, params, expressions, dict(m.units), "", tuple(m.positions), vectors)
 
