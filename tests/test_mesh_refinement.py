@@ -365,6 +365,47 @@ def test_meshes_within_tolerance_must_agree_in_the_objective(tmp_path):
     assert "disagree in the objective" in res.message
     within = [h["objective"] for h in res.extra["mesh_history"] if h.get("converged")]
     assert len(within) >= 2 and (max(within) - min(within)) / max(within) > 1e-6
+    _reports_the_last_mesh_within_tolerance(res)
+
+
+def _reports_the_last_mesh_within_tolerance(res):
+    last_within = [h for h in res.extra["mesh_history"] if h.get("converged")][-1]
+    assert res.extra["mesh"]["chosen_iteration"] == last_within["iteration"]
+    assert res.objective == pytest.approx(last_within["objective"], rel=1e-12)
+    assert f"(iteration {last_within['iteration']}) is reported" in res.message
+
+
+HARMONIC = """name: harmonic oscillator, minimum time to the origin
+model:
+  states: [x1, x2]
+  controls: [u]
+  dynamics: {x1: x2, x2: -x1 + u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x1(t0) == -4, x2(t0) == 1, x1(tf) == 0, x2(tf) == 0, 1 <= tf <= 20]
+  objective: minimize tf
+  guess: {tf: 7}
+method:
+  transcription: LGR
+  segments: 20
+  degree: 4
+  mesh: {tolerance: 1.0e-7, max_iterations: 25}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_disagreeing_run_reports_the_last_mesh_within_tolerance(tmp_path):
+    """The harmonic oscillator (u switches every pi; T* = 6.6204927886, a new user's file):
+    meshes 15-19 were within 1e-7 but 1.7e-7 apart in J, then the refinement ran on to its
+    25th mesh (error 2.3e-6), which was reported while the message named 'the last of them'.
+    The reported mesh is the last one within the tolerance."""
+    path = tmp_path / "harmonic.yaml"
+    path.write_text(HARMONIC)
+    res = ocdsl.load(path).solve()
+    assert res.status == "mesh_not_converged" and "disagree in the objective" in res.message
+    _reports_the_last_mesh_within_tolerance(res)
+    assert res.extra["mesh"]["max_error"] <= 1e-7
+    assert res.objective == pytest.approx(6.6204927886093525, rel=1e-6)
 
 
 def test_objective_agreement_rule():
