@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -150,36 +151,12 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         with timer.measure("build"):
             saved.restore()       # the best start's solution back in the shared model
     if best.status == "infeasible":
-        base = method.seed if seed is None else seed
-        guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed) for ph in problem.phases}
-        starts_tried = [guesses]
-        tried = "the guess" if starts == 1 else f"{starts} starts"
-        if any(ph.name not in previous for ph in problem.phases):
-            # a point of local infeasibility is a fact about one start (a guess with the controls
-            # at 0 makes z' = x u2 - y u1 degenerate): before diagnosing, one more start from
-            # seeded random controls, the one ``starts: N + 1`` would add
-            rs = base + starts
-            with timer.measure("diagnose"):
-                retry_guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=rs)
-                                 for ph in problem.phases}
-                rtr = build(problem, meshes, retry_guesses)
-                rscaled = _scale(file, rtr)
-                rinfo = ipopt.solve(rtr.model, file.spec.solver.options, verbose=verbose,
-                                    progress=ipopt.Progress(progress, "[retry]"), transcription=rtr)
-            records.append({**_start_record(starts, rs, rinfo), "retry": True})
-            tried += f" and from seeded random controls (seed {rs})"
-            starts_tried.append(retry_guesses)
-            if rinfo.status in ("optimal", "acceptable"):
-                rinfo.message += (f" (Solved from seeded random controls, seed {rs}: from {tried.split(' and ')[0]} "
-                                  "Ipopt had converged to a point of local infeasibility.)")
-                best, best_tr, scaled = rinfo, rtr, rscaled
-        if best.status == "infeasible":
-            from .solve.diagnose import elastic
-
-            with timer.measure("diagnose"):
-                named = elastic(problem, meshes, starts_tried, file.spec.solver.options, tried=tried)
-            # names the conditions themselves, not the rows Ipopt stopped on
-            best.message = named.strip() + " (Ipopt: " + best.message.split(" Constraints that Ipopt")[0] + ")"
+        recovered = recover_from_infeasibility(file, meshes, previous, timer, seed=seed, options=file.spec.solver.options,
+                                               info=best, tr=best_tr, verbose=verbose, progress=progress)
+        best, best_tr = recovered.info, recovered.tr
+        records += recovered.records
+        if recovered.scaled is not None:
+            scaled = recovered.scaled
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
@@ -190,6 +167,67 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
             result.extra["scaling"] = scaled
     result.wall_time_s = timer.breakdown()
     return result
+
+
+@dataclass
+class Recovered:
+    """What ``recover_from_infeasibility`` leaves: the solve to report and its transcription,
+    the retry's start record, the retry's guesses (None when it was not made or failed) and
+    its scaling."""
+    info: object
+    tr: object
+    records: list
+    guesses: dict | None = None
+    scaled: dict | None = None
+
+
+def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, seed, options, info, tr,
+                               verbose=False, progress=False, build_model=None) -> Recovered:
+    """A solve that ended locally infeasible: one more start from seeded random controls
+    (the one ``starts: N + 1`` would add; not where a previous run gives every phase its
+    guess), and if that ends infeasible too, the elastic diagnosis names the conditions that
+    cannot hold together (solve/diagnose.py) in the message. Used by the single solve and by
+    the first mesh of an adaptive one (``build_model(guesses)``: its own build of that mesh)."""
+    from .solve import ipopt
+    from .transcribe.guess import make_guess
+    from .transcribe.pseudospectral import build
+
+    problem, method = file.problem, file.method
+    starts = method.starts
+    base = method.seed if seed is None else seed
+    guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed) for ph in problem.phases}
+    starts_tried = [guesses]
+    tried = "the guess" if starts == 1 else f"{starts} starts"
+    out = Recovered(info, tr, [])
+    if any(ph.name not in previous for ph in problem.phases):
+        # a point of local infeasibility is a fact about one start (a guess with the controls
+        # at 0 makes z' = x u2 - y u1 degenerate): before diagnosing, one more start from
+        # seeded random controls
+        rs = base + starts
+        with timer.measure("diagnose"):
+            retry_guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=rs)
+                             for ph in problem.phases}
+            if build_model is None:
+                rtr = build(problem, meshes, retry_guesses)
+                rscaled = _scale(file, rtr)
+            else:
+                rtr, rscaled = build_model(retry_guesses), None
+            rinfo = ipopt.solve(rtr.model, options, verbose=verbose,
+                                progress=ipopt.Progress(progress, "[retry]"), transcription=rtr)
+        out.records.append({**_start_record(starts, rs, rinfo), "retry": True})
+        tried += f" and from seeded random controls (seed {rs})"
+        starts_tried.append(retry_guesses)
+        if rinfo.status in ("optimal", "acceptable"):
+            rinfo.message += (f" (Solved from seeded random controls, seed {rs}: from {tried.split(' and ')[0]} "
+                              "Ipopt had converged to a point of local infeasibility.)")
+            return Recovered(rinfo, rtr, out.records, retry_guesses, rscaled)
+    from .solve.diagnose import elastic
+
+    with timer.measure("diagnose"):
+        named = elastic(problem, meshes, starts_tried, file.spec.solver.options, tried=tried)
+    # names the conditions themselves, not the rows Ipopt stopped on
+    info.message = named.strip() + " (Ipopt: " + info.message.split(" Constraints that Ipopt")[0] + ")"
+    return out
 
 
 def _scale(file: LoadedFile, tr) -> dict | None:

@@ -77,3 +77,25 @@ def test_max_violation_tells_a_solved_model_from_its_guess():
     assert max_violation(tr) > 1e-3          # the guess does not fly the dynamics
     assert ipopt.solve(tr.model, {}, transcription=tr).status == "optimal"
     assert max_violation(tr) < 1e-6
+
+
+def test_with_mesh_refinement_the_first_mesh_gets_the_same_retry_and_diagnosis(tmp_path):
+    """`mesh:` used to stop at its first mesh with Ipopt's bare 'infeasible' (unseen4, the
+    harmonic oscillator): the first mesh now gets the single solve's retry from seeded random
+    controls, and the refinement goes on from it (Brockett's integrator, optimum 2 pi), or
+    the diagnosis when the problem is infeasible (u >= 1 with rest to rest)."""
+    p = tmp_path / "b.yaml"
+    p.write_text(BROCKETT.replace("method: {transcription: LGR, segments: 10, degree: 5}",
+                                  "method: {transcription: LGR, segments: 4, degree: 4, mesh: {tolerance: 1.0e-6}}"))
+    res = run_file(p, None)
+    starts = res.extra["starts"]
+    assert starts[0]["status"] == "infeasible" and starts[-1].get("retry") and starts[-1]["status"] == "optimal"
+    assert res.extra["mesh"]["iterations"] >= 1
+    assert res.status == "optimal" and abs(res.objective - 2 * math.pi) < 1e-6 * 2 * math.pi, res.message
+    u = tmp_path / "u.yaml"
+    u.write_text(ULOW.replace("method: {transcription: LGR, segments: 10, degree: 4}",
+                              "method: {transcription: LGR, segments: 4, degree: 4, mesh: {tolerance: 1.0e-6}}"))
+    res = run_file(u, None)
+    assert res.status == "infeasible"
+    assert "From the guess and from seeded random controls" in res.message, res.message
+    assert "cannot all be met from these starts" in res.message, res.message

@@ -115,7 +115,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from .. import warm_start as ws
     from ..failure_hints import failure_hints
 
-    from ...run import _better, _start_record
+    from ...run import _better, _start_record, recover_from_infeasibility
 
     ipopt.check_available()
     problem, spec = file.problem, file.method.mesh
@@ -203,6 +203,24 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         # trial models of this iteration (switches.py) start from the best start's guess
                         rebuild = functools.partial(rebuild, guesses=g)
                         reg = getattr(tr.model, "mesh_regularisation", None)
+        if it == 1 and info.status == "infeasible":
+            # as a single solve: one more start from seeded random controls, else the
+            # conditions that cannot hold together named (run.recover_from_infeasibility)
+            def first_mesh(g, rebuild=rebuild):
+                t = rebuild(meshes, guesses=g, collect=True)
+                ws.prepare(t.model)
+                return t
+
+            if not start_records:           # one start: recorded beside its retry, as a single solve does
+                start_records.append(_start_record(0, seed, info))
+            recovered = recover_from_infeasibility(
+                file, meshes, previous, timer, seed=seed if n_starts == 1 else base_seed, options=options,
+                info=info, tr=tr, verbose=verbose, progress=progress, build_model=first_mesh)
+            start_records += recovered.records
+            if recovered.guesses is not None:
+                tr, info = recovered.tr, recovered.info
+                rebuild = functools.partial(rebuild, guesses=recovered.guesses)
+                reg = getattr(tr.model, "mesh_regularisation", None)
         reg_value = None
         if reg is not None and info.objective is not None:
             # the objective of the problem itself: the regularisation term taken out
