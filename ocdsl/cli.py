@@ -134,7 +134,7 @@ def _summary(result, out: Path) -> None:
     from rich.table import Table
 
     from .progress import console
-    from .result_views import expect_error_text
+    from .result_views import expect_comparison
 
     con = console()
     ok = "green" if result.status == "optimal" else "red"
@@ -192,8 +192,7 @@ def _summary(result, out: Path) -> None:
     con.print(t)
     for c in result.expect:
         mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
-        con.print(f"  expect {c['name']}: {c['value']:.10g} vs {c['reference']:.10g} "
-                  f"({expect_error_text(c)}) {mark}")
+        con.print(f"  expect {expect_comparison(c)} {mark}")
     verdict = certificate_verdict(result.certificate)
     if verdict is not None:
         from .report.status import certificate_reason

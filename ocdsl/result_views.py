@@ -90,8 +90,7 @@ class ResultViews:
             rows.append(("wall time", f"{self.wall_time_s['total']:.3f} s"))
         lines += [f"  {k:<12} {v}" for k, v in rows]
         for c in self.expect:
-            lines.append(f"  expect {c['name']}: {c['value']:.10g} vs {c['reference']:.10g} "
-                         f"({expect_error_text(c)}) {'pass' if c.get('passed') else 'FAIL'}")
+            lines.append(f"  expect {expect_comparison(c)} {'pass' if c.get('passed') else 'FAIL'}")
         return "\n".join(lines)
 
     # ---- values between the rows ---------------------------------------------------------
@@ -183,6 +182,15 @@ class ResultViews:
         fig.suptitle(self.name, fontsize=10)
         fig.tight_layout()
         return fig
+
+
+def expect_comparison(check: dict[str, Any]) -> str:
+    """``NAME: VALUE vs REFERENCE (error)``, without the verdict; a run that ended before it had
+    the value (interrupted before the first iterate) says so instead of printing nan."""
+    value = check.get("value")
+    if value is None or not math.isfinite(value):
+        return f"{check['name']}: no value vs {check['reference']:.10g} (the run ended before it had one)"
+    return f"{check['name']}: {value:.10g} vs {check['reference']:.10g} ({expect_error_text(check)})"
 
 
 def expect_error_text(check: dict[str, Any]) -> str:

@@ -42,3 +42,19 @@ def test_a_mesh_not_converged_objective_is_not_called_a_last_iterate(tmp_path, c
     _summary(res, tmp_path)
     out = capsys.readouterr().out
     assert "last iterate" not in out and "1.25 (on the reported mesh; refinement not converged)" in out, out
+
+
+def test_an_expectation_without_a_value_says_so_not_nan(tmp_path, capsys):
+    """A run interrupted before its first iterate has no objective: the expect line said
+    'nan vs 2.867261 (relative error nan ...) FAIL' (unseen4)."""
+    check = {"name": "objective", "value": float("nan"), "reference": 2.867261, "rtol": 1e-6, "atol": None,
+             "error": float("nan"), "relative_error": float("nan"), "passed": False}
+    res = Result("r", "interrupted", expect=[check])
+    line = next(ln for ln in res.summary().splitlines() if "expect" in ln)
+    assert line.strip() == "expect objective: no value vs 2.867261 (the run ended before it had one) FAIL"
+    _summary(res, tmp_path)
+    out = capsys.readouterr().out
+    assert "no value vs 2.867261" in out and "nan" not in out
+    ok = {**check, "value": 2.8672611, "error": 1e-7, "relative_error": 3.5e-8, "passed": True}
+    assert "expect objective: 2.8672611 vs 2.867261 (relative error 3.50e-08, rtol 1.0e-06) pass" in \
+        Result("r", "optimal", expect=[ok]).summary()
