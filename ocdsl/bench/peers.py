@@ -50,7 +50,8 @@ def prepare(problem_file: Path, work: Path, segments: int | None = None) -> tupl
         data.setdefault("method", {})["segments"] = segments
     # the script solves the file's initial mesh once: so does ocdsl here (adaptive refinement
     # is compared with one solve in the mesh table, ocdsl.bench.mesh)
-    for method in [data.get("method") or {}] + [(p or {}).get("method") or {} for p in data.get("phases") or []]:
+    phases = (data.get("phases") or {}).values()          # phases: {name: phase}
+    for method in [data.get("method") or {}] + [(p or {}).get("method") or {} for p in phases]:
         method.pop("mesh", None)
     work.mkdir(parents=True, exist_ok=True)
     log_o, log_c = work / "ipopt_ocdsl.txt", work / "ipopt_casadi.txt"
