@@ -281,3 +281,17 @@ def test_a_dynamics_mistake_does_not_hide_the_objectives(tmp_path):
     issues = _issues(tmp_path, text)
     assert [(i.line, i.message.split(" (")[0]) for i in issues] == [
         (5, "unknown name 'yy'"), (9, "unknown function 'sinn'")], issues
+
+
+def test_an_unclosed_bracket_is_reported_where_it_opens(tmp_path):
+    """`time: {t0: 0, tf: 1` (no `}`): PyYAML stops at the next line's token; the error names
+    the line of the bracket, where the fix goes (unseen4 reported the line after it)."""
+    text = GOOD.replace("time: {t0: 0, tf: free}", "time: {t0: 0, tf: free")
+    assert text != GOOD
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if "time: {t0: 0, tf: free" in ln)
+    (issue,) = _issues(tmp_path, text)
+    assert issue.line == line and "'{' opened here is not closed" in issue.message, issue
+    text = GOOD.replace("states: [x, v]", "states: [x, v")
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if "states: [x, v" in ln)
+    (issue,) = _issues(tmp_path, text)
+    assert issue.line == line and "'[' opened here is not closed" in issue.message, issue

@@ -84,6 +84,13 @@ def load_yaml_text(text: str, name: str = "<string>") -> Located:
         if line is None and isinstance(getattr(e, "position", None), int):   # a ReaderError
             line = text.count("\n", 0, e.position) + 1
         msg = getattr(e, "problem", None) or str(e)
+        opened, context = getattr(e, "context_mark", None), getattr(e, "context", None) or ""
+        if mark and opened and "flow" in context and opened.line < mark.line:
+            # `time: {t0: 0, tf: 1` on line 7: PyYAML stops at the next line's token; the fix
+            # belongs where the bracket was opened
+            bracket = "{" if "mapping" in context else "["
+            msg = f"the '{bracket}' opened here is not closed ({msg} at line {mark.line + 1})"
+            line = opened.line + 1
         src = lines_of_text[line - 1].strip() if line and line <= len(lines_of_text) else ""
         raise SpecError([Issue(name, line, f"YAML syntax error: {msg}", src)]) from None
     if node is None:
