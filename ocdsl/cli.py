@@ -352,7 +352,7 @@ def serve_start(idle):
 
     try:
         st = start(idle)
-    except ServeError as e:
+    except (ServeError, OSError) as e:      # OSError: the socket folder cannot be made or written
         raise click.ClickException(str(e)) from None
     click.echo(f"ocdsl serve: pid {st['pid']}, socket {st['socket']}")
 

@@ -198,3 +198,23 @@ def test_a_server_that_does_not_answer_is_not_waited_for_nor_run_twice(server, t
     # and the server still serves
     ok = _ocdsl(env, "run", str(DI), "--out", str(tmp_path / "after"), "-q")
     assert ok.returncode == 0 and _served(folder)[-1]["rc"] == 0
+
+
+def test_a_stale_pid_file_never_signals_another_process(tmp_path):
+    """A server's pid file outlives a server the OS killed, and its number may be reused:
+    `serve stop --all` and `serve status` must not take that process for a server, nor
+    signal it."""
+    folder = Path(tempfile.mkdtemp(prefix="osp", dir="/tmp"))
+    other = subprocess.Popen(["sleep", "60"])
+    try:
+        (folder / "0123456789abcdef0123.pid").write_text(str(other.pid))
+        env = _env(folder)
+        p = _ocdsl(env, "serve", "stop", "--all")
+        assert p.returncode == 0 and "stopped nothing" in p.stdout, p.stdout
+        time.sleep(0.2)
+        assert other.poll() is None              # still running: it was not signalled
+        assert not (folder / "0123456789abcdef0123.pid").exists()   # ocdsl's own stale file is gone
+        assert _ocdsl(env, "serve", "status").returncode == 1
+    finally:
+        other.kill()
+        shutil.rmtree(folder, ignore_errors=True)

@@ -27,6 +27,7 @@ import struct
 import sys
 import time
 import traceback
+from pathlib import Path
 
 from . import address
 
@@ -51,15 +52,16 @@ def _pid_of(key: str) -> int | None:
 
 
 def _alive(pid: int | None) -> bool:
-    if pid is None:
+    """A running ocdsl server has this pid: a pid file outlives its server, and the number may
+    since belong to another process, which must never be signalled (its command line is
+    read from /proc; another user's process or a vanished one is not ours)."""
+    if pid is None or pid <= 0:
         return False
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
+        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
         return False
-    except PermissionError:
-        return True
-    return True
+    return any(part.endswith(b"ocdsl") for part in cmdline) and b"serve" in cmdline
 
 
 def status() -> dict:
