@@ -76,8 +76,7 @@ def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | No
     # PYTHONDONTWRITEBYTECODE would have every ocdsl run compile ocdsl's own modules from
     # source (~0.1 s of CPU on a source checkout) while CasADi loads its installed bytecode:
     # both children run as an installed package would, with bytecode (written by the fill run)
-    base = {k: v for k, v in os.environ.items() if k not in ("OCDSL_NO_CACHE", "PYTHONDONTWRITEBYTECODE")}
-    base["OCDSL_NO_SERVE"] = "1"          # the cold and warm rows run in processes of their own
+    base = {**_child_env(), "OCDSL_NO_SERVE": "1"}     # cold and warm rows: processes of their own
     runs_of: dict[str, list] = {"cold": [], "warm": [], "casadi": [], "served": []}
     served_log = work / "served.jsonl"
 
@@ -85,9 +84,8 @@ def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | No
         out = work / "run"
         shutil.rmtree(out, ignore_errors=True)
         env = {**base, "OCDSL_CACHE": str(cache_dir)}
-        if served:
-            env.pop("OCDSL_NO_SERVE")
-            env.update(OCDSL_SERVE_DIR=str(serve_dir), OCDSL_SERVE_LOG=str(served_log))
+        if served:     # the server's own environment, so that its fingerprint matches
+            env = {**_serve_env(serve_dir), "OCDSL_CACHE": str(cache_dir), "OCDSL_SERVE_LOG": str(served_log)}
             n = len(served_log.read_text().splitlines()) if served_log.exists() else 0
         r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work, env)
         if served:
@@ -282,10 +280,14 @@ def scaling(problem_file: Path, segments: list[int], work: Path, repeat: int = 3
     return "\n".join(lines), fit
 
 
+def _child_env() -> dict:
+    """This process's environment without the switches that would change what is measured."""
+    return {k: v for k, v in os.environ.items()
+            if k not in ("OCDSL_NO_CACHE", "PYTHONDONTWRITEBYTECODE", "OCDSL_NO_SERVE")}
+
+
 def _serve_env(serve_dir: Path) -> dict:
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("OCDSL_NO_CACHE", "PYTHONDONTWRITEBYTECODE", "OCDSL_NO_SERVE")}
-    return {**env, "OCDSL_SERVE_DIR": str(serve_dir)}
+    return {**_child_env(), "OCDSL_SERVE_DIR": str(serve_dir)}
 
 
 def _start_server(serve_dir: Path) -> tuple[Path | None, dict | None]:

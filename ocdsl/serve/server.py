@@ -70,8 +70,9 @@ def status() -> dict:
     pid = _pid_of(key)
     others = []
     for p in address.folder().glob("*.pid"):
-        if p.stem != key and _alive(_pid_of(p.stem)):
-            others.append({"key": p.stem, "pid": _pid_of(p.stem)})
+        other = _pid_of(p.stem)
+        if p.stem != key and _alive(other):
+            others.append({"key": p.stem, "pid": other})
     return {"key": key, "pid": pid if _alive(pid) else None,
             "socket": str(address.socket_path(key)), "folder": str(address.folder()),
             "other_servers": others}
@@ -80,7 +81,11 @@ def status() -> dict:
 def stop(every: bool = False) -> list[int]:
     """Stop this code's server (``every``: every server in the folder); the pids stopped."""
     key = address.code_key()
-    keys = [p.stem for p in address.folder().glob("*.pid")] if every else [key]
+    return _stop([p.stem for p in address.folder().glob("*.pid")] if every else [key])
+
+
+def _stop(keys: list[str]) -> list[int]:
+    """SIGTERM the live servers of ``keys``, remove their files, wait for them to exit."""
     stopped = []
     for k in keys:
         pid = _pid_of(k)
@@ -109,12 +114,7 @@ def start(idle: float) -> dict:
     key = address.code_key()
     if _alive(_pid_of(key)):
         return status()
-    for p in address.folder().glob("*.pid"):     # servers of code no longer on disk
-        if p.stem != key:
-            pid = _pid_of(p.stem)
-            if _alive(pid):
-                os.kill(pid, signal.SIGTERM)
-            _remove(p.stem)
+    _stop([p.stem for p in address.folder().glob("*.pid") if p.stem != key])   # code no longer on disk
     _remove(key)
     sock_path = address.socket_path(key)
     if len(os.fsencode(str(sock_path))) > 100:

@@ -113,8 +113,7 @@ def _set_aside(data, loc: tuple) -> None:
         if loc[-1] in DECLARED_LISTS and isinstance(value, (str, dict)):
             # `controls: u`: its error is reported; the names it meant stay declared for the
             # rest of the compile, so their uses are not reported as unknown names too
-            names = re.findall(r"[A-Za-z_]\w*", value) if isinstance(value, str) else \
-                [k for k in value if isinstance(k, str)]
+            names = _declared_names(value)
             if names:          # (a repaired value that still fails is deleted next round)
                 parent[loc[-1]] = names
                 return
@@ -145,10 +144,15 @@ def _issue_from_pydantic(located: Located, err: dict, root: tuple | None = None)
     return located.issue(loc, f"{where}: {msg}", _source_line(located, loc))
 
 
+def _declared_names(value) -> list[str]:
+    """The names a scalar or mapping meant as a declaration list (`controls: u`, `states: {x: 1}`)."""
+    if isinstance(value, str):
+        return re.findall(r"[A-Za-z_]\w*", value)
+    return [k for k in value if isinstance(k, str)] if isinstance(value, dict) else []
+
+
 def _example_names(value) -> str:
-    names = re.findall(r"[A-Za-z_]\w*", value) if isinstance(value, str) else \
-        [k for k in value if isinstance(k, str)] if isinstance(value, dict) else []
-    return ", ".join(names) or "x, v"
+    return ", ".join(_declared_names(value)) or "x, v"
 
 
 def _document_loc(loc) -> tuple:
