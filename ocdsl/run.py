@@ -172,8 +172,8 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
 @dataclass
 class Recovered:
     """What ``recover_from_infeasibility`` leaves: the solve to report and its transcription,
-    the retry's start record, the retry's guesses (None when it was not made or failed) and
-    its scaling."""
+    the records of the starts it added, the guesses of the start that succeeded (None when
+    none did) and its scaling."""
     info: object
     tr: object
     records: list
@@ -221,12 +221,34 @@ def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, see
             rinfo.message += (f" (Solved from seeded random controls, seed {rs}: from {tried.split(' and ')[0]} "
                               "Ipopt had converged to a point of local infeasibility.)")
             return Recovered(rinfo, rtr, out.records, retry_guesses, rscaled)
-    from .solve.diagnose import elastic
+    from .solve.diagnose import copy_values, elastic
 
     with timer.measure("diagnose"):
-        named = elastic(problem, meshes, starts_tried, file.spec.solver.options, tried=tried)
+        named = elastic(problem, meshes, starts_tried, file.spec.solver.options, tried=tried, n_starts=starts)
     # names the conditions themselves, not the rows Ipopt stopped on
-    info.message = named.strip() + " (Ipopt: " + info.message.split(" Constraints that Ipopt")[0] + ")"
+    info.message = named.message.strip() + " (Ipopt: " + info.message.split(" Constraints that Ipopt")[0] + ")"
+    if named.feasible is not None:
+        # the relaxed solve met every condition: a feasible point of the problem itself
+        # (phase 1 of a two-phase method); the problem is solved once more from it
+        with timer.measure("diagnose"):
+            ftr = build(problem, meshes, guesses) if build_model is None else build_model(guesses)
+            try:
+                copy_values(named.feasible, ftr.model)
+            except ValueError:      # another structure: the diagnosis stands as it is
+                return out
+            fscaled = _scale(file, ftr) if build_model is None else None
+            finfo = ipopt.solve(ftr.model, options, verbose=verbose,
+                                progress=ipopt.Progress(progress, "[from the feasible point]"), transcription=ftr)
+        out.records.append({**_start_record(len(out.records) + starts, None, finfo), "from_feasible_point": True})
+        if finfo.status in ("optimal", "acceptable"):
+            finfo.message += (f" (Solved from a feasible point: from {tried} Ipopt had converged to a point of "
+                              "local infeasibility; with the boundary conditions and links relaxed to penalties "
+                              "Ipopt found a point that meets them all, and the problem was solved from it.)")
+            from .transcribe.solution import extract
+
+            solved = {t.name: t for t in extract(ftr)}     # what later meshes' trial models start from
+            guesses = {ph.name: make_guess(problem, ph, solved[ph.name]) for ph in problem.phases}
+            return Recovered(finfo, ftr, out.records, guesses, fscaled)
     return out
 
 

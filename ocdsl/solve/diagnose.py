@@ -9,6 +9,7 @@ infeasibility) leaves unmet; :func:`diverging` says when an objective ran away.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -228,10 +229,12 @@ def diverging(history: list[tuple[int, float, float, float]], sign: float = 1.0)
     return ""
 
 
-LOCAL_HINT = ("Ipopt could not find a feasible point from this guess; that does not show the problem "
-              "infeasible. Try `guess: {random: true, seed: 1}`, a guess block for the controls "
-              "(values away from 0 where the dynamics multiply a control by a state), or "
-              "`method: {starts: 4}`.")
+def local_hint(starts: int = 1) -> str:
+    """What to try when Ipopt found no feasible point from the ``starts`` it was given."""
+    more = "`method: {starts: 4}`" if starts < 4 else f"more starts than the {starts} tried (`method: {{starts: {2 * starts}}}`)"
+    return ("Ipopt could not find a feasible point from this guess; that does not show the problem "
+            "infeasible. Try `guess: {random: true, seed: 1}`, a guess block for the controls "
+            f"(values away from 0 where the dynamics multiply a control by a state), or {more}.")
 
 
 def max_violation(tr) -> float:
@@ -252,13 +255,40 @@ def max_violation(tr) -> float:
     return worst
 
 
-def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "the guess") -> str:
+@dataclass
+class Elastic:
+    """The diagnosis of a locally infeasible solve: its ``message``, and ``feasible``, the
+    relaxed model whose solution meets every relaxed condition (a feasible point of the
+    problem itself, built on the same meshes), or None."""
+    message: str
+    feasible: Any = None
+
+
+def copy_values(source, target) -> None:
+    """The values of the Pyomo model ``source`` into the variables of ``target`` with the
+    same names (a model built from the same meshes and phases, which may have variables of
+    its own that ``target`` lacks). A variable of ``target`` that ``source`` lacks is an
+    error: the models differ."""
+    import pyomo.core as pyo
+
+    values = {v.name: v.value for v in source.component_data_objects(pyo.Var, descend_into=True)}
+    for b in target.component_data_objects(pyo.Var, descend_into=True):
+        if b.name not in values:
+            raise ValueError(f"the models differ: {b.name} is not in the source model")
+        if values[b.name] is not None and not b.fixed:
+            b.set_value(values[b.name], skip_validation=True)
+
+
+def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "the guess",
+            n_starts: int = 1) -> Elastic:
     """Which boundary equalities (boundary conditions, links) cannot be met: solve again with
     each of them moved into the objective as its smoothed absolute residual (dynamics, bounds,
     path constraints and boundary inequalities kept), from each guess of ``starts`` (a list of
     {phase: PhaseGuess}), and name those the best relaxed solution leaves unmet, with the
     closest value the rest of the problem allows. ``tried`` says which starts of the problem
-    itself ended infeasible. Only a relaxed solve that Ipopt solved and that meets its own
+    itself ended infeasible (``n_starts`` of them from ``method.starts``). A relaxed solve that
+    meets every condition is a feasible point of the problem itself: returned as
+    ``feasible``, for the caller to solve the problem from. Only a relaxed solve that Ipopt solved and that meets its own
     constraints (:func:`max_violation`) is quoted; every statement is a local one (a
     solver cannot prove infeasibility), and an inconclusive diagnosis says so."""
     import dataclasses
@@ -266,24 +296,42 @@ def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "
     import pyomo.core as pyo
     import sympy as sp
 
-    from ..symbolic.problem import Objective
+    from ..symbolic.problem import FreeParameter, Objective
     from ..transcribe.pseudospectral import build
     from . import ipopt
 
     head = f" From {tried} Ipopt converged to a point of local infeasibility."
     equalities = [c for c in problem.boundary if c.is_equality]
     if not equalities:
-        return head + " " + LOCAL_HINT
-    # a smooth L1 norm of the residuals: it leaves few conditions unmet (least squares would
-    # spread the violation over all of them)
-    penalty = sum(sp.sqrt((c.expr - c.lower) ** 2 + 1e-10) for c in equalities)
-    relaxed = dataclasses.replace(problem, boundary=[c for c in problem.boundary if not c.is_equality],
-                                  objective=Objective("minimize", penalty, "total boundary violation"))
+        return Elastic(head + " " + local_hint(n_starts))
+    # elastic mode: each equality gets a pair of nonnegative slacks, c = lower + p - n, and
+    # the objective is their sum, an exact L1 norm of the residuals that stays smooth (it
+    # leaves few conditions unmet, where least squares would spread the violation over all
+    # of them; a smoothed |r| made Ipopt take over 1,000 iterations near r = 0)
+    free = dict(problem.free_parameters)
+    elastic_rows, total = [], sp.Integer(0)
+    for i, c in enumerate(equalities):
+        p, n = sp.Symbol(f"elastic_plus_{i}"), sp.Symbol(f"elastic_minus_{i}")
+        free[p], free[n] = FreeParameter(p, 0.0), FreeParameter(n, 0.0)
+        elastic_rows.append(dataclasses.replace(c, expr=c.expr - p + n))
+        total += p + n
+    relaxed = dataclasses.replace(problem, boundary=[c for c in problem.boundary if not c.is_equality] + elastic_rows,
+                                  free_parameters=free,
+                                  objective=Objective("minimize", total, "total boundary violation"))
     from ..transcribe.guess import make_guess
 
     # and from the relaxed problem's own default guess (states in the middle of their bounds,
     # not on a line between the conditions that may be what cannot be met)
     starts = list(starts) + [{ph.name: make_guess(relaxed, ph) for ph in relaxed.phases}]
+
+    def unmet_at(values):
+        out = []
+        for c in equalities:
+            got = float(c.expr.xreplace({s: sp.Float(values[s]) for s in c.expr.free_symbols if s in values}))
+            if abs(got - c.lower) > 1e-4 * max(1.0, abs(c.lower)):
+                out.append(f"`{c.text}`{_line(c)} (the nearest feasible value is {sp.sstr(c.expr)} = {got:.6g})")
+        return out
+
     best, ends = None, []
     for guesses in starts:
         try:
@@ -296,25 +344,22 @@ def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "
         if info.status not in ("optimal", "acceptable") or max_violation(tr) > 1e-6:
             continue
         values = {s: float(pyo.value(v)) for s, v in tr.scalars.items()}
+        unmet = unmet_at(values)
+        if not unmet:
+            # a point that meets every condition: a feasible point of the problem itself,
+            # so the later starts cannot tell more
+            return Elastic(head + " Yet with the boundary conditions and links relaxed, Ipopt found a point "
+                           "that meets all of them: the problem is feasible. " + local_hint(n_starts), tr.model)
         if best is None or info.objective < best[0]:
-            best = (info.objective, values)
+            best = (info.objective, unmet)
     if best is None:
         if all(e == "infeasible" for e in ends):
-            return (head + f" With every boundary condition and link relaxed, Ipopt still found no point "
-                    f"that meets the bounds, path constraints and boundary inequalities together with the "
-                    f"dynamics ({len(ends)} relaxed solve(s), each from one of those starts).")
-        return (head + " The relaxed re-solve (boundary conditions and links as penalties) ended "
-                + ", ".join(f"'{e}'" for e in ends) + ", so which conditions cannot be met is not known. "
-                + LOCAL_HINT)
-    values = best[1]
-    unmet = []
-    for c in equalities:
-        got = float(c.expr.xreplace({s: sp.Float(values[s]) for s in c.expr.free_symbols if s in values}))
-        if abs(got - c.lower) > 1e-4 * max(1.0, abs(c.lower)):
-            unmet.append(f"`{c.text}`{_line(c)} (the nearest feasible value is {sp.sstr(c.expr)} = {got:.6g})")
-    if not unmet:
-        return (head + " Yet with the boundary conditions and links relaxed, Ipopt found a point that meets "
-                "all of them: the problem is feasible. " + LOCAL_HINT)
-    return (head + " The boundary conditions cannot all be met from these starts: relaxed to their "
-            f"smallest total violation (best of {len(ends)} relaxed solve(s), each verified to meet the "
-            "dynamics, bounds and path constraints), the problem leaves " + "; ".join(unmet) + " unmet.")
+            return Elastic(head + f" With every boundary condition and link relaxed, Ipopt still found no point "
+                           f"that meets the bounds, path constraints and boundary inequalities together with the "
+                           f"dynamics ({len(ends)} relaxed solve(s), each from one of those starts).")
+        return Elastic(head + " The relaxed re-solve (boundary conditions and links as penalties) ended "
+                       + ", ".join(f"'{e}'" for e in ends) + ", so which conditions cannot be met is not known. "
+                       + local_hint(n_starts))
+    return Elastic(head + " The boundary conditions cannot all be met from these starts: relaxed to their "
+                   f"smallest total violation (best of {len(ends)} relaxed solve(s), each verified to meet the "
+                   "dynamics, bounds and path constraints), the problem leaves " + "; ".join(best[1]) + " unmet.")
