@@ -57,6 +57,10 @@ class _Table:
         self.E5 = np.asarray(c.E5, float)
         self.n_extended = int(c.N_STAGES_EXTENDED)
         self.power = int(c.INTERPOLATOR_POWER)
+        # per stage its row of A (contiguous) and its node as a float: the stepping loop
+        # indexes them 12 times a step
+        self.rows = [np.ascontiguousarray(self.A[s, :s]) for s in range(self.n_extended)]
+        self.nodes = [float(x) for x in self.C]
 
 
 _TABLE: list[_Table] = []
@@ -108,13 +112,17 @@ def _initial_step(fun, t0, y0, f0, t_bound, rtol, atol) -> float:
     return min(100 * h0, h1, length)
 
 
-def solve(fun, t_span, y0, t_eval, rtol: float, atol) -> Solution:
+def solve(fun, t_span, y0, t_eval, rtol: float, atol, check=None, max_first_step: float = np.inf) -> Solution:
     """Integrate ``y' = fun(t, y)`` over ``t_span`` with DOP853 at ``rtol`` and ``atol``
     (scalar or per component); the solution at the sorted times ``t_eval`` (inside the span)
     from each step's dense output. A failed run (the step size too small, e.g. where the
-    right-hand side is not finite) returns ``success=False`` with the values reached so far."""
+    right-hand side is not finite) returns ``success=False`` with the values reached so far.
+    ``check(t)``, if given, is called before every step (a time budget may raise there).
+    ``max_first_step`` caps the initial step (Hairer's estimate): where the first step came
+    out near the whole span, the error estimate accepted it at 60 times rtol (a Goddard piece
+    starting where the control leaves its bound; SciPy's DOP853 does the same)."""
     T = _table()
-    A, B, C = T.A[:N_STAGES, :N_STAGES], T.B, T.C[:N_STAGES]
+    B, rows, nodes = T.B, T.rows, T.nodes
     t0, t_bound = float(t_span[0]), float(t_span[1])
     direction = 1.0 if t_bound >= t0 else -1.0
     rtol = max(float(rtol), 100 * np.finfo(float).eps)
@@ -131,7 +139,7 @@ def solve(fun, t_span, y0, t_eval, rtol: float, atol) -> Solution:
 
     K = np.empty((T.n_extended, n))
     fy = f(t0, y)
-    h_abs = _initial_step(f, t0, y, fy, t_bound, rtol, atol)
+    h_abs = min(_initial_step(f, t0, y, fy, t_bound, rtol, atol), max_first_step)
     t = t0
     ts = [t0]
     i_eval = 0
@@ -158,18 +166,20 @@ def solve(fun, t_span, y0, t_eval, rtol: float, atol) -> Solution:
                 t_new = t_bound
             h = t_new - t
             h_abs = abs(h)
+            if check is not None:
+                check(t)
             # the Runge-Kutta step: 12 stages, the 8th-order solution, f at its end
             K[0] = fy
             for s in range(1, N_STAGES):
-                K[s] = f(t + C[s] * h, y + (K[:s].T @ A[s, :s]) * h)
-            y_new = y + h * (K[:N_STAGES].T @ B)
+                K[s] = f(t + nodes[s] * h, y + np.dot(rows[s], K[:s]) * h)
+            y_new = y + h * np.dot(B, K[:N_STAGES])
             f_new = f(t_new, y_new)
             K[N_STAGES] = f_new
             scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
-            Kh = K[:N_STAGES + 1].T
-            err5 = (Kh @ T.E5) / scale
-            err3 = (Kh @ T.E3) / scale
-            e5, e3 = np.linalg.norm(err5) ** 2, np.linalg.norm(err3) ** 2
+            Kh = K[:N_STAGES + 1]
+            err5 = np.dot(T.E5, Kh) / scale
+            err3 = np.dot(T.E3, Kh) / scale
+            e5, e3 = float(np.dot(err5, err5)), float(np.dot(err3, err3))
             # a non-finite step gives err = nan: rejected and shrunk by MIN_FACTOR, as in SciPy
             err = 0.0 if e5 == 0 and e3 == 0 else abs(h) * e5 / np.sqrt((e5 + 0.01 * e3) * n)
             if err < 1:
@@ -183,8 +193,7 @@ def solve(fun, t_span, y0, t_eval, rtol: float, atol) -> Solution:
         j = seek(t_new)
         if j > i_eval:     # requested times in this step: the 7th-degree dense output
             for s in range(N_STAGES + 1, T.n_extended):
-                a = T.A[s]
-                K[s] = f(t + T.C[s] * h, y + (K[:s].T @ a[:s]) * h)
+                K[s] = f(t + nodes[s] * h, y + np.dot(rows[s], K[:s]) * h)
             F = np.empty((T.power, n))
             dy = y_new - y
             F[0] = dy
@@ -221,12 +230,13 @@ def _rms_rows(x) -> np.ndarray:
     return np.sqrt(np.mean(x * x, axis=1)) if x.shape[1] else np.zeros(len(x))
 
 
-def solve_ensemble(fun, y0, positions, rtol: float, atol) -> Ensemble:
+def solve_ensemble(fun, y0, positions, rtol: float, atol, max_first_step: float = np.inf) -> Ensemble:
     """Integrate P independent systems ``dY_k/ds = fun(idx, s, Y)[k]`` over s in [0, 1], each
     with its own step size, exactly as :func:`solve` integrates one (same initial step, error
     norm per piece, step control and dense output), the right-hand side evaluated for all
     pieces still running in one call: ``fun(idx, s, Y)`` gets the pieces' indices (q,), their
-    times (q,) and states (q, w), and returns (q, w). ``positions`` are sorted, in [0, 1]."""
+    times (q,) and states (q, w), and returns (q, w). ``positions`` are sorted, in [0, 1].
+    ``max_first_step`` caps every piece's initial step, as in :func:`solve`."""
     T = _table()
     A, B, C = T.A[:N_STAGES, :N_STAGES], T.B, T.C[:N_STAGES]
     y = np.array(y0, dtype=float)
@@ -254,7 +264,7 @@ def solve_ensemble(fun, y0, positions, rtol: float, atol) -> Ensemble:
     with np.errstate(divide="ignore"):
         h1 = np.where((d1 <= 1e-15) & (d2 <= 1e-15), np.maximum(1e-6, h0 * 1e-3),
                       (0.01 / np.maximum(d1, d2)) ** (1.0 / 8.0))
-    h_abs = np.minimum(np.minimum(100 * h0, h1), 1.0)
+    h_abs = np.minimum(np.minimum(np.minimum(100 * h0, h1), 1.0), max_first_step)
     i_eval = np.full(P, int(np.searchsorted(positions, 0.0, side="right")))
     out[:i_eval[0]] = y[None]
     rejected = np.zeros(P, bool)       # the current step of the piece was rejected before

@@ -74,7 +74,7 @@ class PhaseFunctions:
     def augmented_point(self, t: float, y, u) -> np.ndarray:
         """Right-hand side of ``[x; integrals]`` at one point (NaN where undefined)."""
         try:
-            return np.array(self._point(t, *y[:self.n], *u), float)
+            return np.array(self._point(t, *y.tolist()[:self.n], *u), float)
         except (ValueError, OverflowError, ZeroDivisionError):
             return np.full(len(y), np.nan)
 
