@@ -59,3 +59,17 @@ def test_integrating_the_clipped_control_meets_the_integrator_tolerance():
     # without the cuts the kinks sit inside steps, and the error is several times rtol (8.7x here)
     plain = _dop853_split(fun, 0.0, 1.0, np.zeros(1), t_eval, rtol, np.array([rtol]), [])
     assert np.max(np.abs(plain.y[0] - exact)) > 5 * rtol
+
+
+def test_the_straight_line_control_is_the_reference_evaluation_bit_for_bit():
+    """``piece(t)`` (a template compiled per shape, numbers bound per segment) against
+    ``__call__`` (NumPy Horner and clip) on random segment polynomials, bounds finite and not."""
+    rng = np.random.default_rng(3)
+    for degree in (1, 3, 5):
+        segments = np.linspace(0.0, 2.0, 5)
+        t = np.concatenate([a + (b - a) * np.sort(rng.uniform(0.05, 0.95, degree + 1))
+                            for a, b in zip(segments[:-1], segments[1:])])
+        U = rng.normal(size=(len(t), 3)) * 2
+        uf = SegmentPolynomials(t, U, [(-1.0, 1.0), (-math.inf, 0.5), (-math.inf, math.inf)], segments=segments)
+        for s in rng.uniform(0.0, 2.0, 200):
+            assert uf.piece(s)(s) == uf(s).tolist()

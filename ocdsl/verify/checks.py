@@ -43,6 +43,8 @@ def sensitivity_scale(expr: sp.Expr, point: Mapping[sp.Symbol, float],
     """``sum_s |d expr/d s| scale_s`` at ``point``: how much ``expr`` moves when each quantity
     it depends on moves by its own scale (a boundary condition ``x(tf) == 0`` is measured
     against x's range, ``integral(L) == c`` against the integral's size)."""
+    if isinstance(expr, sp.Symbol):      # most boundary conditions: no SymPy arithmetic needed
+        return float(scales[expr]) if expr in scales and float(scales[expr]) > 0 else 1e-12
     total = 0.0
     subs = {k: sp.Float(v) for k, v in point.items()}
     for s in expr.free_symbols:
@@ -57,6 +59,8 @@ def sensitivity_scale(expr: sp.Expr, point: Mapping[sp.Symbol, float],
 
 
 def evaluate(expr: sp.Expr, point: Mapping[sp.Symbol, float]) -> float:
+    if isinstance(expr, sp.Symbol):
+        return float(point[expr]) if expr in point else math.nan
     try:
         v = complex(expr.xreplace({k: sp.Float(v) for k, v in point.items()}).evalf())
     except (TypeError, ValueError):

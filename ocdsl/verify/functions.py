@@ -78,6 +78,16 @@ class PhaseFunctions:
         except (ValueError, OverflowError, ZeroDivisionError):
             return np.full(len(y), np.nan)
 
+    def augmented_pair(self, t: float, y, u) -> np.ndarray:
+        """The right-hand side of two stacked ``[x; integrals]`` (``y`` of length 2 (n + n_q))
+        under one control ``u``: the global and the local pass of one piece in one call."""
+        w = len(y) // 2
+        v = y.tolist()
+        try:
+            return np.array(self._point(t, *v[:self.n], *u) + self._point(t, *v[w:w + self.n], *u), float)
+        except (ValueError, OverflowError, ZeroDivisionError):
+            return np.full(len(y), np.nan)
+
     def fx(self, t, X, U, scale) -> np.ndarray:
         """df/dx at the points (P, n, n), by forward differences of step 1e-7 x scale (for
         the stiffness estimate only: cheaper than a symbolic Jacobian of a large model)."""

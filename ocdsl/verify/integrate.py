@@ -194,11 +194,10 @@ def joint_passes(funcs, uf, grid, breaks, X_rows, row_at, rtol, scale, rho) -> t
             if i is not None:
                 yl = np.concatenate([X_rows[i], yl[n:]])
         u_of = uf.piece(0.5 * (a + b))
-        point = funcs.augmented_point
+        pair = funcs.augmented_pair
 
         def fun(tt, y):
-            u = u_of(tt)
-            return np.concatenate([point(tt, y[:w], u), point(tt, y[w:], u)])
+            return pair(tt, y, u_of(tt))
 
         sol = _dop853_split(fun, a, b, np.concatenate([yg, yl]), grid[sel], rtol / math.sqrt(2.0), atol,
                             uf.kinks(a, b))

@@ -80,6 +80,39 @@ def _sampled_crossings(raw, a: float, b: float, lo, hi, samples: int = 65) -> li
     return _inside(out, a, b)
 
 
+_TEMPLATES: dict[tuple, object] = {}
+
+
+def _control_template(degree_terms: int, lo_finite: tuple, hi_finite: tuple):
+    """A factory ``(c, hw, coefficients control by control, finite lower bounds, finite upper
+    bounds) -> control(s)`` for controls of ``degree_terms`` power-basis coefficients each."""
+    key = (degree_terms, lo_finite, hi_finite)
+    made = _TEMPLATES.get(key)
+    if made is not None:
+        return made
+    m = len(lo_finite)
+    coef = [f"a{j}_{k}" for j in range(m) for k in range(degree_terms)]
+    lows = [f"lo{j}" for j in range(m) if lo_finite[j]]
+    highs = [f"hi{j}" for j in range(m) if hi_finite[j]]
+    body = ["    def control(s):", "        z = (s - c) / hw"]
+    for j in range(m):
+        horner = "0.0"
+        for k in range(degree_terms):
+            horner = f"({horner} * z + a{j}_{k})"
+        body.append(f"        u{j} = {horner}")
+        # max(u, lo) then min(., hi), as np.minimum(np.maximum(...)): a NaN stays NaN
+        if lo_finite[j]:
+            body.append(f"        u{j} = u{j} if u{j} >= lo{j} or u{j} != u{j} else lo{j}")
+        if hi_finite[j]:
+            body.append(f"        u{j} = u{j} if u{j} <= hi{j} or u{j} != u{j} else hi{j}")
+    body.append(f"        return [{', '.join(f'u{j}' for j in range(m))}]")
+    src = "\n".join([f"def factory(c, hw, {', '.join(coef + lows + highs)}):", *body, "    return control"])
+    scope: dict = {}
+    exec(compile(src, f"<control template {key}>", "exec"), scope)
+    _TEMPLATES[key] = scope["factory"]
+    return scope["factory"]
+
+
 class SegmentPolynomials:
     """Control as a function of time: piecewise linear through the nodes, or, with segment
     boundaries, the Lagrange polynomial through each segment's nodes; clipped to bounds."""
@@ -150,25 +183,15 @@ class SegmentPolynomials:
         """Segment ``i``'s control as straight-line Python: Horner in the power basis, then
         the clip to each finite bound (the same operations in the same order as a loop over
         the coefficients, without its interpreter overhead: the control was 40 % of the
-        verification of a 4-control problem). Constants print as ``repr``: exact floats."""
+        verification of a 4-control problem). The code is one template per shape (degree,
+        which bounds are finite), compiled once; each segment binds its numbers to it."""
         c, hw, coef = self.coef[i]
-        lines = ["def control(s):", f"    z = (s - {float(c)!r}) / {float(hw)!r}"]
-        names = []
-        for j, (cf, lo, hi) in enumerate(zip(coef.T.tolist(), self.lo.tolist(), self.hi.tolist())):
-            horner = "0.0"
-            for a in cf:
-                horner = f"({horner} * z + {a!r})"
-            lines.append(f"    u{j} = {horner}")
-            # max(u, lo) then min(., hi), as before: a NaN stays NaN
-            if math.isfinite(lo):
-                lines.append(f"    u{j} = u{j} if u{j} >= {lo!r} or u{j} != u{j} else {lo!r}")
-            if math.isfinite(hi):
-                lines.append(f"    u{j} = u{j} if u{j} <= {hi!r} or u{j} != u{j} else {hi!r}")
-            names.append(f"u{j}")
-        lines.append(f"    return [{', '.join(names)}]")
-        scope: dict = {}
-        exec(compile("\n".join(lines), f"<control of segment {i}>", "exec"), scope)
-        return scope["control"]
+        lo_finite = tuple(bool(math.isfinite(v)) for v in self.lo)
+        hi_finite = tuple(bool(math.isfinite(v)) for v in self.hi)
+        factory = _control_template(len(coef), lo_finite, hi_finite)
+        bounds = [v for v, keep in zip(self.lo.tolist(), lo_finite) if keep] + \
+                 [v for v, keep in zip(self.hi.tolist(), hi_finite) if keep]
+        return factory(float(c), float(hw), *coef.T.ravel().tolist(), *bounds)
 
     def __call__(self, tt: float) -> np.ndarray:
         """The control at one time (the reference path, kept for the comparison test)."""
