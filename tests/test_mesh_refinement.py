@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import ocdsl
-from ocdsl.api import compile_file
+from ocdsl.api import compile_file, run_file
 from ocdsl.result import Result
 
 pytestmark = pytest.mark.ipopt
@@ -430,3 +430,39 @@ def test_features_off_the_breakpoints_are_shown_as_normalised_times_per_phase():
 
     text = _features_shown({"main": [0.79312345678, 0.05], "coast": []})
     assert text == "phase 'main' at 0.793123, 0.05 (normalised time: 0 at t0, 1 at tf)"
+
+
+PLANAR_MIN_FUEL = """name: planar minimum fuel
+model:
+  states: [x, y, vx, vy]
+  controls: [uxp, uxm, uyp, uym]
+  dynamics: {x: vx, y: vy, vx: uxp - uxm, vy: uyp - uym}
+problem:
+  time: {t0: 0, tf: 3}
+  constraints: [0 <= uxp <= 1, 0 <= uxm <= 1, 0 <= uyp <= 1, 0 <= uym <= 1,
+                x(t0) == 0, y(t0) == 0, vx(t0) == 0, vy(t0) == 0,
+                x(tf) == 1, y(tf) == 0.5, vx(tf) == 0, vy(tf) == 0]
+  objective: minimize integral(uxp + uxm + uyp + uym)
+method:
+  transcription: LGR
+  segments: 4
+  degree: 4
+  mesh: {tolerance: 1.0e-6, max_iterations: 12}
+"""
+
+
+def test_a_mesh_solved_again_without_progress_stops_the_refinement(tmp_path):
+    """unseen5: after a rejected coarsening, refinement nudged one breakpoint by 1e-9 per
+    iteration and re-solved the same 5-segment mesh (0 Ipopt iterations, the same error) to
+    max_iterations. Now the second solve of that mesh ends the loop; the converged mesh is the
+    result (per axis bang-off-bang: fuel (3 - sqrt 5) + (3 - sqrt 7))."""
+    import math
+
+    p = tmp_path / "pmf.yaml"
+    p.write_text(PLANAR_MIN_FUEL)
+    res = run_file(p, None)
+    history = res.extra["mesh_history"]
+    exact = (3 - math.sqrt(5)) + (3 - math.sqrt(7))
+    assert res.status == "optimal" and abs(res.objective - exact) < 1e-6 * exact, res.message
+    assert len(history) <= 8, [(h["iteration"], h["max_error"]) for h in history]
+    assert history[-1].get("stalled", "").startswith(f"mesh iteration {len(history)}: the mesh of iteration")

@@ -140,6 +140,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     status, message = None, ""
     stalled = ""         # why the refinement stopped before max_iterations without converging
     last = None
+    solved_before = None   # (meshes, largest error) of the previous iteration that missed the tolerance
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     coarsening = False   # the current mesh came from coarsening a converged one
     tried: list = []     # the coarsened meshes tried so far (each is tried once)
@@ -388,6 +389,18 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # smallest converged mesh so far is kept for the end)
                 rec["coarsening_rejected"] = True
                 coarsening = False
+            elif solved_before is not None and all(_close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
+                                                   for k in meshes) and max_err >= 0.9 * solved_before[1]:
+                # the mesh solved again (breakpoints nudged by less than corner_tolerance) and
+                # its error fell by less than a tenth: refining on would repeat it (a rejected coarse mesh
+                # was re-solved in 0 Ipopt iterations to max_iterations; unseen5, planar
+                # minimum fuel). A nudge that does help (a breakpoint onto a switch) goes on.
+                stalled = (f"mesh iteration {it}: the mesh of iteration {it - 1} solved again (no breakpoint "
+                           f"moved by more than corner_tolerance {spec.corner_tolerance:g}) with no fall in "
+                           f"its largest error ({solved_before[1]:.3e} -> {max_err:.3e})")
+                rec["stalled"] = stalled
+                break
+            solved_before = (dict(meshes), max_err)
             if it == spec.max_iterations:
                 break
             previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
