@@ -161,6 +161,10 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
         notes = warm_start_notes(file, previous)
+        if best.status in ("optimal", "acceptable"):
+            from .solve.junctions import constrained_arcs
+
+            notes += constrained_arcs(best_tr)
         if notes:
             result.extra["notes"] = notes
         if scaled:
