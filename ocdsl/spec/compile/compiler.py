@@ -27,6 +27,9 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
     def __init__(self, path: Path, located: Located, spec: ProblemFile, overrides: dict[str, float]):
         self.path, self.located, self.spec = path, located, spec
         self.overrides = dict(overrides)
+        # name (or PHASE.NAME) -> the file's value, for each override applied: the report's
+        # "overridden (file: ...)" note comes from here only
+        self.file_values: dict[str, float | None] = {}
         self.issues: list[Issue] = []
         self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
         self.free: dict[sp.Symbol, FreeParameter] = {}
@@ -253,8 +256,12 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 desc["frame"] = f.frame({s.name: float(v) for s, v in ph.constants.items()})
             if f.time_state:        # the independent variable is not time: reports plot against this
                 desc["time_variable"] = f.time_state
-            for s, v in ph.constants.items():
-                desc["parameters"][s.name] = {"value": v, "free": False}
+        # the constants in force under the run's names (b, and PHASE.b for a phase's own value):
+        # a phase's own value does not overwrite the file's b
+        for name, v in self.constants_in_force.items():
+            desc["parameters"][name] = {"value": v, "free": False}
+            if name in self.file_values:
+                desc["parameters"][name]["file"] = self.file_values[name]
         for s, fp in self.free.items():
             desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
         desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(self.shown_integrals(obj.expr, phases))}

@@ -92,6 +92,7 @@ class PhaseCompiler:
                 continue
             key = f"{phase}.{pname}"
             if key in self.overrides:
+                self.file_values[key] = float(value)
                 value = float(self.overrides[key])
                 self.used_overrides.add(key)
             if not math.isfinite(value):
