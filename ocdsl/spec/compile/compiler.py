@@ -33,6 +33,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         self.issues: list[Issue] = []
         self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
         self.free: dict[sp.Symbol, FreeParameter] = {}
+        self.free_locs: dict[sp.Symbol, tuple] = {}     # where each is declared, for errors
         self.integral_count = 0
         self.tables: dict = {}
         self.table_calls: dict = {}
@@ -80,6 +81,13 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             controller = self.guarded_pydantic(("controller",), "ocdsl.spec.controller", "ControllerSpec",
                                                spec.controller)
         unused = set(self.overrides) - self.used_overrides if hasattr(self, "used_overrides") else set()
+        # a free parameter is in the file but the solver chooses it: "not in the file" misled
+        free = {s.name: loc for s, loc in self.free_locs.items()}
+        for name in sorted(n for n in unused if n.rpartition(".")[2] in free):
+            unused.discard(name)
+            self.issue(free[name.rpartition(".")[2]],
+                       f"'{name}' is a free parameter (optimised by the solver), which --param cannot set: "
+                       "--param and a study's parameters set constants; to fix its value, drop `free: true`")
         if unused:
             self.issue((), f"parameters given on the command line or by a study are not in the file: {sorted(unused)}", "")
         if self.issues:

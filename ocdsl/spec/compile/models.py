@@ -30,6 +30,7 @@ class ModelCompiler:
                 lo, hi = p.bounds or (None, None)
                 guess = p.value if p.value is not None else _midpoint(lo, hi)
                 self.free[s] = FreeParameter(s, -INF if lo is None else lo, INF if hi is None else hi, guess)
+                self.free_locs[s] = loc + (name,)
                 out[s] = None
             else:
                 value = p.value if isinstance(p, ParameterSpec) else p
