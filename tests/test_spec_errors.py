@@ -78,6 +78,11 @@ CASES = [
     ("time from a parameter", ("tf: free}", "tf: T}"), 9, "constant expression such as 2*pi"),
     ("unit of an undeclared name", ("    v: u\n", "    v: u\n  units: {x: m, vv: m/s}\n"), 8,
      "a unit for 'vv', which the model does not declare (did you mean 'v'?)"),
+    # a prime reads to Python as an unclosed string (was: "unterminated string literal")
+    ("prime in a constraint", ("- -1 <= u <= 1", "- x' <= 1"), 11,
+     "`'` is not allowed in an expression (`x'`): derivatives are written in `dynamics:`"),
+    ("British spelling of minimize", ("objective: minimize tf", "objective: minimise tf"), 17,
+     "`minimize EXPR` or `maximize EXPR` (did you mean 'minimize'?)"),
 ]
 
 

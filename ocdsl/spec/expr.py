@@ -168,6 +168,13 @@ def _parse(text: str | int | float) -> ast.expr:
     try:
         tree = ast.parse(text.strip(), mode="eval").body
     except SyntaxError as e:
+        # x' reads to Python as an unclosed string: say what the quote is taken for instead
+        m = re.search(r"[A-Za-z_]\w*[ \t]*'", text)
+        if m:
+            name = m.group(0).rstrip(" \t'")
+            raise ExprError(f"`'` is not allowed in an expression (`{name}'`): derivatives are written in "
+                            f"`dynamics:` (`{name}: ...` gives {name}'); to bound {name}', bound that right-hand side",
+                            text) from None
         hint = ""
         if re.search(r"(?<![<>=!])=(?!=)", text):
             hint = "; an equality is written with ==, e.g. x(t0) == 1"

@@ -51,9 +51,11 @@ def parameters_table(res: Result) -> dict | None:
             info = {"value": info}
         value = res.parameters.get(n, info.get("value"))
         free = bool(info.get("free", False))
-        overridden = (n in res.parameters and "value" in info and not free
-                      and finite_or_none(info.get("value")) != finite_or_none(res.parameters[n]))
-        note = "free (optimised)" if free else ("overridden (file: %s)" % fmt(info.get("value")) if overridden
+        # "file" is recorded by the compiler only where --param or a study set the value: a
+        # phase's own value (PHASE.b) is no override of the file's b
+        overridden = (not free and "file" in info
+                      and finite_or_none(info["file"]) != finite_or_none(value))
+        note = "free (optimised)" if free else ("overridden (file: %s)" % fmt(info["file"]) if overridden
                                                 else "")
         rows.append([name_cell(n), cell(value), unit_cell(units.get(n, "")), cell(note, "")])
     return table("parameters", "Parameters and the values used in this run.",

@@ -27,9 +27,13 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
     def __init__(self, path: Path, located: Located, spec: ProblemFile, overrides: dict[str, float]):
         self.path, self.located, self.spec = path, located, spec
         self.overrides = dict(overrides)
+        # name (or PHASE.NAME) -> the file's value, for each override applied: the report's
+        # "overridden (file: ...)" note comes from here only
+        self.file_values: dict[str, float | None] = {}
         self.issues: list[Issue] = []
         self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
         self.free: dict[sp.Symbol, FreeParameter] = {}
+        self.free_locs: dict[sp.Symbol, tuple] = {}     # where each is declared, for errors
         self.integral_count = 0
         self.tables: dict = {}
         self.table_calls: dict = {}
@@ -77,6 +81,13 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             controller = self.guarded_pydantic(("controller",), "ocdsl.spec.controller", "ControllerSpec",
                                                spec.controller)
         unused = set(self.overrides) - self.used_overrides if hasattr(self, "used_overrides") else set()
+        # a free parameter is in the file but the solver chooses it: "not in the file" misled
+        free = {s.name: loc for s, loc in self.free_locs.items()}
+        for name in sorted(n for n in unused if n.rpartition(".")[2] in free):
+            unused.discard(name)
+            self.issue(free[name.rpartition(".")[2]],
+                       f"'{name}' is a free parameter (optimised by the solver), which --param cannot set: "
+                       "--param and a study's parameters set constants; to fix its value, drop `free: true`")
         if unused:
             self.issue((), f"parameters given on the command line or by a study are not in the file: {sorted(unused)}", "")
         if self.issues:
@@ -253,8 +264,12 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 desc["frame"] = f.frame({s.name: float(v) for s, v in ph.constants.items()})
             if f.time_state:        # the independent variable is not time: reports plot against this
                 desc["time_variable"] = f.time_state
-            for s, v in ph.constants.items():
-                desc["parameters"][s.name] = {"value": v, "free": False}
+        # the constants in force under the run's names (b, and PHASE.b for a phase's own value):
+        # a phase's own value does not overwrite the file's b
+        for name, v in self.constants_in_force.items():
+            desc["parameters"][name] = {"value": v, "free": False}
+            if name in self.file_values:
+                desc["parameters"][name]["file"] = self.file_values[name]
         for s, fp in self.free.items():
             desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
         desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(self.shown_integrals(obj.expr, phases))}

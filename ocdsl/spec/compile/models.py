@@ -30,10 +30,12 @@ class ModelCompiler:
                 lo, hi = p.bounds or (None, None)
                 guess = p.value if p.value is not None else _midpoint(lo, hi)
                 self.free[s] = FreeParameter(s, -INF if lo is None else lo, INF if hi is None else hi, guess)
+                self.free_locs[s] = loc + (name,)
                 out[s] = None
             else:
                 value = p.value if isinstance(p, ParameterSpec) else p
                 if name in self.overrides:
+                    self.file_values[name] = value
                     value = float(self.overrides[name])
                     self.used_overrides.add(name)
                 if not math.isfinite(value):
@@ -64,6 +66,7 @@ class ModelCompiler:
                 params[known[s.name]] = v
             for s, v in model.parameters.items():
                 if s.name in self.overrides and s not in given:
+                    self.file_values[s.name] = params[s]
                     params[s] = float(self.overrides[s.name])
                     self.used_overrides.add(s.name)
                 if params[s] is not None and s not in self.free:

@@ -92,6 +92,7 @@ class PhaseCompiler:
                 continue
             key = f"{phase}.{pname}"
             if key in self.overrides:
+                self.file_values[key] = float(value)
                 value = float(self.overrides[key])
                 self.used_overrides.add(key)
             if not math.isfinite(value):
@@ -182,7 +183,9 @@ class PhaseCompiler:
     def objective(self, text: str, ph, phases) -> Objective:
         m = re.match(r"^\s*(minimize|maximize)\s+(.+)$", str(text), re.S)
         if not m:
-            raise ExprError("the objective is written `minimize EXPR` or `maximize EXPR`", str(text))
+            first = str(text).split(maxsplit=1)[0] if str(text).strip() else ""
+            raise ExprError("the objective is written `minimize EXPR` or `maximize EXPR`"
+                            + did_you_mean(first, ["minimize", "maximize"]), str(text))
         expr = self.expression(m.group(2), ph, phases)
         if ph is not None:
             bare = expr.free_symbols & set(ph.states + ph.controls + (TIME,))
