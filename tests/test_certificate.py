@@ -89,7 +89,9 @@ def test_sign_flipped_costates_fail(di_nodes):
     cert = certificate(DI, {}, di_solution(t, lam_scale=-1), DI_BOUNDS, 0, "min_tf")
     assert not cert["passed"]
     assert cert["hamiltonian"]["mean"] == pytest.approx(1.0)
-    assert cert["switching"]["agreement"] == 0.0
+    # every node disagrees but the switch's own (dH/du = 0 there: no sign to judge)
+    sw = cert["switching"]
+    assert sw["saturated_nodes"] - sw["agreeing_nodes"] >= sw["saturated_nodes"] - 2
     assert set(cert["failed"]) == {"hamiltonian", "switching"}
 
 

@@ -169,3 +169,35 @@ def test_a_control_fixed_by_an_equality_has_no_sign_condition(value, tmp_path):
     cert = res.certificate
     assert cert["passed"] and cert["switching"]["per_control"]["u"]["fixed"] == float(value), cert["switching"]
     assert res.ok
+
+
+def test_a_saturated_node_on_the_switch_itself_does_not_fail_the_switching_check(tmp_path):
+    """unseen5: planar minimum fuel (per axis bang-off-bang), LGL with mesh refinement, a
+    breakpoint on the x-axis switch t = (3 - sqrt 5)/2: the node there is still at the upper
+    bound with dH/du = +0.048 (the switching function is 0 at the switch; its largest is 2.28).
+    It was the only one of 40 saturated nodes to disagree, and it failed the certificate of a
+    verified run within 3e-8 of the closed form."""
+    import math
+
+    from ocdsl.api import run_file
+
+    p = tmp_path / "pmf.yaml"
+    p.write_text("""name: planar minimum fuel
+model:
+  states: [x, y, vx, vy]
+  controls: [uxp, uxm, uyp, uym]
+  dynamics: {x: vx, y: vy, vx: uxp - uxm, vy: uyp - uym}
+problem:
+  time: {t0: 0, tf: 3}
+  constraints: [0 <= uxp <= 1, 0 <= uxm <= 1, 0 <= uyp <= 1, 0 <= uym <= 1,
+                x(t0) == 0, y(t0) == 0, vx(t0) == 0, vy(t0) == 0,
+                x(tf) == 1, y(tf) == 0.5, vx(tf) == 0, vy(tf) == 0]
+  objective: minimize integral(uxp + uxm + uyp + uym)
+method: {transcription: LGL, segments: 3, degree: 3, mesh: {tolerance: 1.0e-5, max_iterations: 15}}
+""")
+    res = run_file(p, None)
+    exact = (3 - math.sqrt(5)) + (3 - math.sqrt(7))
+    assert res.status == "optimal" and abs(res.objective - exact) < 1e-6 * exact
+    sw = res.certificate["switching"]
+    assert sw["passed"] and sw["agreement"] == 1.0, sw
+    assert res.certificate["passed"] is True
