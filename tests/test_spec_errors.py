@@ -300,3 +300,39 @@ def test_an_unclosed_bracket_is_reported_where_it_opens(tmp_path):
     line = next(i for i, ln in enumerate(text.splitlines(), 1) if "states: [x, v" in ln)
     (issue,) = _issues(tmp_path, text)
     assert issue.line == line and "'[' opened here is not closed" in issue.message, issue
+
+
+TWO_PHASE_COST = """name: two-phase minimum energy
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+phases:
+  full:
+    time: {t0: 0, tf: 1}
+    constraints: [x(t0) == 0, v(t0) == 0]
+  half:
+    time: {t0: 1, tf: 2}
+    constraints: [x(tf) == 1, v(tf) == 0]
+links: [full.x(tf) == half.x(t0), full.v(tf) == half.v(t0)]
+method: {transcription: LGR, segments: 4, degree: 5}
+objective: minimize full.integral(u**2) + half.integral(u**2)
+"""
+
+
+def test_a_phase_integral_in_the_top_level_objective_says_where_it_is_written(tmp_path):
+    """unseen5: `full.integral(u**2)` read as a boundary value ("a boundary value is written
+    integral(t0) or integral(tf)"); it now names the phase's own objective, and that form
+    compiles to the sum of the phases' costs."""
+    p = tmp_path / "two.yaml"
+    p.write_text(TWO_PHASE_COST)
+    with pytest.raises(SpecError) as info:
+        compile_file(p)
+    text = str(info.value)
+    assert f"{p}:15:" in text and "phases: {full: {objective: integral(u ** 2)}}" in text, text
+    fixed = TWO_PHASE_COST.replace("objective: minimize full.integral(u**2) + half.integral(u**2)",
+                                   "objective: minimize 0").replace(
+        "    constraints: [x(t0) == 0, v(t0) == 0]", "    constraints: [x(t0) == 0, v(t0) == 0]\n    objective: integral(u**2)"
+    ).replace("    constraints: [x(tf) == 1, v(tf) == 0]", "    constraints: [x(tf) == 1, v(tf) == 0]\n    objective: integral(u**2)")
+    p.write_text(fixed)
+    assert compile_file(p).problem.objective.expr.free_symbols      # both integrals in it

@@ -355,6 +355,14 @@ class _Builder:
             raise self.fail("keyword arguments are not allowed")
         func = node.func
         if isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name):
+            if func.attr == "integral" and func.value.id in self.scope.phases:
+                # the natural guess for a multi-phase cost; it read as a boundary value
+                ph = func.value.id
+                arg = ast.unparse(node.args[0]) if node.args else "..."
+                raise self.fail(f"'{ast.unparse(node)}': an integral over phase '{ph}' is written in that phase's "
+                                f"`objective:` (phases: {{{ph}: {{objective: integral({arg})}}}}); phase objectives "
+                                "are added to this one as costs (subtracted under maximize), e.g. `objective: "
+                                "minimize 0` beside each phase's integral")
             return self._boundary(func.value.id, func.attr, node)
         if not isinstance(func, ast.Name):
             raise self.fail(f"'{ast.unparse(func)}(...)' is not allowed (only whitelisted functions may be called)")
