@@ -179,22 +179,13 @@ def test_a_saturated_node_on_the_switch_itself_does_not_fail_the_switching_check
     verified run within 3e-8 of the closed form."""
     import math
 
+    from test_mesh_refinement import PLANAR_MIN_FUEL
+
     from ocdsl.api import run_file
 
     p = tmp_path / "pmf.yaml"
-    p.write_text("""name: planar minimum fuel
-model:
-  states: [x, y, vx, vy]
-  controls: [uxp, uxm, uyp, uym]
-  dynamics: {x: vx, y: vy, vx: uxp - uxm, vy: uyp - uym}
-problem:
-  time: {t0: 0, tf: 3}
-  constraints: [0 <= uxp <= 1, 0 <= uxm <= 1, 0 <= uyp <= 1, 0 <= uym <= 1,
-                x(t0) == 0, y(t0) == 0, vx(t0) == 0, vy(t0) == 0,
-                x(tf) == 1, y(tf) == 0.5, vx(tf) == 0, vy(tf) == 0]
-  objective: minimize integral(uxp + uxm + uyp + uym)
-method: {transcription: LGL, segments: 3, degree: 3, mesh: {tolerance: 1.0e-5, max_iterations: 15}}
-""")
+    p.write_text(PLANAR_MIN_FUEL.split("method:")[0]
+                 + "method: {transcription: LGL, segments: 3, degree: 3, mesh: {tolerance: 1.0e-5, max_iterations: 15}}\n")
     res = run_file(p, None)
     exact = (3 - math.sqrt(5)) + (3 - math.sqrt(7))
     assert res.status == "optimal" and abs(res.objective - exact) < 1e-6 * exact

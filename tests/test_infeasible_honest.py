@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+from test_mesh_refinement import HARMONIC
+
 from ocdsl.api import run_file
 
 BROCKETT = """name: brockett
@@ -101,18 +103,8 @@ def test_with_mesh_refinement_the_first_mesh_gets_the_same_retry_and_diagnosis(t
     assert "cannot all be met from these starts" in res.message, res.message
 
 
-OSCILLATOR = """name: oscillator
-model:
-  states: [x1, x2]
-  controls: [u]
-  dynamics: {x1: x2, x2: -x1 + u}
-problem:
-  time: {t0: 0, tf: free}
-  constraints: [-1 <= u <= 1, x1(t0) == -4, x2(t0) == 1, x1(tf) == 0, x2(tf) == 0, 1 <= tf <= 20]
-  objective: minimize tf
-  guess: {tf: 7}
-method: {transcription: LGR, segments: 6, degree: 4, starts: STARTS}
-"""
+# 6 segments of degree 4 with STARTS starts, no mesh refinement
+OSCILLATOR = HARMONIC.split("method:")[0] + "method: {transcription: LGR, segments: 6, degree: 4, starts: STARTS}\n"
 # Pontryagin: u = -1, +1, -1 with arcs 2.97353962, pi, 0.50536051 (unseen4/refs)
 OSCILLATOR_TF = 6.6204927886093525
 
