@@ -466,16 +466,3 @@ def test_a_mesh_solved_again_without_progress_stops_the_refinement(tmp_path):
     assert res.status == "optimal" and abs(res.objective - exact) < 1e-6 * exact, res.message
     assert len(history) <= 8, [(h["iteration"], h["max_error"]) for h in history]
     assert history[-1].get("stalled", "").startswith(f"mesh iteration {len(history)}: the mesh of iteration")
-
-
-def test_a_located_switch_refuted_by_its_own_trial_does_not_block_convergence(tmp_path):
-    """unseen4: the time-optimal oscillator from 6 segments alternated between a breakpoint at
-    0.449185 (estimated error 2.0e-8, the switch 0.449142 located at 0.449605) and one moved to
-    0.449605 alone (error 2.2e-4), and ended mesh_not_converged on a right tf. The trial of
-    the located position is the evidence against it: the mesh within tolerance is the result."""
-    p = tmp_path / "h.yaml"
-    p.write_text(HARMONIC.replace("segments: 20", "segments: 6").replace("max_iterations: 25", "max_iterations: 12"))
-    res = run_file(p, None)
-    assert res.status == "optimal" and "the locator's error" in res.message, res.message
-    assert abs(res.objective - 6.6204927886093525) < 1e-7 * 6.62
-    assert res.verification["status"] == "verified"

@@ -81,44 +81,6 @@ def _close_mesh(a, b, tol: float) -> bool:
             and bool(np.all(np.abs(np.asarray(a.breakpoints) - np.asarray(b.breakpoints)) <= tol)))
 
 
-def _refuted_features(history: list[dict], best, spec) -> list[tuple[float, int, float]] | None:
-    """When the mesh with the smallest estimated error meets the tolerance and only its located
-    switches or corners off the breakpoints kept it from converging: for each such location,
-    an iteration whose mesh had a breakpoint there (within ``corner_tolerance``), solved
-    optimal, with its error above the tolerance, as ``(location, iteration, error)``, its mesh
-    otherwise the same (segments, degrees, every other breakpoint within ``corner_tolerance``),
-    so that the error is the move's. None unless every location has one. The time-optimal harmonic oscillator alternated between a
-    breakpoint at 0.449185 (error 2.0e-8, the switch 0.449142 located at 0.449605) and one at
-    0.449605 (error 2.2e-4): the locator was 4e-4 off, the estimate right."""
-    if best is None or best[0] > spec.tolerance:
-        return None
-    mine = history[best[1] - 1]
-    off = mine.get("features_off_breakpoints") or {}
-    tol = spec.corner_tolerance
-
-    def only_moved_to(h, phase, f) -> bool:
-        """h's meshes are best's but for breakpoints moved onto f (so its error is that move's)."""
-        for k, m in h["meshes"].items():
-            a, b = mine["meshes"][k], m
-            if a["degrees"] != b["degrees"] or len(a["breakpoints"]) != len(b["breakpoints"]):
-                return False
-            for x, y in zip(a["breakpoints"], b["breakpoints"]):
-                if abs(x - y) > tol and not (k == phase and abs(y - f) <= tol):
-                    return False
-        return any(abs(y - f) <= tol for y in h["meshes"][phase]["breakpoints"])
-
-    found = []
-    for phase, locations in off.items():
-        for f in locations:
-            tried = [(h["iteration"], h["max_error"]) for h in history
-                     if h["iteration"] != best[1] and h.get("status") in GOOD and h["max_error"] > spec.tolerance
-                     and only_moved_to(h, phase, f)]
-            if not tried:
-                return None
-            found.append((float(f), *tried[0]))
-    return found or None
-
-
 def initial_meshes(file) -> dict:
     from ...transcribe.mesh import Mesh
 
@@ -496,14 +458,6 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         else:
             status = "mesh_not_converged"
             chosen = best
-            refuted = _refuted_features(history, best, spec) if best is not None else None
-            if refuted:
-                status = "optimal" if best[3].status == "optimal" else best[3].status
-                message = (f"mesh converged: iteration {best[1]} of {len(history)} has largest estimated error "
-                           f"{best[0]:.3e} within tolerance {spec.tolerance:.1e}; the switches or corners located "
-                           "off its breakpoints were each tried as a breakpoint and the error rose above the "
-                           "tolerance there (" + "; ".join(f"{f:.6g}: iteration {j}, {e:.3e}" for f, j, e in refuted)
-                           + "), so those locations are the locator's error, not the solution's")
     elif status in ("time_limit", "interrupted") and best is not None:
         # the last solve was cut short, earlier meshes solved: the best of those is the result
         # (its trajectory and objective), not the cut-off iterate (whose objective was lost)
