@@ -162,7 +162,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         result.extra["starts"] = records
         notes = warm_start_notes(file, previous)
         if best.status in ("optimal", "acceptable"):
-            from .solve.junctions import constrained_arcs
+            from .solve.arcs import constrained_arcs
 
             notes += constrained_arcs(best_tr)
         if notes:

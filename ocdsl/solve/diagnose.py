@@ -282,15 +282,16 @@ def copy_values(source, target) -> None:
 def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "the guess",
             n_starts: int = 1) -> Elastic:
     """Which boundary equalities (boundary conditions, links) cannot be met: solve again with
-    each of them moved into the objective as its smoothed absolute residual (dynamics, bounds,
-    path constraints and boundary inequalities kept), from each guess of ``starts`` (a list of
-    {phase: PhaseGuess}), and name those the best relaxed solution leaves unmet, with the
-    closest value the rest of the problem allows. ``tried`` says which starts of the problem
-    itself ended infeasible (``n_starts`` of them from ``method.starts``). A relaxed solve that
-    meets every condition is a feasible point of the problem itself: returned as
-    ``feasible``, for the caller to solve the problem from. Only a relaxed solve that Ipopt solved and that meets its own
-    constraints (:func:`max_violation`) is quoted; every statement is a local one (a
-    solver cannot prove infeasibility), and an inconclusive diagnosis says so."""
+    each of them relaxed by a pair of nonnegative slacks whose sum is the objective (dynamics,
+    bounds, path constraints and boundary inequalities kept), from each guess of ``starts`` (a
+    list of {phase: PhaseGuess}), and name those the best relaxed solution leaves unmet, with
+    the closest value the rest of the problem allows. ``tried`` says which starts of the
+    problem itself ended infeasible (``n_starts`` of them from ``method.starts``). A relaxed
+    solve that meets every condition is a feasible point of the problem itself: returned as
+    ``feasible``, for the caller to solve the problem from. Only a relaxed solve that Ipopt
+    solved and that meets its own constraints (:func:`max_violation`) is quoted; every
+    statement is a local one (a solver cannot prove infeasibility), and an inconclusive
+    diagnosis says so."""
     import dataclasses
 
     import pyomo.core as pyo

@@ -168,33 +168,29 @@ def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:
     return out
 
 
-def joint_passes(funcs, uf, grid, breaks, X_rows, row_at, rtol, scale, rho) -> tuple[Pass, Pass] | None:
+def joint_passes(funcs, uf, grid, breaks, from_x0, from_rows, rtol, scale, rho) -> tuple[Pass, Pass] | None:
     """The global and the local pass integrated together, piece by piece, as one system of
     twice the width: both fly the same control over the same piece, so one call of the
     control and one step of the integrator serve both (the stepping's Python overhead is
     paid once; about a third of the verification of a bang-bang solution on 40 pieces).
-    The error norm over both halves, with the tolerances divided by sqrt(2), accepts a step
-    only where each half alone would about accept it. None when a piece is stiff or the
-    joint integration fails: the caller then integrates the passes apart, with their stiff
-    fallbacks."""
-    n, nq = funcs.n, len(funcs.integral_symbols)
-    w = n + nq
+    ``from_x0`` and ``from_rows`` start piece k of each half, as :func:`integrate_pass`'s
+    ``starts``. The error norm over both halves, with the tolerances divided by sqrt(2),
+    accepts a step only where each half alone would about accept it. None when a piece is
+    stiff or the joint integration fails: the caller then integrates the passes apart, with
+    their stiff fallbacks."""
+    w = funcs.n + len(funcs.integral_symbols)
     if w == 0 or rho * float(np.max(np.diff(breaks))) > STIFF:
         return None
     Yg = np.full((len(grid), w), np.nan)
     Yl = np.full((len(grid), w), np.nan)
     atol = np.tile(rtol * scale, 2) / math.sqrt(2.0)
-    start = np.concatenate([X_rows[0], np.zeros(nq)])
-    yg, yl = start, start
+    pair = funcs.augmented_pair
+    yg = yl = None
     steps = 0
     for k, (a, b) in enumerate(zip(breaks[:-1], breaks[1:])):
         sel = np.flatnonzero((grid >= a) & (grid <= b))
-        if k > 0:
-            i = row_at.get(float(a))
-            if i is not None:
-                yl = np.concatenate([X_rows[i], yl[n:]])
+        yg, yl = from_x0(k, yg), from_rows(k, yl)
         u_of = uf.piece(0.5 * (a + b))
-        pair = funcs.augmented_pair
 
         def fun(tt, y):
             return pair(tt, y, u_of(tt))
@@ -278,21 +274,6 @@ def reintegrate(funcs, uf, t_rows, X_rows, breaks, rtol, scale, per_interval: in
     def from_x0(k, y_prev):
         return np.concatenate([X_rows[0], np.zeros(nq)]) if k == 0 else y_prev
 
-    if len(breaks) <= 2:
-        glob = integrate_pass(funcs, uf, grid, breaks, from_x0, rtol, scale, rho)
-        return glob, glob
-    rows = [row_at.get(float(tb)) for tb in breaks[:-1]]
-    batch = all(i is not None for i in rows) and len(breaks) - 1 >= BATCH_MIN
-    if open_loop and not batch:
-        both = joint_passes(funcs, uf, grid, breaks, X_rows, row_at, rtol, scale, rho)
-        if both is not None:
-            return both
-    glob = integrate_pass(funcs, uf, grid, breaks, from_x0, rtol, scale, rho) if open_loop else None
-    if all(i is not None for i in rows):      # every piece starts at a row of the solution
-        local = batched_local_pass(funcs, uf, grid, breaks, X_rows[rows], rtol, scale, rho)
-        if local is not None:
-            return (glob if open_loop else local), local
-
     def from_rows(k, y_prev):
         i = row_at.get(float(breaks[k]))
         if k == 0:
@@ -300,5 +281,19 @@ def reintegrate(funcs, uf, t_rows, X_rows, breaks, rtol, scale, per_interval: in
         q_prev = y_prev[funcs.n:]
         return np.concatenate([X_rows[i], q_prev]) if i is not None else y_prev
 
+    if len(breaks) <= 2:
+        glob = integrate_pass(funcs, uf, grid, breaks, from_x0, rtol, scale, rho)
+        return glob, glob
+    rows = [row_at.get(float(tb)) for tb in breaks[:-1]]
+    if all(i is not None for i in rows):      # every piece starts at a row of the solution
+        local = batched_local_pass(funcs, uf, grid, breaks, X_rows[rows], rtol, scale, rho)
+        if local is not None:
+            glob = integrate_pass(funcs, uf, grid, breaks, from_x0, rtol, scale, rho) if open_loop else local
+            return glob, local
+    if open_loop:
+        both = joint_passes(funcs, uf, grid, breaks, from_x0, from_rows, rtol, scale, rho)
+        if both is not None:
+            return both
+    glob = integrate_pass(funcs, uf, grid, breaks, from_x0, rtol, scale, rho) if open_loop else None
     local = integrate_pass(funcs, uf, grid, breaks, from_rows, rtol, scale, rho)
     return (glob if open_loop else local), local

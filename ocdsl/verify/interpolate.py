@@ -155,22 +155,24 @@ class SegmentPolynomials:
             return []
         i = int(np.clip(np.searchsorted(self.segments, 0.5 * (a + b), side="right") - 1, 0, len(self.coef) - 1))
         c, hw, coef = self.coef[i]
+        D = len(coef)
+        if D < 2:                      # a constant: clipped once, no kink
+            return []
         za, zb = (a - c) / hw, (b - c) / hw
         # which bounds the polynomial can reach on [za, zb]: its values on a grid, and a
         # bound on its slope there (|z| <= max(|za|, |zb|)), rule out most without roots
-        D = len(coef)
         zs = np.linspace(za, zb, 2 * D + 1)
         vals = np.zeros((len(zs), coef.shape[1]))
         for row in coef:
             vals = vals * zs[:, None] + row
         zmax = max(abs(za), abs(zb), 1e-300)
         k = np.arange(D - 1, 0, -1)
-        slope = (np.abs(coef[:-1]) * (k * zmax ** (k - 1))[:, None]).sum(axis=0) if D > 1 else np.zeros(coef.shape[1])
+        slope = (np.abs(coef[:-1]) * (k * zmax ** (k - 1))[:, None]).sum(axis=0)
         reach = slope * (zs[1] - zs[0]) / 2
         out = []
         for j in range(coef.shape[1]):
             for bound in (self.lo[j], self.hi[j]):
-                if not math.isfinite(bound) or D < 2 or np.min(np.abs(vals[:, j] - bound)) > reach[j]:
+                if not math.isfinite(bound) or np.min(np.abs(vals[:, j] - bound)) > reach[j]:
                     continue
                 p = coef[:, j].copy()
                 p[-1] -= bound
@@ -237,7 +239,33 @@ class SegmentPolynomials:
 
 
 
-class _Tabulated:
+class _Clipped:
+    """A control given unclipped by ``_raw(tt) -> (P, m)``, clipped to ``lo``/``hi``, and
+    evaluated the same way on every piece."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def _raw(self, tt) -> np.ndarray:
+        raise NotImplementedError
+
+    def at(self, tt) -> np.ndarray:
+        return np.minimum(np.maximum(self._raw(tt), self.lo), self.hi)
+
+    def kinks(self, a: float, b: float) -> list[float]:
+        """Where the clipped control has a kink inside [a, b] (see SegmentPolynomials.kinks)."""
+        return _sampled_crossings(self._raw, a, b, self.lo, self.hi)
+
+    def __call__(self, tt: float) -> np.ndarray:
+        return self.at(np.array([tt]))[0]
+
+    def piece(self, tt: float):
+        """The control as a function of one time (any piece: these interpolants are
+        evaluated the same way everywhere)."""
+        return lambda s: self(s).tolist()
+
+
+class _Tabulated(_Clipped):
     """Cubic, linear or zero-order-hold controls through the rows, clipped to bounds."""
 
     def __init__(self, t, U, bounds, kind: str):
@@ -261,23 +289,8 @@ class _Tabulated:
             return self.U[k]
         return np.column_stack([np.interp(tt, self.t, self.U[:, j]) for j in range(self.U.shape[1])])
 
-    def at(self, tt) -> np.ndarray:
-        return np.minimum(np.maximum(self._raw(tt), self.lo), self.hi)
 
-    def kinks(self, a: float, b: float) -> list[float]:
-        """Where the clipped control has a kink inside [a, b] (see SegmentPolynomials.kinks)."""
-        return _sampled_crossings(self._raw, a, b, self.lo, self.hi)
-
-    def __call__(self, tt: float) -> np.ndarray:
-        return self.at(np.array([tt]))[0]
-
-    def piece(self, tt: float):
-        """The control as a function of one time (any piece: these interpolants are
-        evaluated the same way everywhere)."""
-        return lambda s: self(s).tolist()
-
-
-class _Series:
+class _Series(_Clipped):
     """A parametric control law evaluated exactly (clipped to bounds)."""
 
     def __init__(self, spec: dict, t0: float, bounds):
@@ -294,19 +307,6 @@ class _Series:
         from ..simulate.integrate import evaluate_controls
 
         return evaluate_controls(self.layout, self.coefficients, np.asarray(tt, float) - self.t0, self.horizon)
-
-    def at(self, tt) -> np.ndarray:
-        return np.minimum(np.maximum(self._raw(tt), self.lo), self.hi)
-
-    def kinks(self, a: float, b: float) -> list[float]:
-        """Where the clipped control has a kink inside [a, b] (see SegmentPolynomials.kinks)."""
-        return _sampled_crossings(self._raw, a, b, self.lo, self.hi)
-
-    def __call__(self, tt: float) -> np.ndarray:
-        return self.at(np.array([tt]))[0]
-
-    def piece(self, tt: float):
-        return lambda s: self(s).tolist()
 
 
 def control_rows(traj, control_names) -> tuple[np.ndarray, np.ndarray]:

@@ -21,15 +21,6 @@ import numpy as np
 ACTIVE_TOL = 1e-7
 
 
-def _active(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    out = np.zeros(len(values), bool)
-    if math.isfinite(lo):
-        out |= values <= lo + ACTIVE_TOL * (1 + abs(lo))
-    if math.isfinite(hi):
-        out |= values >= hi - ACTIVE_TOL * (1 + abs(hi))
-    return out
-
-
 def constrained_arcs(tr) -> list[str]:
     """One note per phase of a solved pseudospectral transcription ``tr`` whose state bounds
     or inequality path constraints bind at a node inside the phase (not only at its ends,
@@ -38,6 +29,7 @@ def constrained_arcs(tr) -> list[str]:
     import pyomo.core as pyo
 
     from ..transcribe.solution import node_values, phase_times
+    from .mesh.segments import activity
 
     notes = []
     for pb in tr.phases:
@@ -61,7 +53,7 @@ def constrained_arcs(tr) -> list[str]:
         for text, values, s_nodes, lo, hi in rows:
             s_nodes = np.asarray(s_nodes, float)
             inner = (s_nodes > 1e-12) & (s_nodes < 1 - 1e-12)
-            on = _active(np.asarray(values, float), lo, hi)
+            on = activity(np.asarray(values, float), lo, hi, ACTIVE_TOL) != 0
             # a state held at its bound by a boundary condition and leaving it (arriving at
             # it) is at the bound at the end node and, within the tolerance, at the next one:
             # no arc (the brachistochrone's x >= 0 from x(t0) = 0)
