@@ -16,8 +16,12 @@ from ocdsl.study.run import run_study
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _moon(tmp_path: Path, extra_params: str = "", bound: str = "0 <= T <= 1.227") -> Path:
+def _moon(tmp_path: Path, extra_params: str = "", bound: str = "0 <= T <= 1.227", bisection: bool = False) -> Path:
+    """The moon-landing study on 12 segments, where the bisection check (m = 1 while coasting
+    counts as an arc) finds J 1.3e-5 off: off unless ``bisection``, as it is not what reuse changes."""
     text = (ROOT / "configs" / "study_moon_landing_sweep.yaml").read_text()
+    if not bisection:
+        text += "verify: {bisection_check: false}\n"
     text = re.sub(r"segments: \d+", "segments: 12", text)
     text = text.replace("{g: 1.0, E: 2.349}", "{g: 1.0, E: 2.349" + extra_params + "}")
     text = text.replace("0 <= T <= 1.227", bound)
@@ -55,6 +59,22 @@ def test_reused_model_same_optima_as_fresh_builds(tmp_path):
     # one model for the points that sweep E, another for those that sweep (E, g)
     assert hows == ["built", "reused", "reused", "reused", "built", "reused"]
     assert reused._reuse.counts == {"built": 2, "reused": 4, "fresh": 0}
+
+
+def test_reused_points_get_the_bisection_check_of_fresh_builds(tmp_path):
+    f = _moon(tmp_path, bisection=True)
+    fresh, reused = load(f), load(f)
+    levels = []
+    for p in ({"E": 2.2}, {"E": 2.35}, {"E": 2.349}):
+        a = fresh.solve(parameters=p)
+        b = reused.solve(parameters=p, reuse=True)
+        assert a.status == b.status and b.extra["bisection"]["agrees"] is a.extra["bisection"]["agrees"]
+        got = [lv["objective"] for lv in b.extra["bisection"]["levels"]]
+        assert got == pytest.approx([lv["objective"] for lv in a.extra["bisection"]["levels"]], rel=1e-8)
+        levels.append(len(got))
+    # J moves 7e-7 at E = 2.2, 7.6e-6 at 2.35 and 7.7e-6 at 2.349: there the second bisection
+    # (1.1e-6, 3.0e-7) measures the convergence, and both paths make it
+    assert levels == [1, 2, 2], levels
 
 
 def test_reused_model_with_warm_start_and_seed(tmp_path):

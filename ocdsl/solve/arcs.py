@@ -7,12 +7,15 @@ verification, whose J is the optimum *of that mesh*: a speed-limited minimum-ene
 gave J = 12.24 on 3 LG segments and 12.1957 on 7 against the exact 12.1956, verified, with a
 passing certificate (unseen5). Whether a junction sits inside a segment or the NLP moved it
 onto a wrong breakpoint (the 7-segment case: the arc began at the breakpoint 2/7, the exact
-junction is 0.3), the nodes alone do not tell. So a single solve names the arcs it found and
-says what its J is; adaptive refinement (``mesh:``) places the junctions and checks J.
+junction is 0.3), the nodes alone do not tell. So a single solve whose inequalities bind
+inside a phase is solved once more with every segment bisected (``run.bisection_check``),
+and J must agree to a quarter of the verification's tolerance; else the run is ``mesh_not_converged``
+(the status of an adaptive mesh that misses its tolerance) and says where the arcs are.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,10 +23,113 @@ import numpy as np
 # bound from rest (Goddard's r >= 1 from r(t0) = 1) is 7e-7 above it at the first node
 ACTIVE_TOL = 1e-7
 
+# The bisected mesh keeps every breakpoint, so an arc the NLP pinned to a breakpoint stays
+# there and J moves slowly: 13.890625 -> 13.890165 on 7 -> 14 LG segments of degree 3 (errors
+# 1.25e-4 -> 9.2e-5 against the exact 13.888889, a 1.36x cut). With J's errors e and e/r on
+# the two meshes, a difference d means e = d r / (r - 1): d <= tol / 4 keeps e <= tol
+# wherever a bisection cuts the error at least 4/3 times, and d > tol means e > tol wherever
+# it cuts it at all. Between the two the mesh is bisected once more and r measured
+# (Richardson): Goddard's speed-limited uniform mesh has d = 3.9e-6 and e = 8.1e-6.
+AGREEMENT_SHARE = 0.25
 
-def constrained_arcs(tr) -> list[str]:
-    """One note per phase of a solved pseudospectral transcription ``tr`` whose state bounds
-    or inequality path constraints bind at a node inside the phase (not only at its ends,
+
+@dataclass(frozen=True)
+class PhaseArcs:
+    phase: str
+    arcs: list[str]         # "`v <= 1.4` (at its bound at one node, t = 0.5)"
+
+
+@dataclass(frozen=True)
+class Level:
+    """One solve of the bisection check."""
+    objective: float | None         # None: the solve did not converge
+    status: str
+    variables: int
+    iterations: int
+
+
+@dataclass(frozen=True)
+class Bisection:
+    """J on the file's mesh against J with every segment bisected, and bisected again where
+    the first difference alone does not decide (``run.bisection_check``)."""
+    objective: float
+    levels: tuple[Level, ...]
+    tolerance: float
+    floor: float                    # an absolute difference this small is the NLP's own accuracy
+
+    def _objectives(self) -> list[float]:
+        out = [self.objective]
+        for lv in self.levels:
+            if lv.objective is None or not math.isfinite(lv.objective):
+                break
+            out.append(lv.objective)
+        return out
+
+    def differences(self) -> list[float]:
+        """Relative differences of successive objectives (an absolute one below the floor as 0)."""
+        js = self._objectives()
+        return [0.0 if abs(b - a) <= self.floor else abs(b - a) / max(abs(a), abs(b))
+                for a, b in zip(js, js[1:])]
+
+    @property
+    def needs_second(self) -> bool:
+        d = self.differences()
+        return len(self.levels) == 1 and len(d) == 1 and AGREEMENT_SHARE * self.tolerance < d[0] <= self.tolerance
+
+    @property
+    def error(self) -> float | None:
+        """This mesh's relative error in J as the check estimates it (None: not judged)."""
+        d = self.differences()
+        if not d:
+            return None
+        if d[0] <= AGREEMENT_SHARE * self.tolerance or d[0] > self.tolerance:
+            return d[0]
+        if len(d) < 2:
+            return None
+        return math.inf if d[1] >= d[0] else d[0] ** 2 / (d[0] - d[1])
+
+    @property
+    def agrees(self) -> bool | None:
+        """True/False: J did/did not survive the bisection; None: not judged."""
+        e = self.error
+        if e is None:
+            return None
+        d = self.differences()[0]
+        return bool(d <= AGREEMENT_SHARE * self.tolerance or e <= self.tolerance and d <= self.tolerance)
+
+    def record(self) -> dict:
+        d = self.differences()
+        return {"objective": self.objective,
+                "levels": [{"objective": lv.objective, "status": lv.status, "variables": lv.variables,
+                            "iterations": lv.iterations} for lv in self.levels],
+                "relative_differences": d, "estimated_error": self.error,
+                "tolerance": self.tolerance, "agrees": self.agrees}
+
+    def describe(self) -> str:
+        """What the solves gave: "with every segment bisected (N variables) J = ..."."""
+        first = self.levels[0]
+        d = self.differences()
+        text = f"with every segment bisected ({first.variables} variables) "
+        if first.objective is None:
+            return text + f"Ipopt ended {first.status}"
+        text += f"J = {first.objective:.10g} (relative difference {d[0]:.1e}"
+        if len(self.levels) < 2:
+            if d[0] > self.tolerance:
+                return text + f", more than the tolerance {self.tolerance:g})"
+            return text + f", within a quarter of the tolerance {self.tolerance:g})"
+        second = self.levels[1]
+        text += f"), and bisected again ({second.variables} variables) "
+        if second.objective is None:
+            return text + f"Ipopt ended {second.status}"
+        text += f"J = {second.objective:.10g} (relative difference {d[1]:.1e}): "
+        if self.error == math.inf:
+            return text + "the differences do not shrink"
+        return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the tolerance {self.tolerance:g}"
+
+
+def binding_arcs(tr) -> list[PhaseArcs]:
+    """The phases of a solved pseudospectral transcription ``tr`` whose state bounds or
+    inequality path constraints bind at a node inside the phase (not only at its ends,
     where boundary conditions hold states at bounds; a touch point counts: the 3-segment
     speed limit touched at one node): which, and over what times."""
     import pyomo.core as pyo
@@ -31,7 +137,7 @@ def constrained_arcs(tr) -> list[str]:
     from ..transcribe.solution import node_values, phase_times
     from .mesh.segments import activity
 
-    notes = []
+    found = []
     for pb in tr.phases:
         ph, lay = pb.phase, pb.layout
         X, _ = node_values(pb)
@@ -69,13 +175,39 @@ def constrained_arcs(tr) -> list[str]:
                 arcs.append(f"`{text}` (at its bound at {n_on} nodes in t in "
                             f"[{t0 + (tf - t0) * a:.6g}, {t0 + (tf - t0) * b:.6g}])")
         if arcs:
-            phase = f"phase '{ph.name}': " if len(tr.phases) > 1 else ""
-            notes.append(f"{phase}{'; '.join(arcs)} {'binds' if len(arcs) == 1 else 'bind'} on this fixed mesh: J is the optimum of "
-                         "this mesh, which differs from the problem's where the mesh misses the arc's "
-                         "junctions; the verification checks that the trajectory is feasible, not that J is "
-                         "optimal. `mesh:` places the junctions and refines until the error estimate meets "
-                         "its tolerance (docs/mesh.md)")
-    return notes
+            found.append(PhaseArcs(ph.name, arcs))
+    return found
+
+
+def describe(found: list[PhaseArcs], multi_phase: bool) -> str:
+    parts = [(f"phase '{p.phase}': " if multi_phase else "") + "; ".join(p.arcs) for p in found]
+    n = sum(len(p.arcs) for p in found)
+    return f"{'; '.join(parts)} {'binds' if n == 1 else 'bind'} inside the phase on this fixed mesh"
+
+
+def note(found: list[PhaseArcs], multi_phase: bool, check: Bisection | None) -> str:
+    """The run's note on its arcs and, when made, on the bisection check."""
+    what = describe(found, multi_phase)
+    if check is None:
+        return (f"{what}: J is the optimum of this mesh, which differs from the problem's where the mesh "
+                "misses the arcs' junctions; the verification checks that the trajectory is feasible, not "
+                "that J is optimal (the bisection check is off: verify: {bisection_check: false}). `mesh:` "
+                "places the junctions and refines until the error estimate meets its tolerance (docs/mesh.md)")
+    if check.agrees is None:
+        return (f"{what}; {check.describe()}, so J is unchecked: it is the optimum of this mesh, which "
+                "differs from the problem's where the mesh misses the arcs' junctions. `mesh:` places the "
+                "junctions and refines until the error estimate meets its tolerance (docs/mesh.md)")
+    if check.agrees:
+        return f"{what}; {check.describe()}"
+    return ""       # a disagreement is the run's message (mismatch_message)
+
+
+def mismatch_message(found: list[PhaseArcs], multi_phase: bool, check: Bisection) -> str:
+    return (f"J = {check.objective:.10g} on this mesh but {check.describe()}: {describe(found, multi_phase)}, "
+            "and J is this mesh's optimum, not the problem's (the mesh misses these arcs' junctions or "
+            "the controls' switches). "
+            "`mesh:` places the junctions and refines until the error estimate meets its tolerance "
+            "(docs/mesh.md); or a finer uniform mesh")
 
 
 def _value(v) -> float:

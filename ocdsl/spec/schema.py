@@ -284,6 +284,10 @@ class VerifySpec(Strict):
                                              "is reported but does not fail the run")
     time_limit: float = Field(600.0, gt=0, le=86400, description="wall seconds for the verification "
                               "of one result; past it the verdict is `error` (not a pass)")
+    bisection_check: bool = Field(True, description="a single solve (no `mesh:`) whose state bounds or "
+                                  "inequality path constraints bind inside a phase is solved once more with "
+                                  "every segment bisected; J must agree within a quarter of `tolerance`, else the run is "
+                                  "`mesh_not_converged` (docs/verification.md)")
 
 
 class ReportSpec(Strict):

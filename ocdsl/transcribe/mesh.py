@@ -27,6 +27,14 @@ class Mesh:
     def segments(self) -> int:
         return len(self.degrees)
 
+    def bisected(self) -> "Mesh":
+        """Every segment split at its middle, each half of the segment's degree (its
+        polynomials are the restrictions of this mesh's: a finer space, not another one)."""
+        bp = self.breakpoints
+        halves = np.empty(2 * len(bp) - 1)
+        halves[0::2], halves[1::2] = bp, 0.5 * (bp[:-1] + bp[1:])
+        return Mesh(self.scheme_name, halves, tuple(d for d in self.degrees for _ in range(2)))
+
     def scheme(self, k: int) -> Scheme:
         return scheme(self.scheme_name, self.degrees[k])
 
