@@ -117,7 +117,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     with loading("pseudospectral"):     # Pyomo, cyipopt: the rest of a run's start-up (startup.py)
         from .solve import ipopt
         from .solve.reuse import SolvedState, restart
-        from .transcribe.guess import make_guess
+        from .transcribe.guess import start_guesses
         from .transcribe.mesh import Mesh
         from .transcribe.pseudospectral import build
 
@@ -133,10 +133,13 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     # (solve/reuse.py restart), so the model and its NLP structure are made once; automatic
     # scaling is computed from each start's guess, so it keeps a build per start
     one_model = starts > 1 and file.spec.scaling.mode != "auto"
+    base = method.seed if seed is None else seed
     for i in range(starts):
-        s = seed if starts == 1 else (method.seed if seed is None else seed) + i
+        # start 0 is the single start (seed: the run's, None without --seed); start i >= 1 a
+        # perturbed copy drawn from base + i (transcribe/guess.py start_guesses)
+        s = seed if i == 0 else base + i
         with timer.measure("build"):
-            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=s) for ph in problem.phases}
+            guesses = start_guesses(problem, previous, i, seed, base)
             if tr is not None and one_model:
                 restart(tr, guesses, problem)
             else:
@@ -250,7 +253,8 @@ class Recovered:
 def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, seed, options, info, tr,
                                verbose=False, progress=False, build_model=None) -> Recovered:
     """A solve that ended locally infeasible: one more start from seeded random controls
-    (the one ``starts: N + 1`` would add; not where a previous run gives every phase its
+    (seed ``base + N``, the seed a start N + 1 would draw from, but always random controls:
+    they break the degeneracy of controls at 0; not where a previous run gives every phase its
     guess), and if that ends infeasible too, the elastic diagnosis names the conditions that
     cannot hold together (solve/diagnose.py) in the message. Used by the single solve and by
     the first mesh of an adaptive one (``build_model(guesses)``: its own build of that mesh)."""

@@ -25,7 +25,8 @@ def test_starts_with_mesh_are_solved_on_the_first_mesh_and_recorded(tmp_path):
     p.write_text(BROCKETT)
     res = run_file(p, None)
     starts = res.extra.get("starts")
-    assert starts is not None and [r["seed"] for r in starts] == [1, 2, 3], starts
+    # start 0 is the file's guess (no seed), starts 1 and 2 perturbed copies from seed + i
+    assert starts is not None and [r["seed"] for r in starts][:3] == [None, 2, 3], starts
     good = [r["objective"] for r in starts if r["status"] == "optimal"]
     assert good, starts
     first = res.extra["mesh_history"][0]

@@ -411,15 +411,14 @@ def ipopt_options(file_options: dict[str, Any]) -> dict[str, Any]:
 def write_script(path: str | Path, file, segments: int | None = None,
                  extra_options: dict[str, Any] | None = None) -> Path:
     """Write the CasADi script of a compiled problem file (``ocdsl.api.compile_file``)."""
-    from ..transcribe.guess import make_guess
+    from ..transcribe.guess import start_guesses
     from ..transcribe.mesh import Mesh
 
     problem, method = file.problem, file.method
     segs = segments if segments is not None else method.segments
     meshes = {ph.name: Mesh.uniform(method.transcription, segs, method.degree) for ph in problem.phases}
     starts = getattr(method, "starts", 1)
-    seeds = [None] if starts == 1 else [method.seed + i for i in range(starts)]   # as ocdsl.run does
-    guesses = [{ph.name: make_guess(problem, ph, None, seed=s) for ph in problem.phases} for s in seeds]
+    guesses = [start_guesses(problem, {}, i, None, method.seed) for i in range(starts)]   # as ocdsl.run does
     opts = {**ipopt_options(file.spec.solver.options), **(extra_options or {})}
     path = Path(path)
     path.write_text(generate(problem, meshes, guesses, opts))

@@ -210,8 +210,11 @@ class PseudospectralMethod(Strict):
     segments: Union[int, list[float]] = Field(10, description="count of equal segments, or breakpoints in [0, 1]")
     degree: Union[int, list[int]] = Field(4, description="collocation points per segment (one or per segment)")
     mesh: MeshSpec | None = Field(None, description="adaptive mesh refinement")
-    starts: int = Field(1, ge=1, description="several starts from seeded random guesses; best kept")
-    seed: int = Field(0, description="seed of random guesses")
+    starts: int = Field(1, ge=1, description="several starts, best kept: start 0 is the guess (as one start); start "
+                        "i >= 1 moves every state and control by a smooth seeded random curve (clipped into the "
+                        "bounds, fixed boundary values kept) and draws free t0/tf around their guess; where the "
+                        "guess has random controls (guess: {random: true}, --seed) start i redraws them instead")
+    seed: int = Field(0, description="start i >= 1 draws from seed + i")
 
     @field_validator("segments")
     @classmethod

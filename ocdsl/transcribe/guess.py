@@ -4,6 +4,11 @@ Sources, in order of precedence: a previous run folder (warm start, interpolated
 the new mesh), the file's ``guess:`` values (constant, ``[start, end]`` or a table),
 boundary values fixed by equalities (linear between them), the middle of finite bounds,
 and zero. ``random: true`` draws controls uniformly inside their bounds from ``seed``.
+
+``method: {starts: N}`` (:func:`start_guesses`): start 0 is that guess, exactly as a single
+start; start i >= 1 is the guess with every state and control moved by a smooth seeded
+random curve (clipped into the bounds, boundary values fixed by equalities kept) and the
+free t0/tf drawn around their guess inside their bounds (:func:`perturb`).
 """
 from __future__ import annotations
 
@@ -26,11 +31,15 @@ class PhaseGuess:
     tf: float
     random_controls: np.random.Generator | None = None
     control_bounds: dict[str, tuple[float, float]] | None = None
+    offsets: dict[str, "Offset"] | None = None          # a perturbed start's curves (perturb)
+    bounds: dict[str, tuple[float, float]] | None = None  # what the offsets are clipped into
 
     def _at(self, names: list[str], s: np.ndarray) -> np.ndarray:
         out = np.zeros((len(s), len(names)))
         for j, n in enumerate(names):
             out[:, j] = np.interp(s, self.s_table[n], self.v_table[n])
+            if self.offsets and n in self.offsets:
+                out[:, j] = np.clip(out[:, j] + self.offsets[n](s), *self.bounds[n])
         return out
 
     def states_at(self, s: np.ndarray) -> np.ndarray:
@@ -45,6 +54,107 @@ class PhaseGuess:
                 hi = hi if math.isfinite(hi) else u[:, j].max() + 1.0
                 u[:, j] = self.random_controls.uniform(lo, hi, size=len(s))
         return u
+
+
+@dataclass
+class Offset:
+    """A smooth curve added to one variable's guess in normalised time s: ``sine[k-1]
+    sin(k pi s)`` (k = 1..K, zero at both ends) plus ``start (1 - s) + end s``, the ends'
+    own moves (zero where the boundary value is fixed). Exactly zero at a fixed end, so a
+    boundary value fixed by an equality keeps its guess bit for bit."""
+    sine: np.ndarray
+    start: float
+    end: float
+
+    def __call__(self, s: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, float)
+        k = np.arange(1, len(self.sine) + 1)
+        inner = np.sin(np.pi * np.outer(s, k)) @ self.sine
+        inner[(s <= 0.0) | (s >= 1.0)] = 0.0        # sin(k pi) is 1e-16, not 0
+        return inner + self.start * (1.0 - s) + self.end * s
+
+
+#: A perturbed start's curves: MODES sine modes whose coefficients are normal with standard
+#: deviation AMPLITUDE * scale / k (the k-th mode's weight falls as 1/k, so the curves are
+#: smooth and mostly one or two humps: a different shape of the trajectory, not noise that
+#: the collocation smooths away), plus moves of the free ends of the same size. ``scale`` is
+#: the variable's bound span when both bounds are finite, else the span of its guess, else
+#: its magnitude, else 1. On the cart-pole swing-up (tests/test_multistart_explore.py) 0.25
+#: leaves the straight-line basin (58.81) for the lower minimum 57.94 from several of 7
+#: perturbed starts; much larger amplitudes mostly clip at the bounds.
+MODES = 3
+AMPLITUDE = 0.25
+#: Free t0 and tf are drawn uniformly within TIME_WINDOW times the guessed duration of their
+#: guess, inside their bounds: a time's bounds are often loose limits ([0, 1000]), from which
+#: a uniform draw would land far from any sensible duration. The duration is kept at least
+#: a tenth of the guessed one.
+TIME_WINDOW = 0.3
+
+
+def _scale(lo: float, hi: float, values: np.ndarray) -> float:
+    if math.isfinite(lo) and math.isfinite(hi) and hi > lo:
+        return hi - lo
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size and v.max() > v.min():
+        return float(v.max() - v.min())
+    if v.size and np.abs(v).max() > 0:
+        return float(np.abs(v).max())
+    return 1.0
+
+
+def perturb(problem: Problem, ph: Phase, guess: PhaseGuess, rng: np.random.Generator) -> PhaseGuess:
+    """``guess`` with every state and control (not controls drawn at random) moved by an :class:`Offset` drawn from ``rng`` and the phase's free
+    t0/tf drawn around their guess (module constants above). Draws in a fixed order
+    (states, controls, t0, tf), so a seed gives the same start every time."""
+    fixed = _fixed_boundary(problem, ph)
+    offsets, bounds = {}, {}
+    names = list(guess.state_names) + ([] if guess.random_controls is not None else list(guess.control_names))
+    variables = {v.name: v for v in ph.states + ph.controls}
+    for n in names:
+        lo, hi = ph.bounds_of(variables[n])
+        amp = AMPLITUDE * _scale(lo, hi, guess.v_table[n])
+        sine = amp * rng.standard_normal(MODES) / np.arange(1, MODES + 1)
+        a, z = amp * rng.standard_normal(2)
+        offsets[n] = Offset(sine, 0.0 if (n, "t0") in fixed else float(a), 0.0 if (n, "tf") in fixed else float(z))
+        bounds[n] = (lo, hi)
+    t0, tf = guess.t0, guess.tf
+    span = tf - t0 if tf > t0 else 1.0
+    draws = rng.uniform(-TIME_WINDOW, TIME_WINDOW, 2) * span
+    if ph.t0 is None:
+        t0 = float(np.clip(t0 + draws[0], *ph.t0_bounds))
+    if ph.tf is None:
+        tf = float(np.clip(tf + draws[1], *ph.tf_bounds))
+    if tf - t0 < 0.1 * span:          # a perturbed duration stays a real one
+        t0, tf = guess.t0, guess.tf
+    return PhaseGuess(guess.state_names, guess.control_names, guess.s_table, guess.v_table, t0, tf,
+                      guess.random_controls, guess.control_bounds, offsets, bounds)
+
+
+def start_guesses(problem: Problem, previous: dict, start: int, seed: int | None, base_seed: int) -> dict:
+    """Phase name -> the guess of start ``start`` of ``method: {starts: N}``.
+
+    Start 0 is exactly the single start's guess (``make_guess(..., seed=seed)``, ``seed`` the
+    run's ``--seed`` or a study's), so N starts never do worse than one. Start i >= 1 draws
+    from ``base_seed + i`` (``method.seed``, or the run's seed).
+
+    * The usual guess (straight lines, the middle of the bounds, the file's tables, a warm
+      start): every phase's states and controls moved by smooth random curves and its free
+      times drawn around their guess (:func:`perturb`).
+    * Where the single start's controls are random already (``guess: {random: true}`` in a
+      phase, or a run seed): a new draw of them from ``base_seed + i`` and nothing else,
+      exactly as before perturbed starts existed. That guess is already a random start of
+      the file's choosing, and the seed-0 rendezvous files (docs/seed0.md: about 2 in 3 of
+      those draws reach the 3-axis optimum) keep their measured starts and results."""
+    if start == 0:
+        return {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed) for ph in problem.phases}
+    s = base_seed + start
+    if seed is not None or any(ph.guess.get("random") for ph in problem.phases):
+        return {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=s) for ph in problem.phases}
+    # one generator for the whole start, drawn phase by phase in order: reproducible
+    rng = np.random.default_rng(abs(s))
+    return {ph.name: perturb(problem, ph, make_guess(problem, ph, previous.get(ph.name)), rng)
+            for ph in problem.phases}
 
 
 def _fixed_boundary(problem: Problem, ph: Phase) -> dict[tuple[str, str], float]:

@@ -109,7 +109,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     import pyomo.core as pyo
 
     from ...run import _result
-    from ...transcribe.guess import make_guess
+    from ...transcribe.guess import make_guess, start_guesses
     from ...transcribe.pseudospectral import build
     from .. import ipopt
     from .. import warm_start as ws
@@ -163,8 +163,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     for it in range(1, spec.max_iterations + 1):
         t_iter = time.perf_counter()
         with timer.measure("build"):
-            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name),
-                                           seed=(seed if n_starts == 1 else base_seed) if it == 1 else None)
+            # the first mesh starts from the guess (start 0 of ``starts:``, the single start's);
+            # later meshes from the previous mesh's solution (``previous``)
+            guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
                        for ph in problem.phases}
             built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
 
@@ -189,10 +190,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                transcription=tr)
             if it == 1 and n_starts > 1:
                 # ``starts:`` with ``mesh:``: the starts on the first mesh, refinement from the best
-                start_records.append(_start_record(0, base_seed, info))
+                start_records.append(_start_record(0, seed, info))
                 for i in range(1, n_starts):
-                    g = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=base_seed + i)
-                         for ph in problem.phases}
+                    g = start_guesses(problem, previous, i, seed, base_seed)    # perturbed copies
                     t = rebuild(meshes, guesses=g, collect=True)
                     ws.prepare(t.model)
                     res = ipopt.solve(t.model, options, verbose=verbose,
@@ -215,7 +215,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             if not start_records:           # one start: recorded beside its retry, as a single solve does
                 start_records.append(_start_record(0, seed, info))
             recovered = recover_from_infeasibility(
-                file, meshes, previous, timer, seed=seed if n_starts == 1 else base_seed, options=options,
+                file, meshes, previous, timer, seed=seed, options=options,
                 info=info, tr=tr, verbose=verbose, progress=progress, build_model=first_mesh)
             start_records += recovered.records
             if recovered.guesses is not None:
