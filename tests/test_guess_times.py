@@ -61,3 +61,21 @@ def test_a_guessed_free_t0_solves_to_the_optimum(tmp_path):
     fixed_start.write_text(_FREE_T0.replace("t0: free", "t0: 1"))
     fixed = run_file(fixed_start, out_dir=tmp_path / "fixed")
     assert fixed.t0 is None and json.loads((tmp_path / "fixed" / "result.json").read_text())["t0"] is None
+
+
+def test_a_guessed_time_outside_its_bounds_starts_at_the_bound_without_pyomo_warnings(tmp_path, caplog):
+    """``guess: {tf: 20}`` with ``0.5 <= tf <= 10`` printed Pyomo's W1002 (unseen6)."""
+    import logging
+
+    from ocdsl.api import run_file
+
+    path = tmp_path / "g.yaml"
+    path.write_text(_FREE_T0.replace("time: {t0: free, tf: 5}", "time: {t0: 0, tf: free}")
+                    .replace("0 <= t0 <= 5", "0.5 <= tf <= 10").replace("tf - t0 +", "tf +")
+                    .replace("guess: {t0: 3.5, tf: 5}", "guess: {tf: 20}"))
+    problem = compile_file(path).problem
+    assert make_guess(problem, problem.phases[0]).tf == 10.0
+    with caplog.at_level(logging.WARNING):
+        res = run_file(path, None)
+    assert res.status == "optimal"
+    assert not [r for r in caplog.records if "outside the bounds" in r.getMessage()]

@@ -191,6 +191,8 @@ def make_guess(problem: Problem, ph: Phase, previous=None, seed: int | None = No
     else:
         lo, hi = ph.tf_bounds
         tf = _mid(lo, hi, t0 + 1.0) if math.isfinite(hi) else (lo * 2 if math.isfinite(lo) and lo > t0 else t0 + 1.0)
+    # a guessed time outside its bounds (guess: {tf: 20} with 0.5 <= tf <= 10) starts at the bound
+    t0, tf = min(max(t0, ph.t0_bounds[0]), ph.t0_bounds[1]), min(max(tf, ph.tf_bounds[0]), ph.tf_bounds[1])
     s_table, v_table = {}, {}
     for var in ph.states + ph.controls:
         n = var.name

@@ -15,7 +15,7 @@ from .estimate import estimate_errors, flight_amplification, phase_end, segment_
 from .junction import limit_junction_controls
 from .locate import locate_features, locate_switches, misplaced
 from .refine import MeshStalled, refine, same_mesh
-from .regularise import chattering_segments, merge_intervals, regularise
+from .regularise import check_unregularised, chattering_segments, merge_intervals, regularise
 from .segments import control_polys, seg_polys, solution_arrays
 from .switches import move_switches
 from .terminal import TerminalError, terminal_error
@@ -490,6 +490,21 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                    f"largest estimated error {max_err:.3e} {where}. "
                    + (f"Stopped early because {stalled}." if stalled else
                       "Raise max_iterations or max_degree, or loosen the tolerance."))
+    unreg = None
+    if status == "optimal" and getattr(tr_c.model, "mesh_regularisation", None) is not None:
+        with timer.measure("mesh"):
+            unreg = check_unregularised(
+                tr_c, info_c.objective, reg_weight, lambda g: rebuild(meshes_c, guesses=g, built_with=({}, {})),
+                lambda t: ipopt.solve(t.model, options, verbose=verbose, transcription=t,
+                                      progress=ipopt.Progress(progress, "[without regularisation]")),
+                file.spec.verify.tolerance)
+        if unreg.agrees is False:
+            status = "mesh_not_converged"
+            message = (f"the mesh refinement met its tolerance ({message}), but {unreg.describe()}: "
+                       "the regularisation moves the optimum, and J is the regularised problem's. Lower "
+                       "`regularise` (or 0)")
+        else:
+            notes.append(unreg.describe())
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
@@ -507,6 +522,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 v = getattr(e, key)
                 err_tab[key].append(names.index(v) if key == "phase" else float(v))
     result.extra["mesh_history"] = history
+    if unreg is not None:
+        result.extra["unregularised"] = unreg.record()
     if notes:
         result.extra["notes"] = notes
     if start_records:
