@@ -144,7 +144,7 @@ def take(tr) -> Snapshot:
     """What ``apply`` needs from a solved transcription (see the module doc)."""
     import pyomo.core as pyo
 
-    from ..transcribe.solution import node_values, phase_times
+    from ..transcribe.solution import continuous_controls, node_values, phase_times
 
     m = tr.model
     zl, zu = _suffix(m, "ipopt_zL_out"), _suffix(m, "ipopt_zU_out")
@@ -155,6 +155,7 @@ def take(tr) -> Snapshot:
         nx, nu, npath = len(ph.states), len(ph.controls), len(ph.path)
         N, C = lay.n_state_nodes, lay.n_colloc
         X, U = node_values(pb)
+        U = continuous_controls(pb, U)     # the new mesh's nodes read one branch of an angle
         t0, tf = phase_times(pb)
         scale = path_scale(pb, tf - t0)
         lam = colloc_costates(m, pb)

@@ -97,6 +97,28 @@ def unwrap_angles(U: np.ndarray, columns: list[int], bounds: list[tuple[float, f
     return U
 
 
+_PERIODIC: dict = {}     # id(phase) -> (phase, periodic_controls(phase)): computed once per phase
+
+
+def continuous_controls(pb: PhaseBlock, U: np.ndarray) -> np.ndarray:
+    """The collocated controls ``U`` (n_colloc, nu; in time order) with every control of
+    ``periodic_controls`` on one continuous branch (``unwrap_angles``), as ``extract`` exports
+    them. The NLP does not see a 2 pi shift of such a control at one node, so its values may
+    sit on different turns from node to node (an unbounded heading solved without a guess:
+    0.5252, 0.5252, 6.8084, 0.5252 on a straight line); a polynomial through the raw values
+    is not the control the NLP's solution stands for. The mesh refinement (error estimate,
+    locators, warm start) reads the controls through this."""
+    ph = pb.phase
+    hit = _PERIODIC.get(id(ph))
+    if hit is None or hit[0] is not ph:
+        if len(_PERIODIC) > 64:
+            _PERIODIC.clear()
+        hit = _PERIODIC[id(ph)] = (ph, periodic_controls(ph))
+    if not hit[1]:
+        return U
+    return unwrap_angles(np.asarray(U, float), hit[1], [ph.bounds_of(c) for c in ph.controls])
+
+
 def extract(tr: Transcription) -> list[PhaseTrajectory]:
     out = []
     for pb in tr.phases:

@@ -39,9 +39,12 @@ def phase_functions_all(ph, free_syms):
 
 
 def solution_arrays(pb):
-    from ...transcribe.solution import node_values, phase_times
+    """States (state nodes), controls (collocation nodes; a control that enters only through
+    2 pi-periodic functions on one continuous branch, ``continuous_controls``), t0, tf."""
+    from ...transcribe.solution import continuous_controls, node_values, phase_times
 
-    return (*node_values(pb), *phase_times(pb))
+    X, U = node_values(pb)
+    return (X, continuous_controls(pb, U), *phase_times(pb))
 
 
 def _interpolant(nodes, values):
