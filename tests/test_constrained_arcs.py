@@ -90,7 +90,13 @@ def _check(*objectives, floor=1e-7):
 def test_one_bisection_decides_below_a_quarter_of_the_tolerance_and_above_it(fine, agrees):
     check = _check(1.0, fine)
     assert check.agrees is agrees and not check.needs_second
-    assert _check(1e-9, 3e-9).agrees is True      # 2e-9 apart: within Ipopt's accuracy, whatever the ratio
+    tiny = _check(1e-9, 3e-9)
+    assert tiny.agrees is True            # 2e-9 apart: within Ipopt's accuracy, whatever the ratio
+    assert "relative difference 6.7e-01" in tiny.describe() and "accuracy" in tiny.describe()
+    # the printed difference is the measured one, not the judged 0 (unseen7: "0.0e+00" for 5e-8)
+    close = _check(1.0, 1.0 + 5e-8)
+    assert close.agrees is True and "relative difference 5.0e-08" in close.describe()
+    assert close.record()["relative_differences"] == [pytest.approx(5e-8, rel=1e-6)]
 
 
 def test_between_the_two_a_second_bisection_measures_the_convergence():

@@ -65,10 +65,11 @@ class Bisection:
             out.append(lv.objective)
         return out
 
-    def differences(self) -> list[float]:
-        """Relative differences of successive objectives (an absolute one below the floor as 0)."""
+    def differences(self, judged: bool = True) -> list[float]:
+        """Relative differences of successive objectives; ``judged``: an absolute one below the
+        floor counted as 0 (what the verdict uses; the messages print the measured ones)."""
         js = self._objectives()
-        return [0.0 if abs(b - a) <= self.floor else abs(b - a) / max(abs(a), abs(b))
+        return [0.0 if judged and abs(b - a) <= self.floor else abs(b - a) / max(abs(a), abs(b), 1e-300)
                 for a, b in zip(js, js[1:])]
 
     @property
@@ -98,7 +99,7 @@ class Bisection:
         return bool(d <= AGREEMENT_SHARE * self.tolerance or e <= self.tolerance and d <= self.tolerance)
 
     def record(self) -> dict:
-        d = self.differences()
+        d = self.differences(judged=False)
         return {"objective": self.objective,
                 "levels": [{"objective": lv.objective, "status": lv.status, "variables": lv.variables,
                             "iterations": lv.iterations} for lv in self.levels],
@@ -108,20 +109,22 @@ class Bisection:
     def describe(self) -> str:
         """What the solves gave: "with every segment bisected (N variables) J = ..."."""
         first = self.levels[0]
-        d = self.differences()
+        d, measured = self.differences(), self.differences(judged=False)
         text = f"with every segment bisected ({first.variables} variables) "
         if first.objective is None:
             return text + f"Ipopt ended {first.status}"
-        text += f"J = {first.objective:.10g} (relative difference {d[0]:.1e}"
+        text += f"J = {first.objective:.10g} (relative difference {measured[0]:.1e}"
         if len(self.levels) < 2:
             if d[0] > self.tolerance:
                 return text + f", more than the tolerance {self.tolerance:g})"
+            if measured[0] > AGREEMENT_SHARE * self.tolerance:
+                return text + f"; |dJ| within Ipopt's accuracy {self.floor:g})"
             return text + f", within a quarter of the tolerance {self.tolerance:g})"
         second = self.levels[1]
         text += f"), and bisected again ({second.variables} variables) "
         if second.objective is None:
             return text + f"Ipopt ended {second.status}"
-        text += f"J = {second.objective:.10g} (relative difference {d[1]:.1e}): "
+        text += f"J = {second.objective:.10g} (relative difference {measured[1]:.1e}): "
         if self.error == math.inf:
             return text + "the differences do not shrink"
         return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the tolerance {self.tolerance:g}"
