@@ -466,3 +466,27 @@ def test_a_mesh_solved_again_without_progress_stops_the_refinement(tmp_path):
     assert res.status == "optimal" and abs(res.objective - exact) < 1e-6 * exact, res.message
     assert len(history) <= 8, [(h["iteration"], h["max_error"]) for h in history]
     assert history[-1].get("stalled", "").startswith(f"mesh iteration {len(history)}: the mesh of iteration")
+
+
+def test_the_record_names_the_starting_mesh_once(tmp_path):
+    """result.json echoed the mesh block's default 2 x 3 beside the method's 10 x 4 (unseen6)."""
+    from ocdsl.api import run_file
+
+    text = """name: min time
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, -1 <= u <= 1, 0.5 <= tf <= 5]
+  objective: minimize tf
+method: METHOD
+"""
+    p = tmp_path / "m.yaml"
+    p.write_text(text.replace("METHOD", "{transcription: LGR, segments: 5, degree: 4, mesh: {tolerance: 1.0e-6}}"))
+    res = run_file(p, None)
+    assert (res.method["segments"], res.method["degree"]) == (5, 4)
+    assert "segments" not in res.method["mesh"] and "degree" not in res.method["mesh"]
+    assert res.extra["mesh_history"][0]["meshes"]["main"]["segments"] == 5
+    p.write_text(text.replace("METHOD", "{transcription: LGR, mesh: {tolerance: 1.0e-6, segments: 3, degree: 3}}"))
+    res = run_file(p, None)
+    assert (res.method["segments"], res.method["degree"]) == (3, 3)
+    assert res.extra["mesh_history"][0]["meshes"]["main"]["segments"] == 3

@@ -508,6 +508,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
+    # one starting mesh in the record: the method's segments/degree where given, else the mesh
+    # block's (both were echoed, the unused pair as defaults: unseen6)
+    given, mesh_rec = file.method.model_fields_set, result.method.get("mesh") or {}
+    for key in ("segments", "degree"):
+        used = mesh_rec.pop(key, None)
+        if key not in given and used is not None:
+            result.method[key] = used
     hints = failure_hints(file, tr_c, status)
     result.message = (message + (f".{hints}" if hints else "")
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
