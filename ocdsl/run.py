@@ -180,9 +180,9 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
                     progress=False) -> list[str]:
     """A converged single solve whose inequalities bind inside a phase: its J is that mesh's
     optimum, which the verification (a feasibility check) cannot judge; so the problem is
-    solved once more with every segment bisected, from this solution, and J must agree to the
-    verification's tolerance, else ``result`` becomes ``mesh_not_converged`` (solve/arcs.py).
-    Returns the run's notes."""
+    solved once more with every segment bisected, from this solution (and bisected again where
+    the first difference does not decide), and where J does not agree (``solve.arcs.Bisection``)
+    ``result`` becomes ``mesh_not_converged``. Returns the run's notes."""
     if result.status not in ("optimal", "acceptable"):
         return []
     from .solve import arcs
@@ -210,19 +210,16 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
     compare J (``solve.arcs.Bisection``)."""
     from .solve import ipopt
     from .solve.arcs import Bisection, Level
-    from .transcribe.guess import make_guess
+    from .transcribe.guess import solved_guesses
     from .transcribe.pseudospectral import build
-    from .transcribe.solution import extract
 
     problem = file.problem
     # Ipopt's own accuracy: its tolerance on the (scaled) objective's optimality
     floor = 10 * float(file.spec.solver.options.get("tol", 1e-8))
     check = Bisection(float(objective), (), file.spec.verify.tolerance, floor)
     while not check.levels or check.needs_second:
-        solved = {t.name: t for t in extract(tr)}
         meshes = {name: mesh.bisected() for name, mesh in meshes.items()}
-        guesses = {ph.name: make_guess(problem, ph, solved[ph.name]) for ph in problem.phases}
-        tr = build(problem, meshes, guesses)
+        tr = build(problem, meshes, solved_guesses(problem, tr))
         _scale(file, tr)
         # from the primal point alone: the mesh refinement's multiplier warm start (warm_start.py)
         # took 3 iterations instead of 12 on Bryson-Denham but 29 instead of 18 on Goddard's
@@ -314,11 +311,10 @@ def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, see
             finfo.message += (f" (Solved from a feasible point: from {tried} Ipopt had converged to a point of "
                               "local infeasibility; with the boundary conditions and links relaxed to penalties "
                               "Ipopt found a point that meets them all, and the problem was solved from it.)")
-            from .transcribe.solution import extract
+            from .transcribe.guess import solved_guesses
 
-            solved = {t.name: t for t in extract(ftr)}     # what later meshes' trial models start from
-            guesses = {ph.name: make_guess(problem, ph, solved[ph.name]) for ph in problem.phases}
-            return Recovered(finfo, ftr, out.records, guesses, fscaled)
+            # what later meshes' trial models start from
+            return Recovered(finfo, ftr, out.records, solved_guesses(problem, ftr), fscaled)
     return out
 
 

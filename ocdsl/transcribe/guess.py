@@ -177,6 +177,15 @@ def _mid(lo: float, hi: float, default: float = 0.0) -> float:
     return default
 
 
+def solved_guesses(problem: Problem, tr) -> dict:
+    """Phase name -> the guess that starts a new model (another mesh, another objective) from
+    the solution of the solved transcription ``tr``."""
+    from .solution import extract
+
+    solved = {t.name: t for t in extract(tr)}
+    return {ph.name: make_guess(problem, ph, solved[ph.name]) for ph in problem.phases}
+
+
 def make_guess(problem: Problem, ph: Phase, previous=None, seed: int | None = None) -> PhaseGuess:
     """The guess of ``ph``; ``previous`` is a PhaseTrajectory of an earlier run (warm start)."""
     given = ph.guess.get("values", {})

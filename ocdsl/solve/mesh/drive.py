@@ -81,13 +81,18 @@ def _close_mesh(a, b, tol: float) -> bool:
             and bool(np.all(np.abs(np.asarray(a.breakpoints) - np.asarray(b.breakpoints)) <= tol)))
 
 
+def starting_mesh(method) -> dict:
+    """``segments`` and ``degree`` of the first mesh: the method's where the file gives them,
+    else the mesh block's."""
+    given = method.model_fields_set
+    return {key: getattr(method if key in given else method.mesh, key) for key in ("segments", "degree")}
+
+
 def initial_meshes(file) -> dict:
     from ...transcribe.mesh import Mesh
 
     method, spec = file.method, file.method.mesh
-    given = method.model_fields_set
-    segments = method.segments if "segments" in given else spec.segments
-    degree = method.degree if "degree" in given else spec.degree
+    segments, degree = starting_mesh(method).values()
     if isinstance(degree, int):
         degree = min(max(degree, spec.min_degree), spec.max_degree)
     return {ph.name: Mesh.uniform(method.transcription, segments, degree) for ph in file.problem.phases}
@@ -508,13 +513,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
-    # one starting mesh in the record: the method's segments/degree where given, else the mesh
-    # block's (both were echoed, the unused pair as defaults: unseen6)
-    given, mesh_rec = file.method.model_fields_set, result.method.get("mesh") or {}
+    # one starting mesh in the record (both pairs were echoed, the unused one as defaults: unseen6)
     for key in ("segments", "degree"):
-        used = mesh_rec.pop(key, None)
-        if key not in given and used is not None:
-            result.method[key] = used
+        result.method["mesh"].pop(key, None)
+    result.method.update(starting_mesh(file.method))
     hints = failure_hints(file, tr_c, status)
     result.message = (message + (f".{hints}" if hints else "")
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")

@@ -139,15 +139,13 @@ def check_unregularised(tr, objective: float, weight: float, build_plain, solve,
     (not where the term is within the tolerance: then it is not judged to move J past it)."""
     import pyomo.core as pyo
 
-    from ...transcribe.guess import make_guess
-    from ...transcribe.solution import extract
+    from ...transcribe.guess import solved_guesses
 
     term = float(pyo.value(tr.model.mesh_regularisation))
-    if abs(term) <= tolerance * max(abs(objective), 1e-8):
-        return Unregularised(weight, float(objective), term, None, SKIPPED, tolerance)
-    solved = {t.name: t for t in extract(tr)}
-    plain = build_plain({pb.phase.name: make_guess(tr.problem, pb.phase, solved[pb.phase.name]) for pb in tr.phases})
-    info = solve(plain)
+    skipped = Unregularised(weight, float(objective), term, None, SKIPPED, tolerance)
+    if skipped.relative_term <= tolerance:
+        return skipped
+    info = solve(build_plain(solved_guesses(tr.problem, tr)))
     good = info.status in ("optimal", "acceptable") and info.objective is not None
     return Unregularised(weight, float(objective), term, float(info.objective) if good else None, info.status,
                          tolerance)
