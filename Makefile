@@ -25,7 +25,6 @@ PEERS_LIT := $(wildcard configs/lit_brachistochrone_wall.yaml configs/lit_catena
   configs/lit_orbit_raising.yaml configs/lit_goddard_three_phase.yaml configs/lit_bryson_denham_touch.yaml)
 
 bench-peers: setup
-	$(PY) -m pip install -q casadi
 	$(PY) -c "from ocdsl.bench.cli import bench; bench()" configs/double_integrator.yaml \
 	  configs/minimal_double_integrator.yaml configs/brachistochrone.yaml configs/bryson_denham.yaml \
 	  configs/moon_landing.yaml configs/goddard.yaml configs/two_phase_double_integrator.yaml \

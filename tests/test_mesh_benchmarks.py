@@ -127,9 +127,13 @@ def test_tumour_converges_with_tf(configs):
 
 
 # (file, reference, relative error the adaptive result must reach, fast enough for CI);
-# the reference values are docs/mesh.md's (hanging chain: the closed-form catenary)
+# the reference values are docs/mesh.md's (hanging chain: the closed-form catenary). The
+# hanging chain's is its file's mesh tolerance: its coarse LGR meshes have spurious zigzag
+# optima, and which one Ipopt lands on first depends on the build (3.14.11 / MUMPS 5.5.1:
+# error 1.2e-9 after 3 meshes; 3.14.19 / MUMPS 5.8.2: 1.2e-8 after 8, from a spurious first
+# mesh; at tolerance 1e-8 both end max_iter: docs/mesh.md, "Hanging chain")
 OTHERS = [
-    ("mesh_hanging_chain.yaml", 5.068480110993, 1e-8, True),
+    ("mesh_hanging_chain.yaml", 5.068480110993, 1e-7, True),
     ("mesh_bryson_denham.yaml", 4.0, 1e-9, True),
     ("mesh_double_integrator.yaml", 2.0, 1e-9, False),
     ("mesh_moon_landing.yaml", 1.4203125990, 1e-8, False),

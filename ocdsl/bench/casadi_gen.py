@@ -10,7 +10,7 @@ equality as fixed variables (``lbx == ubx``, which Ipopt removes); ocdsl's initi
 and ocdsl's Ipopt options. Every number is embedded in the script, so running it imports
 only CasADi and NumPy.
 
-CasADi is a bench extra (``pip install .[bench]``); this module does not import it. The
+CasADi is installed with ocdsl (ocdsl's direct NLP calls its build of Ipopt); this module does not import it. The
 generated script prints one JSON line: stage times, NLP size, status, objective.
 """
 from __future__ import annotations

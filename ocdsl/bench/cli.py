@@ -20,7 +20,7 @@ import click
               help="builds per segment count in the scaling series (CPU medians)")
 @click.option("--series-solve", default="", help="segment counts at which the scaling problem is also solved")
 def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, series_solve):
-    """Compare ocdsl with a CasADi script generated from the same problem (needs `pip install casadi`)."""
+    """Compare ocdsl with a CasADi script generated from the same problem (CasADi is a dependency: its Ipopt build is ocdsl's)."""
     try:
         seg = [int(k) for k in scaling_segments.split(",") if k.strip()]
         solve = [int(k) for k in series_solve.split(",") if k.strip()]
@@ -31,7 +31,7 @@ def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, seri
     try:
         import casadi  # noqa: F401
     except ImportError:
-        raise click.ClickException("the CasADi comparison needs CasADi: pip install 'ocdsl[bench]'") from None
+        raise click.ClickException("the CasADi comparison needs CasADi: make setup installs it (a dependency of ocdsl)") from None
     from .peers import main_peers
 
     click.echo(main_peers([Path(f) for f in files], runs, Path(out), Path(scaling_file) if scaling_file else None,

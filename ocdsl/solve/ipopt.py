@@ -367,6 +367,7 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     import pyomo.core as pyo
 
     from ..transcribe import pseudospectral
+    from . import ipopt_c
 
     history: list[tuple[int, float, float, float]] = []
 
@@ -410,7 +411,7 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
                             "hessian_nonzeros": int(nlp.nnz_hessian_lag()),
                             "equality_constraints": int(nlp.n_eq_constraints()),
                             "inequality_constraints": int(nlp.n_ineq_constraints()),
-                            "evaluation": f"PyNumero (ASL): {why}"}
+                            "evaluation": f"PyNumero (ASL): {why}", "ipopt": ipopt_c.cyipopt_name()}
     except _BadStart as e:
         return SolveInfo("error", str(e), 0, None, time.perf_counter() - t)
     except Exception as e:  # evaluation errors, bad options...
@@ -503,10 +504,11 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     from . import ipopt_c
 
     nlp.intermediate = callback
-    if ipopt_c.available():      # the same Ipopt without cyipopt's element-wise copies (ipopt_c.py)
+    if ipopt_c.available():      # Ipopt without cyipopt's element-wise copies (ipopt_c.py)
         problem = ipopt_c.Problem(nlp)
     else:
         problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
+    library = ipopt_c.name()
     for k, v in opts.items():
         problem.add_option(k, v)
     model = transcription.model if transcription is not None else None
@@ -530,7 +532,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     if transcription is not None and STATUS_MAP.get(msg) == "infeasible":
         msg += diagnose.infeasibility_message(transcription, nlp, x)
-    return msg, nlp.info(), info.get("status")
+    return msg, {**nlp.info(), "ipopt": library}, info.get("status")
 
 
 def pynumero_nlp(model):

@@ -5,8 +5,8 @@ element through an untyped NumPy object (``values[i] = np_jac_g[i]`` in ipopt_wr
 about 55 ns an element: 0.6-0.7 ms per Jacobian of seed 0 (11,400 nonzeros) or the orbit
 raising problem (12,670), more than the whole Jacobian evaluation, and about half of what Ipopt
 counted as function evaluations (reports/bench/seed0.md). Here each callback is one
-``memmove``. It is the same library and the same C interface that cyipopt calls (cyipopt's
-own build of Ipopt, found in the process after ``import cyipopt``), with cyipopt's semantics:
+``memmove``. It is the C interface that cyipopt calls, on the library ``library_choice`` picks
+(CasADi's newer build of Ipopt and MUMPS where installed, else cyipopt's own), with cyipopt's semantics:
 options by Python type, the warm-start multipliers in and out of ``IpoptSolve``, an
 evaluation that raises ``cyipopt.CyIpoptEvaluationError`` reports an evaluation error to Ipopt
 (which cuts its step back), any other exception stops the solve and is raised after it, and
@@ -14,8 +14,10 @@ cyipopt's status messages.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
+import os
 import sys
 
 import numpy as np
@@ -33,11 +35,38 @@ _EVAL_H = ctypes.CFUNCTYPE(_INT, _INT, _VP, _INT, _DBL, _INT, _VP, _INT, _INT, _
 _INTERMEDIATE = ctypes.CFUNCTYPE(_INT, _INT, _INT, _DBL, _DBL, _DBL, _DBL, _DBL, _DBL, _DBL, _DBL, _INT, _VP)
 
 
-@functools.cache
-def _library():
-    """cyipopt's libipopt, as loaded into this process by ``import cyipopt``; None if not found."""
-    import cyipopt  # noqa: F401  (loads the library and its MUMPS / BLAS)
+# Which libipopt: $OCDSL_IPOPT_LIBRARY (a path) if set, else CasADi's build where the casadi
+# package is installed (a dependency: Ipopt 3.14.19 with MUMPS 5.8.2 and METIS), else cyipopt's
+# (Ipopt 3.14.11, MUMPS 5.5.1). Why CasADi's first: on the same NLP and options its MUMPS
+# takes half the time per iteration (brachistochrone, 100 segments, 1,999 variables: Ipopt
+# without function evaluations 0.225 -> 0.106 s CPU for the same 27 iterations; section 14 of
+# reports/bench/levers.md), which sections 6, 8 and 12 there traced to MUMPS 5.5.1 against
+# 5.8.2 (not the BLAS, the ordering or the NLP).
+LIBRARY_ENV = "OCDSL_IPOPT_LIBRARY"
 
+
+def _casadi_library() -> str | None:
+    """CasADi's bundled libipopt, found without importing casadi (0.1 s we do not need)."""
+    import importlib.util
+    from pathlib import Path
+
+    try:
+        spec = importlib.util.find_spec("casadi")
+    except (ImportError, ValueError):
+        return None
+    for folder in (spec.submodule_search_locations or []) if spec else []:
+        for name in ("libipopt.so.3", "libipopt.so", "libipopt.dylib"):
+            if (Path(folder) / name).is_file():
+                return str(Path(folder) / name)
+    return None
+
+
+@functools.cache
+def _cyipopt_library() -> str | None:
+    """cyipopt's libipopt, as loaded into this process by ``import cyipopt``."""
+    from .ipopt import import_cyipopt
+
+    import_cyipopt()     # loads the library and its MUMPS / BLAS
     paths = set()
     try:
         with open("/proc/self/maps") as fh:
@@ -47,9 +76,40 @@ def _library():
                     paths.add(p)
     except OSError:
         return None
-    if len(paths) != 1:
+    others = {os.path.realpath(p) for p in (_casadi_library(), os.environ.get(LIBRARY_ENV)) if p}
+    paths = {p for p in paths if os.path.realpath(p) not in others}     # loaded too, maybe
+    return paths.pop() if len(paths) == 1 else None
+
+
+def library_choice() -> tuple[str | None, str]:
+    """(the path of the libipopt the direct NLP calls, where it comes from: "OCDSL_IPOPT_LIBRARY",
+    "casadi" or "cyipopt"); the path is None where none is found (cyipopt.Problem then)."""
+    given = os.environ.get(LIBRARY_ENV)
+    if given:
+        return given, LIBRARY_ENV
+    path = _casadi_library()
+    if path is not None:
+        return path, "casadi"
+    return _cyipopt_library(), "cyipopt"
+
+
+@functools.cache
+def _library(path: str | None = None):
+    """The loaded libipopt at ``path`` (default: ``library_choice()``); None if not found.
+    A path given in OCDSL_IPOPT_LIBRARY that does not load is an error, not a fallback."""
+    if path is None:
+        path, source = library_choice()
+        if path is None:
+            return None
+    else:
+        source = "cyipopt" if path == _cyipopt_library() else "given"
+    try:
+        with _one_blas_thread():
+            lib = ctypes.CDLL(path)
+    except OSError as e:
+        if source == LIBRARY_ENV:
+            raise OSError(f"{LIBRARY_ENV}={path} does not load as Ipopt's library: {e}") from None
         return None
-    lib = ctypes.CDLL(paths.pop())
     lib.CreateIpoptProblem.restype = _VP
     lib.CreateIpoptProblem.argtypes = [_INT, _D, _D, _INT, _D, _D, _INT, _INT, _INT,
                                        _EVAL_F, _EVAL_G, _EVAL_GRAD, _EVAL_JAC, _EVAL_H]
@@ -61,7 +121,52 @@ def _library():
     lib.SetIntermediateCallback.argtypes, lib.SetIntermediateCallback.restype = [_VP, _INTERMEDIATE], _INT
     lib.IpoptSolve.argtypes = [_VP, _D, _D, _D, _D, _D, _D, _VP]
     lib.IpoptSolve.restype = _INT
+    version = _version(lib) or (".".join(map(str, sys.modules["cyipopt"].IPOPT_VERSION)) if source == "cyipopt" else "")
+    lib.ocdsl_name = f"Ipopt {version} ({source})" if version else f"Ipopt ({source})"
     return lib
+
+
+@contextlib.contextmanager
+def _one_blas_thread():
+    """Load the library with one OpenBLAS thread for its MUMPS unless the user set a count:
+    CasADi's OpenBLAS starts one per core, and on these KKT systems (small dense fronts) the
+    second only costs CPU (brachistochrone, 100 segments: process CPU 1.19 -> 0.96 s, the
+    same wall; the CasADi script's own Ipopt CPU is twice its wall time on the small examples
+    of reports/bench/peers.md). OpenBLAS reads the count when it loads (openblas_set_num_threads
+    afterwards leaves its second thread spinning), so it is set for the load only."""
+    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
+    if any(os.environ.get(k) for k in keys):
+        yield
+        return
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    try:
+        yield
+    finally:
+        os.environ.pop("OPENBLAS_NUM_THREADS", None)
+
+
+def _version(lib) -> str:
+    """"3.14.19" (GetIpoptVersion), or "" where the library lacks it (cyipopt's 3.14.11 does)."""
+    getter = getattr(lib, "GetIpoptVersion", None)
+    if getter is None:
+        return ""
+    parts = [_INT() for _ in range(3)]
+    getter.argtypes, getter.restype = [_I, _I, _I], None
+    getter(*(ctypes.byref(p) for p in parts))
+    return ".".join(str(p.value) for p in parts)
+
+
+def name(path: str | None = None) -> str:
+    """The version and source of the library at ``path`` (default: the one the direct NLP
+    calls), as result.json's nlp records it: "Ipopt 3.14.19 (casadi)"."""
+    lib = _library(path)
+    return lib.ocdsl_name if lib is not None else "Ipopt (cyipopt)"
+
+
+def cyipopt_name() -> str:
+    """What the PyNumero route solves with: cyipopt's own library."""
+    path = _cyipopt_library()
+    return name(path) if path else "Ipopt (cyipopt)"
 
 
 def available() -> bool:
@@ -76,10 +181,10 @@ class Problem:
     """cyipopt.Problem's interface as ``_solve_direct_nlp`` uses it: ``add_option``,
     ``set_problem_scaling``, ``solve(x0, lagrange=, zl=, zu=)`` -> (x, info), ``close``."""
 
-    def __init__(self, nlp):
+    def __init__(self, nlp, library: str | None = None):
         from cyipopt import CyIpoptEvaluationError
 
-        self.lib = lib = _library()
+        self.lib = lib = _library(library)
         self.nlp = nlp
         n, m = nlp.n, nlp.m
         jr, jc = (np.ascontiguousarray(a, np.int32) for a in nlp.jacobianstructure())
