@@ -22,9 +22,9 @@ from pathlib import Path
 ENV_DIR = "OCDSL_SERVE_DIR"
 ENV_OFF = "OCDSL_NO_SERVE"
 ENV_LOG = "OCDSL_SERVE_LOG"
-# read when a module is imported, so a server loaded under other values would behave
-# differently from a fresh process
-IMPORT_TIME_ENV = ("PYOMO_CONFIG_DIR", "PYTHONPATH", "PYTHONHASHSEED", "PYTHONWARNINGS",
+# read when a module is imported (or, OCDSL_IPOPT_LIBRARY, when the server loads Ipopt), so a
+# server loaded under other values would behave differently from a fresh process
+IMPORT_TIME_ENV = ("PYOMO_CONFIG_DIR", "OCDSL_IPOPT_LIBRARY", "PYTHONPATH", "PYTHONHASHSEED", "PYTHONWARNINGS",
                    "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MPLBACKEND",
                    "NUMBA_DISABLE_JIT", "NUMBA_CACHE_DIR", "SYMPY_USE_CACHE", "SYMPY_GROUND_TYPES")
 PACKAGE = Path(__file__).resolve().parent.parent

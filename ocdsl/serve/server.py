@@ -163,9 +163,11 @@ def _serve(key: str, idle: float, ready_w: int) -> None:
                 importlib.import_module(name)
             except ImportError as e:
                 print(f"preload {name}: {e}", flush=True)
+        from ocdsl.solve import ipopt_c
         from ocdsl.solve.ipopt import import_cyipopt
 
         import_cyipopt()         # without its SciPy front end, as a run imports it
+        ipopt_c.available()      # loads the library the direct NLP calls (OCDSL_IPOPT_LIBRARY's, if set)
         import gc
 
         gc.collect()
