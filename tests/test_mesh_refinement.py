@@ -218,6 +218,45 @@ def test_junction_locator_on_arc_mesh(configs):
     assert got[-1][0] < 1e-8 and got[-1][1] < 1e-8           # after the secant step
 
 
+@pytest.mark.parametrize("segments", [6, 12, 20])
+def test_junctions_of_a_sagging_arc(configs, segments):
+    """On uniform meshes Bryson-Denham's discrete arc sags below x = 1/9 between nodes that
+    touch it (no segment on the bound at every node): its junctions are still located, near
+    1/3 and 2/3, from the free segments beside the touches (locate._sagging_sides). Before,
+    none were, and the refinement split segments around the entry for three more meshes."""
+    from ocdsl.solve import ipopt
+    from ocdsl.solve.mesh.locate import locate_junctions
+    from ocdsl.solve.mesh.segments import solution_arrays
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    f = compile_file(configs / "mesh_bryson_denham.yaml")
+    ph = f.problem.phases[0]
+    tr = build(f.problem, {ph.name: Mesh.uniform("LGR", segments, 3)}, {ph.name: make_guess(f.problem, ph, None)})
+    assert ipopt.solve(tr.model, {"tol": 1e-10}).status == "optimal"
+    x = solution_arrays(tr.phases[0])[0][:, 0]
+    assert np.max(x) >= 1 / 9 - 1e-9 and np.sum(np.abs(x - 1 / 9) <= 1e-9 * (1 + 1 / 9)) < 0.5 * len(x)
+    entry, exit_ = locate_junctions(tr.phases[0], {}, 1e-9, None)
+    assert abs(entry - 1 / 3) < 2e-3 and abs(exit_ - 2 / 3) < 2e-3, (entry, exit_)
+
+
+def test_a_touch_point_is_no_arc(configs):
+    """Bryson-Denham with l = 1/6 touches its bound at t = 1/2 only: no junctions."""
+    from ocdsl.solve import ipopt
+    from ocdsl.solve.mesh.locate import locate_junctions
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    f = compile_file(configs / "lit_bryson_denham_touch.yaml")
+    ph = f.problem.phases[0]
+    for segments in (5, 8, 11):
+        tr = build(f.problem, {ph.name: Mesh.uniform("LGR", segments, 3)}, {ph.name: make_guess(f.problem, ph, None)})
+        assert ipopt.solve(tr.model, {"tol": 1e-10}).status == "optimal"
+        assert locate_junctions(tr.phases[0], {}, 1e-9, None) == [], segments
+
+
 @pytest.mark.parametrize("scheme", ["LG", "LGR", "LGR-start", "LGL"])
 def test_bryson_denham_every_scheme(configs, scheme):
     """Refinement converges with every collocation scheme (LG used to repeat its 2 x 3 mesh
