@@ -260,3 +260,59 @@ def test_boundary_arc_flight_is_bounded(configs, monkeypatch):
     assert y is not None and np.allclose(y[:, 0], 1 / 9, atol=1e-6)
     monkeypatch.setattr(coarsen, "MAX_EVALUATIONS", 5)
     assert coarsen._boundary_arc(pb, 1 / 3, 2 / 3, pts, xscale, 1e-4) is None
+
+
+def _solved(configs, name, segments, degree=4):
+    from ocdsl.api import compile_file
+    from ocdsl.solve import ipopt
+    from ocdsl.transcribe.guess import make_guess
+    from ocdsl.transcribe.mesh import Mesh
+    from ocdsl.transcribe.pseudospectral import build
+
+    f = compile_file(configs / name)
+    ph = f.problem.phases[0]
+    tr = build(f.problem, {ph.name: Mesh.uniform("LGR", segments, degree)}, {ph.name: make_guess(f.problem, ph, None)})
+    assert ipopt.solve(tr.model, {"tol": 1e-10}).status == "optimal"
+    return tr.phases[0]
+
+
+@pytest.mark.parametrize("name,segments", [("mesh_bryson_denham.yaml", 13), ("mesh_moon_landing.yaml", 12),
+                                           ("mesh_hanging_chain.yaml", 9)])
+def test_segments_flown_side_by_side_as_one_by_one(configs, name, segments, monkeypatch):
+    """The estimate's flights side by side (dop853.solve_ensemble) give each segment's error
+    as flying it alone does, to rounding (the hanging chain carries its integrals along)."""
+    from ocdsl.solve.mesh import estimate
+
+    pb = _solved(configs, name, segments)
+    together = estimate.estimate_errors(pb, {}, active_tol=1e-9)
+    monkeypatch.setattr(estimate, "BATCH_MIN", 10 ** 9)
+    alone = estimate.estimate_errors(pb, {}, active_tol=1e-9)
+    assert len(together) == len(alone) == segments
+    for a, b in zip(alone, together):
+        assert math.isfinite(a.error) and abs(a.error - b.error) <= 1e-9 * a.error + 1e-13, (a.segment, a.error, b.error)
+        assert a.nonsmooth == b.nonsmooth
+        assert a.state == b.state or a.error < 1e-12       # at rounding level the worst is a coin flip
+        assert np.allclose(a.x_end, b.x_end, rtol=1e-11, atol=1e-13)
+
+
+def test_free_parameters_stay_arguments_of_the_flight_code(configs):
+    """PhaseFunctions with ``free`` parameters evaluates as with their values substituted,
+    and one code serves every value (mesh refinement rebinds it each iteration)."""
+    from ocdsl.api import compile_file
+    from ocdsl.verify.functions import PhaseFunctions
+
+    f = compile_file(configs / "lit_linear_tangent_parameters.yaml")
+    ph = f.problem.phases[0]
+    names = [str(s) for s in f.problem.free_parameters]
+    assert names
+    rng = np.random.default_rng(0)
+    t = rng.uniform(0, 1, 5)
+    X = rng.uniform(0.5, 1.5, (5, len(ph.states)))
+    U = rng.uniform(-0.5, 0.5, (5, len(ph.controls)))
+    free = PhaseFunctions(ph, {}, ph.integrals, free=tuple(names))
+    for values in ({n: 1.3 for n in names}, {n: 0.7 + i for i, n in enumerate(names)}):
+        fixed = PhaseFunctions(ph, values, ph.integrals)
+        free.bind(values)
+        assert np.allclose(free.f(t, X, U), fixed.f(t, X, U), rtol=1e-14, atol=0)
+        y = np.concatenate([X[0], np.zeros(len(ph.integrals))])
+        assert np.allclose(free.augmented_point(t[0], y, U[0]), fixed.augmented_point(t[0], y, U[0]), rtol=1e-14)

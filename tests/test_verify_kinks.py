@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ocdsl.verify.integrate import _dop853_split
+from ocdsl.verify.integrate import dop853_split
 from ocdsl.verify.interpolate import SegmentPolynomials
 
 # u = 1.3 - 8 (t - 1/2)^2 clipped to [0, 1]: at its bounds where |t - 1/2| = sqrt(0.3/8), sqrt(1.3/8)
@@ -52,12 +52,12 @@ def test_integrating_the_clipped_control_meets_the_integrator_tolerance():
         return np.array([u_of(t)[0]])
 
     rtol = 1e-10
-    sol = _dop853_split(fun, 0.0, 1.0, np.zeros(1), t_eval, rtol, np.array([rtol]), uf.kinks(0.0, 1.0))
+    sol = dop853_split(fun, 0.0, 1.0, np.zeros(1), t_eval, rtol, np.array([rtol]), uf.kinks(0.0, 1.0))
     exact = np.array([_exact_integral(t) for t in t_eval])
     assert sol.success and sol.y.shape == (1, 11)
     assert np.max(np.abs(sol.y[0] - exact)) < 1e-12, np.abs(sol.y[0] - exact)
     # without the cuts the kinks sit inside steps, and the error is several times rtol (8.7x here)
-    plain = _dop853_split(fun, 0.0, 1.0, np.zeros(1), t_eval, rtol, np.array([rtol]), [])
+    plain = dop853_split(fun, 0.0, 1.0, np.zeros(1), t_eval, rtol, np.array([rtol]), [])
     assert np.max(np.abs(plain.y[0] - exact)) > 5 * rtol
 
 

@@ -19,11 +19,11 @@ class UnresolvedSymbols(ValueError):
     """An expression still holds symbols that neither the phase nor the result gives a value."""
 
 
-def _vectorised(fn, exprs: list[sp.Expr]):
+def _vectorised(fn, exprs: list[sp.Expr], owner):
     def evaluate(t, X, U) -> np.ndarray:
         """(P,), (P, n), (P, m) -> (P, len(exprs))"""
         P = len(t)
-        out = fn(t, *X.T, *U.T)
+        out = fn(t, *X.T, *U.T, *owner.free_values)
         arr = np.empty((P, len(exprs)))
         for i, entry in enumerate(out):
             arr[:, i] = np.broadcast_to(np.asarray(entry, float), (P,))
@@ -36,17 +36,22 @@ class PhaseFunctions:
     """``f``, ``df/dx``, integrands and path constraints of one phase at fixed parameters.
 
     ``values`` maps parameter names (constants given at run time, free parameters' solved
-    values) to numbers; the phase's own constants are substituted first."""
+    values) to numbers; the phase's own constants are substituted first. Parameters named in
+    ``free`` stay arguments of the generated code, valued by ``bind`` (mesh refinement: the
+    free parameters change from mesh to mesh, the code, cached on disk, does not)."""
 
-    def __init__(self, phase: Phase, values: Mapping[str, float], integrals: Mapping[sp.Symbol, sp.Expr]):
+    def __init__(self, phase: Phase, values: Mapping[str, float], integrals: Mapping[sp.Symbol, sp.Expr],
+                 free: tuple[str, ...] = ()):
         self.phase = phase
         self.states, self.controls = list(phase.states), list(phase.controls)
         self.n, self.m = len(self.states), len(self.controls)
         subs = {k: sp.Float(v) for k, v in phase.constants.items()}
         by_name = {str(k): k for k in phase.model.parameters}
         own = {s.name for s in (*phase.states, *phase.controls)}
+        self.free = tuple(free)
+        self.free_values: tuple = ()
         for name, v in values.items():
-            if name in own:     # another phase's constant of that name, not this phase's variable
+            if name in own or name in self.free:  # another phase's constant of that name, not this phase's variable
                 continue
             key = by_name.get(name, sp.Symbol(name, real=True))
             subs.setdefault(key, sp.Float(float(v)))
@@ -56,25 +61,32 @@ class PhaseFunctions:
         q = [substitute_numbers(phase.substitute(e), subs) for e in integrals.values()]
         self.path = list(phase.path)
         g = [substitute_numbers(phase.substitute(c.expr), subs) for c in self.path]
-        allowed = set(self.states) | set(self.controls) | {TIME}
+        present = {str(x): x for e in f + q + g for x in e.free_symbols}
+        free_syms = [present.get(name, by_name.get(name, sp.Symbol(name, real=True))) for name in self.free]
+        allowed = set(self.states) | set(self.controls) | {TIME} | set(free_syms)
         left = set().union(*(e.free_symbols for e in f + q + g)) - allowed if (f or q or g) else set()
         if left:
             raise UnresolvedSymbols(f"phase {phase.name!r}: no value for {sorted(s.name for s in left)}")
-        args = [TIME, *self.states, *self.controls]
+        args = [TIME, *self.states, *self.controls, *free_syms]
         # ``point``: one point at a time (what an adaptive integrator asks for), plain floats
         # through ``math``, ~50x cheaper per call than the array path at one point
         fns = family(args, ("verify", f, q, g),
                      lambda: {"f": (f, "numpy"), "q": (q, "numpy"), "g": (g, "numpy"), "point": (f + q, "math")})
-        self.f = _vectorised(fns["f"], f)
-        self.q = _vectorised(fns["q"], q) if q else None
-        self.g = _vectorised(fns["g"], g) if g else None
+        self.f = _vectorised(fns["f"], f, self)
+        self.q = _vectorised(fns["q"], q, self) if q else None
+        self.g = _vectorised(fns["g"], g, self) if g else None
         self.time_dependent = any(TIME in e.free_symbols for e in f + q)
         self._point = fns["point"]
+
+    def bind(self, values: Mapping[str, float]) -> "PhaseFunctions":
+        """Values of the ``free`` parameters for the calls that follow."""
+        self.free_values = tuple(float(values[name]) for name in self.free)
+        return self
 
     def augmented_point(self, t: float, y, u) -> np.ndarray:
         """Right-hand side of ``[x; integrals]`` at one point (NaN where undefined)."""
         try:
-            return np.array(self._point(t, *y.tolist()[:self.n], *u), float)
+            return np.array(self._point(t, *y.tolist()[:self.n], *u, *self.free_values), float)
         except (ValueError, OverflowError, ZeroDivisionError):
             return np.full(len(y), np.nan)
 
@@ -83,8 +95,9 @@ class PhaseFunctions:
         under one control ``u``: the global and the local pass of one piece in one call."""
         w = len(y) // 2
         v = y.tolist()
+        p = self.free_values
         try:
-            return np.array(self._point(t, *v[:self.n], *u) + self._point(t, *v[w:w + self.n], *u), float)
+            return np.array(self._point(t, *v[:self.n], *u, *p) + self._point(t, *v[w:w + self.n], *u, *p), float)
         except (ValueError, OverflowError, ZeroDivisionError):
             return np.full(len(y), np.nan)
 

@@ -93,7 +93,7 @@ def _stiff(funcs, uf, t, X, scale) -> float:
 FIRST_STEP_SHARE = 1 / 8
 
 
-def _dop853_split(fun, a, b, y0, t_eval, rtol, atol, cuts) -> dop853.Solution:
+def dop853_split(fun, a, b, y0, t_eval, rtol, atol, cuts) -> dop853.Solution:
     """DOP853 over [a, b], restarted at each of ``cuts`` (the control's kinks inside the
     piece, ``kinks(a, b)`` of the interpolants): one solution at ``t_eval``, a time on a cut
     taken from the span that ends there."""
@@ -124,7 +124,7 @@ def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
         return funcs.augmented_point(tt, y, u_of(tt))
 
     if method == "DOP853":
-        sol = _dop853_split(fun, a, b, y0, t_eval, rtol, atol, uf.kinks(a, b))
+        sol = dop853_split(fun, a, b, y0, t_eval, rtol, atol, uf.kinks(a, b))
     else:   # the stiff fallbacks; scipy.integrate is imported only by a run that needs them
         from scipy.integrate import solve_ivp
 
@@ -195,7 +195,7 @@ def joint_passes(funcs, uf, grid, breaks, from_x0, from_rows, rtol, scale, rho) 
         def fun(tt, y):
             return pair(tt, y, u_of(tt))
 
-        sol = _dop853_split(fun, a, b, np.concatenate([yg, yl]), grid[sel], rtol / math.sqrt(2.0), atol,
+        sol = dop853_split(fun, a, b, np.concatenate([yg, yl]), grid[sel], rtol / math.sqrt(2.0), atol,
                             uf.kinks(a, b))
         if not (sol.success and sol.y.shape[1] == len(sel) and np.all(np.isfinite(sol.y))):
             return None

@@ -134,6 +134,26 @@ class SegmentPolynomials:
                 V = np.vander((t[sel] - c) / hw, len(sel))
                 self.coef.append((c, hw, np.linalg.solve(V, U[sel])))
 
+    @classmethod
+    def of_segments(cls, breaks, times, values, bounds) -> "SegmentPolynomials":
+        """The same from each segment's own nodes (``times[k]``, ``values[k]``: (N_k,), (N_k, m)),
+        where which segment a node belongs to is known (mesh refinement: an LGR end node is
+        also the next segment's start)."""
+        self = cls.__new__(cls)
+        self.t, self.U = np.concatenate(times), np.concatenate(values)
+        self.lo = np.array([b[0] for b in bounds])
+        self.hi = np.array([b[1] for b in bounds])
+        self.segments = np.asarray(breaks, float)
+        self._pieces = {}
+        self.coef = []
+        for a, b, t, U in zip(self.segments[:-1], self.segments[1:], times, values):
+            c, hw = 0.5 * (a + b), 0.5 * (b - a)
+            if not hw > 0:      # a segment of zero duration: its mean value
+                self.coef.append((c, 1.0, np.mean(np.atleast_2d(U), axis=0, keepdims=True)))
+                continue
+            self.coef.append((c, hw, np.linalg.solve(np.vander((np.asarray(t) - c) / hw, len(t)), U)))
+        return self
+
     def piece(self, tt: float):
         """The control on the piece holding ``tt``, as a function of one time returning a
         list (plain floats: what an integrator calls thousands of times)."""

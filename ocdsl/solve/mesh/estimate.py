@@ -30,6 +30,94 @@ class SegmentError:
     q_increment: np.ndarray | None = None
 
 
+_FLIGHTS: dict = {}      # id(phase) -> (phase, free parameter names, PhaseFunctions): one per run
+
+
+def flight_functions(pb, params: dict):
+    """What every flight of the estimate and of the terminal check integrates: the phase's
+    dynamics and integrands at one point (the verification's ``PhaseFunctions``, plain
+    floats through ``math``, its code cached on disk; the free parameters bound as
+    arguments, so the mesh iterations share it), and the collocated controls clipped to
+    their bounds, each segment's as straight-line Python (``SegmentPolynomials``). About a
+    tenth of the cost per right-hand side of a lambdified NumPy function and a barycentric
+    control at one point, which were most of the mesh stage."""
+    from ...verify.functions import PhaseFunctions
+    from ...verify.interpolate import SegmentPolynomials
+
+    ph, lay = pb.phase, pb.layout
+    free = tuple(sorted(str(s) for s in params))
+    hit = _FLIGHTS.get(id(ph))
+    if hit is None or hit[0] is not ph or hit[1] != free:
+        if len(_FLIGHTS) > 64:     # a long study builds many problems: keep the cache small
+            _FLIGHTS.clear()
+        hit = _FLIGHTS[id(ph)] = (ph, free, PhaseFunctions(ph, {}, ph.integrals, free=free))
+    funcs = hit[2].bind({str(s): v for s, v in params.items()})
+    X, U, t0, tf = solution_arrays(pb)
+    mesh = lay.mesh
+    span = [t0 + (tf - t0) * lay.s_colloc[lay.colloc[k]] for k in range(mesh.segments)]
+    uf = SegmentPolynomials.of_segments(t0 + (tf - t0) * np.asarray(mesh.breakpoints, float), span,
+                                        [U[lay.colloc[k]] for k in range(mesh.segments)],
+                                        [ph.bounds_of(c) for c in ph.controls])
+    return funcs, uf
+
+
+def _fly(funcs, uf, ta: float, tb: float, y0, t_eval, rtol: float, atol):
+    """DOP853 over one segment with its clipped control, stepping to the control's kinks."""
+    from ...verify.integrate import dop853_split
+
+    u_of = uf.piece(0.5 * (ta + tb))
+    return dop853_split(lambda tt, y: funcs.augmented_point(tt, y, u_of(tt)), ta, tb, y0, t_eval, rtol, atol,
+                        uf.kinks(ta, tb))
+
+
+BATCH_MIN = 8     # segments from which the estimate's flights run side by side
+
+
+def _fly_segments(funcs, uf, ta, tb, starts, taus, rtol: float, atol) -> list:
+    """Every segment k flown from ``starts[k]`` over [ta[k], tb[k]]: its states and integrals
+    at the points ``taus[k]`` (in [-1, 1]) as (w, len), None where the flight failed. The
+    segments whose clipped control has no kink run side by side (``dop853.solve_ensemble``:
+    each its own steps and error norm, the right-hand side of all in one vectorised call;
+    one by one, DOP853's stepping in Python cost as much as the right-hand side); the rest,
+    and all of them below BATCH_MIN, one by one, stepping to their kinks."""
+    from ...verify import dop853
+    from ...verify.integrate import FIRST_STEP_SHARE
+
+    K = len(ta)
+    h = tb - ta
+    out: list = [None] * K
+    batch = [k for k in range(K) if h[k] > 0 and not uf.kinks(ta[k], tb[k])]
+    if len(batch) < BATCH_MIN:
+        batch = []
+    if batch:
+        sel = np.array(batch)
+        pos_k = {k: np.clip((np.asarray(taus[k], float) + 1.0) / 2.0, 0.0, 1.0) for k in batch}
+        positions = np.unique(np.concatenate(list(pos_k.values())))
+        a, hb = ta[sel], h[sel]
+        inside = np.nextafter(tb[sel], -np.inf)    # each segment keeps its own control up to its end
+
+        def rhs(idx, sv, Y):
+            tt = np.minimum(a[idx] + sv * hb[idx], inside[idx])
+            return funcs.augmented(tt, Y, uf.at(tt)) * hb[idx, None]
+
+        with np.errstate(all="ignore"):
+            sol = dop853.solve_ensemble(rhs, starts[sel], positions, rtol, atol, max_first_step=FIRST_STEP_SHARE)
+        if sol.success:
+            for j, k in enumerate(batch):
+                y = sol.y[np.searchsorted(positions, pos_k[k]), j].T
+                out[k] = y if np.all(np.isfinite(y)) else None
+        else:
+            batch = []
+    for k in set(range(K)) - set(batch):
+        if not h[k] > 0:
+            continue
+        t_eval = np.clip(ta[k] + (np.asarray(taus[k], float) + 1.0) * h[k] / 2.0, ta[k], tb[k])
+        sol = _fly(funcs, uf, ta[k], tb[k], starts[k], t_eval, rtol, atol)
+        if sol.success and sol.y.shape[1] == len(t_eval):
+            out[k] = sol.y
+    return out
+
+
 def _smoothed_control(lay, k, U, ulo, uhi, t0, tf):
     """t -> control: least-squares quadratic in time through the collocated controls of
     segment k and its two neighbours (weighted by the quadrature weights), clipped to the
@@ -76,42 +164,37 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
     xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
     xhi = np.array([ph.bounds_of(s)[1] for s in ph.states])
     mesh = lay.mesh
+    funcs, uf = flight_functions(pb, params)
+    K = mesh.segments
+    bps = np.asarray(mesh.breakpoints, float)
+    ta_all, tb_all = t0 + (tf - t0) * bps[:-1], t0 + (tf - t0) * bps[1:]
+    taus = [np.asarray(legendre_gauss_lobatto(mesh.scheme(k).degree + extra_points)[0]) for k in range(K)]
+    polys = [seg_polys(lay, k, X, U) for k in range(K)]
+    x_polys = [polys[k][0](taus[k]) for k in range(K)]
+    # the integrals ride along from 0: their increment over the segment against the NLP's
+    # quadrature of it (a control that zigzags between the nodes can make the quadrature of
+    # sqrt(1 + u^2) or |u| far from its integral: hanging chain, L1 costs)
+    flights = _fly_segments(funcs, uf, ta_all, tb_all,
+                            np.array([np.concatenate([x_polys[k][0], np.zeros(nq)]) for k in range(K)]),
+                            taus, rtol, rtol * np.concatenate([scale, scale_q]))
     out = []
-    for k in range(mesh.segments):
+    for k in range(K):
         sc = mesh.scheme(k)
-        a, b = mesh.breakpoints[k], mesh.breakpoints[k + 1]
-        ta, tb = t0 + (tf - t0) * a, t0 + (tf - t0) * b
-        xs, us = seg_polys(lay, k, X, U)
+        ta, tb = ta_all[k], tb_all[k]
+        xs, us = polys[k]
         h = tb - ta
-
-        def uclip(t):
-            tau = 2.0 * (t - ta) / h - 1.0 if h > 0 else 0.0
-            return np.clip(us(tau)[0], ulo, uhi)
-
-        def rhs(t, x):
-            u = uclip(t)
-            dx = np.asarray(f(*x[:nx], *u, t, *pvals), float).reshape(-1)
-            if not nq:
-                return dx
-            return np.concatenate([dx, np.asarray(qf(*x[:nx], *u, t, *pvals), float).reshape(-1)])
-
-        tau_f = np.asarray(legendre_gauss_lobatto(sc.degree + extra_points)[0])
+        tau_f = taus[k]
         t_f = np.clip(ta + (tau_f + 1.0) * h / 2.0, min(ta, tb), max(ta, tb))
-        x_poly = xs(tau_f)
+        x_poly = x_polys[k]
         x_start = x_poly[0]
         q_err = np.zeros(nq)
         q_inc = np.array(quad_k[k], float) if nq else np.zeros(0)
         if h > 0:
-            # the integrals ride along from 0: their increment over the segment against the
-            # NLP's quadrature of it (a control that zigzags between the nodes can make the
-            # quadrature of sqrt(1 + u^2) or |u| far from its integral: hanging chain, L1 costs)
-            sol = dop853.solve(rhs, (ta, tb), np.concatenate([x_start, np.zeros(nq)]), t_f,
-                               rtol, rtol * np.concatenate([scale, scale_q]))
-            ok = sol.success and sol.y.shape[1] == len(t_f)
-            x_int = sol.y[:nx].T if ok else np.full_like(x_poly, np.nan)
+            y = flights[k]
+            x_int = y[:nx].T if y is not None else np.full_like(x_poly, np.nan)
             if nq:
-                q_inc = sol.y[nx:, -1] if ok else np.full(nq, np.nan)
-                q_err = np.abs(q_inc - quad_k[k]) / scale_q if ok else np.full(nq, np.inf)
+                q_inc = y[nx:, -1] if y is not None else np.full(nq, np.nan)
+                q_err = np.abs(q_inc - quad_k[k]) / scale_q if y is not None else np.full(nq, np.inf)
         else:
             x_int = x_poly
         rel = np.abs(x_int - x_poly) / scale
@@ -239,20 +322,14 @@ def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
     """The phase re-integrated from x(t0) over all its segments (see ``PhaseEnd``): what the
     terminal conditions and the integrals really are at the returned t_f. ``start``: another
     initial state (``flight_amplification``)."""
-    from ...verify import dop853
-
     from ...verify.checks import state_scale
 
     ph, lay = pb.phase, pb.layout
     mesh = lay.mesh
-    free_syms = sorted(params, key=str)
-    pvals = [params[s] for s in free_syms]
-    f, _, qf = phase_functions_all(ph, free_syms)
+    funcs, uf = flight_functions(pb, params)
     X, U, t0, tf = solution_arrays(pb)
     nx = X.shape[1]
     nq = len(ph.integrals)
-    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
-    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
     quad_k = segment_quadratures(pb, params)
     x_scale = state_scale(X)
     q_scale = np.maximum(np.sum(np.abs(quad_k), axis=0), 1e-12) if nq else np.zeros(0)
@@ -261,23 +338,14 @@ def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
     u0 = u_end = np.zeros(len(ph.controls))
     for k in range(mesh.segments):
         ta, tb = t0 + (tf - t0) * mesh.breakpoints[k], t0 + (tf - t0) * mesh.breakpoints[k + 1]
-        _, us = seg_polys(lay, k, X, U)
         h = tb - ta
         if k == 0:
-            u0 = np.clip(us(-1.0)[0], ulo, uhi)
+            u0 = np.array(uf.piece(0.5 * (ta + tb))(ta), float)
         if k == mesh.segments - 1:
-            u_end = np.clip(us(1.0)[0], ulo, uhi)
+            u_end = np.array(uf.piece(0.5 * (ta + tb))(tb), float)
         if not h > 0:
             continue
-
-        def rhs(t, z, us=us, ta=ta, h=h):
-            u = np.clip(us(2.0 * (t - ta) / h - 1.0)[0], ulo, uhi)
-            dx = np.asarray(f(*z[:nx], *u, t, *pvals), float).reshape(-1)
-            if not nq:
-                return dx
-            return np.concatenate([dx, np.asarray(qf(*z[:nx], *u, t, *pvals), float).reshape(-1)])
-
-        sol = dop853.solve(rhs, (ta, tb), y, np.array([tb]), rtol, atol)
+        sol = _fly(funcs, uf, ta, tb, y, np.array([tb]), rtol, atol)
         if not sol.success or sol.y.shape[1] != 1:
             y = np.full_like(y, np.nan)
             break

@@ -110,8 +110,10 @@ def locate_mixed_junctions(pb, params: dict) -> list[float]:
                                      - bound)
 
                     grid = np.linspace(lo_s, hi_s, 201)
-                    with np.errstate(all="ignore"):
-                        vals = np.array([psi(s) for s in grid])
+                    with np.errstate(all="ignore"):     # the grid in one call (it brackets the roots)
+                        xg, ug = x_at.many(grid), polys[other](grid)
+                        vals = np.broadcast_to(np.asarray(g(*xg.T, *ug.T, t0 + (tf - t0) * grid, *pvals)[q],
+                                                          float), grid.shape) - bound
                     roots = [brentq(psi, grid[n], grid[n + 1], xtol=1e-15)
                              for n in range(len(grid) - 1)
                              if np.isfinite(vals[n]) and np.isfinite(vals[n + 1]) and vals[n] * vals[n + 1] < 0]

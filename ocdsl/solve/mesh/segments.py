@@ -113,14 +113,29 @@ def state_evaluator(lay, X, U):
     bps = lay.mesh.breakpoints
     cache: dict = {}
 
-    def at(s):
-        k = int(np.clip(np.searchsorted(bps, s, side="right") - 1, 0, lay.mesh.segments - 1))
+    def poly(k):
         xs = cache.get(k)
         if xs is None:
             xs = cache[k] = seg_polys(lay, k, X, U)[0]
-        a, b = bps[k], bps[k + 1]
-        return xs(2.0 * (s - a) / (b - a) - 1.0)[0]
+        return xs
 
+    def at(s):
+        k = int(np.clip(np.searchsorted(bps, s, side="right") - 1, 0, lay.mesh.segments - 1))
+        a, b = bps[k], bps[k + 1]
+        return poly(k)(2.0 * (s - a) / (b - a) - 1.0)[0]
+
+    def many(ss):
+        """The states at the times ``ss`` (P,) -> (P, n): a locator's grid in one call per segment."""
+        ss = np.asarray(ss, float)
+        ks = np.clip(np.searchsorted(bps, ss, side="right") - 1, 0, lay.mesh.segments - 1)
+        out = np.empty((len(ss), X.shape[1]))
+        for k in np.unique(ks):
+            sel = ks == k
+            a, b = bps[k], bps[k + 1]
+            out[sel] = poly(int(k))(2.0 * (ss[sel] - a) / (b - a) - 1.0)
+        return out
+
+    at.many = many
     return at
 
 
