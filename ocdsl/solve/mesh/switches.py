@@ -47,10 +47,10 @@ def breakpoint_gradient(tr, rebuild, phase: str, q: int) -> float:
     ``tr`` was built. NaN when the two models do not match."""
     import pyomo.core as pyo
 
-    other = rebuild(_moved(tr, phase, q, DELTA))
-    fast = _direct_difference(tr, other)
+    fast = _direct_difference(tr, phase, q)
     if fast is not None:
         return fast / DELTA
+    other = rebuild(_moved(tr, phase, q, DELTA))
     v0, c0 = _values(tr.model)
     v1, c1 = _values(other.model)
     if len(v0) != len(v1) or len(c0) != len(c1):
@@ -70,18 +70,20 @@ def breakpoint_gradient(tr, rebuild, phase: str, q: int) -> float:
     return total / DELTA
 
 
-def _direct_difference(tr, other):
-    """L(other) - L(tr) at tr's primal values and multipliers, evaluated by both models'
-    NumPy NLPs (``transcribe.direct_nlp``: every row at once; Pyomo's expression walk over
-    every constraint body of both models was 0.2-0.3 s per derivative at 2,000 variables,
-    half of a robot-arm mesh iteration). None where either model takes the PyNumero route
-    (a regularised objective) or their sizes differ."""
+def _direct_difference(tr, phase: str, q: int):
+    """L - L(tr) at tr's primal values and multipliers, L that of tr with breakpoint ``q`` of
+    ``phase`` moved by DELTA, evaluated by tr's NumPy NLP and its copy on the moved mesh
+    (``DirectNLP.with_breakpoints``: every row at once, nothing rebuilt; the Pyomo model
+    rebuilt for each breakpoint was most of a robot-arm mesh iteration, and its expression
+    walk 0.2-0.3 s per derivative at 2,000 variables before that). None where the model takes
+    the PyNumero route (a regularised objective): the caller rebuilds it then."""
     from .. import ipopt
 
     n0, _ = ipopt.direct_nlp(tr)
-    n1, _ = ipopt.direct_nlp(other) if n0 is not None else (None, "")
-    if n0 is None or n1 is None or (n0.n, n0.m) != (n1.n, n1.m):
+    if n0 is None:
         return None
+    index = next(i for i, p in enumerate(tr.phases) if p.phase.name == phase)
+    n1 = n0.with_breakpoints(index, _moved(tr, phase, q, DELTA)[phase])
     x = n0.x0                 # tr's values, in the variable order both builds share
     dual = tr.model.dual
     y = np.array([dual.get(r) or 0.0 for r in n0.rows], float)

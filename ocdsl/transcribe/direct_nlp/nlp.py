@@ -99,6 +99,36 @@ class DirectNLP:
             tr._direct_nlp = str(e)
             return None, str(e)
 
+    def with_breakpoints(self, phase: int, mesh) -> "DirectNLP":
+        """This NLP with phase ``phase`` on ``mesh``: the same segments, degrees, variables and
+        rows, other breakpoints. What moves is data, not structure: the nodes' times and, per
+        segment, the width h that scales the dynamics' terms (h/2 (tf - t0) F) and the
+        quadrature weights (w h/2). The envelope derivative in a breakpoint
+        (``solve.mesh.switches``) differences this against the NLP itself, where it rebuilt
+        the Pyomo model and its NLP for each breakpoint (most of a bang-bang mesh iteration)."""
+        import copy
+
+        from ..mesh import Layout
+
+        lay = self.tr.phases[phase].layout
+        new = Layout.of(mesh)
+        if mesh.degrees != lay.mesh.degrees or mesh.scheme_name != lay.mesh.scheme_name:
+            raise ValueError("with_breakpoints: the segments and degrees must be the same")
+        seg = np.empty(lay.n_colloc, int)
+        for k, nodes in enumerate(lay.colloc):
+            seg[nodes] = k
+        ratio = np.diff(np.asarray(mesh.breakpoints, float)) / np.diff(np.asarray(lay.mesh.breakpoints, float))
+        ph = dict(self.phases[phase])
+        ph["S"] = np.asarray(new.s_colloc, float)
+        ph["t_coef"] = ph["t_coef"] * ratio[seg[ph["t_node"]]]
+        ph["weights"] = ph["weights"] * ratio[seg]
+        other = copy.copy(self)
+        other.phases = [ph if i == phase else p for i, p in enumerate(self.phases)]
+        other.y = self.y.copy()
+        other._cache_x, other._gather = None, {}
+        other._assemble()
+        return other
+
     # -- assembly of the scatter indices ------------------------------------------------------
     def _assemble(self) -> None:
         n, xmap = self.n, self.xmap
