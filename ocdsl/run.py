@@ -204,27 +204,34 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
     return [arcs.note(found, multi, check)]
 
 
-def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=False, progress=False):
+def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=False, progress=False,
+                    build_model=None, options=None):
     """Solve ``file``'s problem on ``meshes`` with every segment bisected, started from the
     solution in ``tr``, and once more bisected where the first difference does not decide;
-    compare J (``solve.arcs.Bisection``)."""
+    compare J (``solve.arcs.Bisection``). ``build_model(meshes, guesses)`` and ``options``:
+    how the caller builds and solves its models (mesh refinement: junction controls, its Ipopt
+    tolerance); by default a plain build and the file's solver options."""
     from .solve import ipopt
     from .solve.arcs import Bisection, Level
     from .transcribe.guess import solved_guesses
     from .transcribe.pseudospectral import build
 
     problem = file.problem
+    options = file.spec.solver.options if options is None else options
     # Ipopt's own accuracy: its tolerance on the (scaled) objective's optimality
-    floor = 10 * float(file.spec.solver.options.get("tol", 1e-8))
+    floor = 10 * float(options.get("tol", 1e-8))
     check = Bisection(float(objective), (), file.spec.verify.tolerance, floor)
     while not check.levels or check.needs_second:
         meshes = {name: mesh.bisected() for name, mesh in meshes.items()}
-        tr = build(problem, meshes, solved_guesses(problem, tr))
-        _scale(file, tr)
+        if build_model is None:
+            tr = build(problem, meshes, solved_guesses(problem, tr))
+            _scale(file, tr)
+        else:
+            tr = build_model(meshes, solved_guesses(problem, tr))
         # from the primal point alone: the mesh refinement's multiplier warm start (warm_start.py)
         # took 3 iterations instead of 12 on Bryson-Denham but 29 instead of 18 on Goddard's
         # three phases, and 33 as before on Goddard
-        info = ipopt.solve(tr.model, file.spec.solver.options, verbose=verbose,
+        info = ipopt.solve(tr.model, options, verbose=verbose,
                            progress=ipopt.Progress(progress, "[bisected mesh]"), transcription=tr)
         good = info.status in ("optimal", "acceptable") and info.objective is not None
         level = Level(float(info.objective) if good else None, info.status,

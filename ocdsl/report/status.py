@@ -54,6 +54,8 @@ def certificate_reason(cert: Any) -> str:
             parts.append(f"{pre}failed: {', '.join(map(str, c['failed']))}")
         elif c.get("inconclusive"):
             parts.append(f"{pre}inconclusive: {c['inconclusive']}")
+        elif c.get("skipped"):
+            parts.append(f"{pre}skipped: {c['skipped']}")
     return "; ".join(parts)
 
 
