@@ -36,7 +36,8 @@ from ..symbolic.model import TIME
 from ..symbolic.problem import INF
 from .checks import (evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
                      state_scale, worst)
-from .functions import PhaseFunctions, between_points
+from .admissible import project, row_values
+from .functions import PhaseFunctions, between_points, controls_at
 from .integrate import IntegrationFailure, reintegrate, time_budget
 from .interpolate import (_Tabulated, bounds_of, breakpoints, control_interpolant, control_rows,
                           declared_interpolation)
@@ -228,14 +229,16 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
         return _zero_duration_phase(ph, traj, t, X, names_x, names_u, ubounds, tol, checks)
     if len(t) < 2 or np.any(np.diff(t) <= 0):
         raise ValueError(f"phase {ph.name!r}: the rows' times must increase strictly (at least two rows)")
-    uf = control_interpolant(traj, names_u, ubounds, interpolation)
     funcs = PhaseFunctions(ph, params, ph.integrals)
+    # between rows: the interpolant clipped to its box, projected onto what path constraints
+    # affine in one control allow at the state (verify/admissible.py)
+    uf = project(control_interpolant(traj, names_u, ubounds, interpolation), funcs, ubounds)
     breaks = breakpoints(traj, interpolation)
     breaks = np.unique(np.clip(np.concatenate([[t[0], t[-1]], breaks]), t[0], t[-1]))
     scale_x = state_scale(X)
     nq = len(funcs.integral_symbols)
     if nq:
-        Q = np.abs(funcs.q(t, X, uf.at(t)))
+        Q = np.abs(funcs.q(t, X, controls_at(uf, t, X)))
         scale_q = np.maximum(np.trapezoid(Q, t, axis=0), 1e-12)
     else:
         scale_q = np.zeros(0)
@@ -267,7 +270,7 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
         order = np.argsort(np.concatenate([grid, fine_t]), kind="stable")
         grid = np.concatenate([grid, fine_t])[order]
         Yl = np.concatenate([Yl[:, :funcs.n], fine_X])[order]
-    Ug = uf.at(grid)
+    Ug = controls_at(uf, grid, Yl[:, :funcs.n])
     sbounds = bounds_of(ph, names_x, "states")
     if any(math.isfinite(b) for lo_hi in sbounds for b in lo_hi):
         err = np.column_stack([relative_violation(Yl[:, j], lo, hi, scale_x[j])
@@ -277,12 +280,24 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
     _control_bounds_check(ph, traj, names_u, ubounds, tol, checks)
     if funcs.g is not None:
         G = funcs.g(grid, Yl[:, :funcs.n], Ug)
-        gscale = _path_scales(funcs, t, X, uf.at(t), scale_x, ubounds, G)
+        gscale = _path_scales(funcs, t, X, controls_at(uf, t, X), scale_x, ubounds, G)
         err = np.column_stack([relative_violation(G[:, k], c.lower, c.upper, gscale[k])
                                for k, c in enumerate(funcs.path)])
-        v, where = worst(err, [c.text or str(c.expr) for c in funcs.path], grid)
-        checks.append(row("path constraints", pname, v, tol, where, f"{len(grid)} points"))
-    end_rate = funcs.augmented_point(float(t[-1]), local.Y[-1], uf(float(t[-1])))
+        t_err, detail = grid, f"{len(grid)} points"
+        # a projected constraint holds between the rows by construction: at the rows it is
+        # held with the exported controls and states, as the NLP held it
+        tr, Gr, cols = row_values(funcs, uf, traj, names_u, t, X)
+        if cols:
+            er = np.zeros(Gr.shape)
+            for k in cols:
+                c = funcs.path[k]
+                er[:, k] = relative_violation(Gr[:, k], c.lower, c.upper, gscale[k])
+            err, t_err = np.vstack([err, er]), np.concatenate([grid, tr])
+            detail += f" and {len(tr)} exported rows"
+        v, where = worst(err, [c.text or str(c.expr) for c in funcs.path], t_err)
+        checks.append(row("path constraints", pname, v, tol, where, detail))
+    end_rate = funcs.augmented_point(float(t[-1]), local.Y[-1],
+                                     controls_at(uf, t[-1:], local.Y[-1:, :funcs.n])[0])
     return _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf, end_rate)
 
 
@@ -403,7 +418,7 @@ def _held_at_the_end(ph, run, tol: float) -> bool:
         return False
     T = float(run.t[-1])
     at_end = {TIME: T} | dict(zip(ph.states, map(float, x_end))) \
-        | dict(zip(ph.controls, map(float, run.uf.at(np.array([T]))[0])))
+        | dict(zip(ph.controls, map(float, controls_at(run.uf, np.array([T]), run.X[-1:])[0])))
     for c in ph.path:
         v = evaluate(ph.substitute(c.expr), at_end)
         size = max(abs(v), *(abs(b) for b in (c.lower, c.upper) if math.isfinite(b)), 1e-12)
@@ -437,8 +452,8 @@ def _points(problem, result, runs, params, which: str):
             scales[s] = float(run.scale_x[j])
         else:       # a control at a boundary: the interpolated control there
             j = list(ph.controls).index(bv.var)
-            tt = run.t[0] if bv.which == "t0" else run.t[-1]
-            point[s] = float(run.uf.at(np.array([tt]))[0, j])
+            i = 0 if bv.which == "t0" else -1
+            point[s] = float(controls_at(run.uf, run.t[i:][:1], run.X[i:][:1])[0, j])
             scales[s] = max(abs(point[s]), 1e-6)
     for s in problem.free_parameters:
         if s.name in params:

@@ -61,6 +61,7 @@ class PhaseFunctions:
         q = [substitute_numbers(phase.substitute(e), subs) for e in integrals.values()]
         self.path = list(phase.path)
         g = [substitute_numbers(phase.substitute(c.expr), subs) for c in self.path]
+        self.path_exprs = g          # for the controls' projection (verify/admissible.py)
         present = {str(x): x for e in f + q + g for x in e.free_symbols}
         free_syms = [present.get(name, by_name.get(name, sp.Symbol(name, real=True))) for name in self.free]
         allowed = set(self.states) | set(self.controls) | {TIME} | set(free_syms)
@@ -122,6 +123,12 @@ class PhaseFunctions:
         return np.concatenate(parts, axis=1)
 
 
+def controls_at(uf, tt, X) -> np.ndarray:
+    """The control ``uf`` at the times ``tt`` with the states ``X`` there: a control projected
+    onto its path constraints (verify/admissible.py) depends on them, an interpolant alone not."""
+    return uf.at(tt, X) if getattr(uf, "state_dependent", False) else uf.at(tt)
+
+
 # at most this many interpolated points in all: a larger phase gets them on every k-th interval
 MAX_BETWEEN = 200_000
 
@@ -141,8 +148,8 @@ def between_points(funcs: PhaseFunctions, uf, grid: np.ndarray, X: np.ndarray, p
     # the rates at each interval's ends with the controls from inside it: at a breakpoint the
     # control jumps, and the other side's rate bends the interpolant (0.008 past v <= 0.5)
     start, end, hk = grid[keep], grid[keep + 1], h[keep][:, None]
-    Fa = funcs.f(start, X[keep], uf.at(start + 1e-7 * hk[:, 0]))
-    Fb = funcs.f(end, X[keep + 1], uf.at(end - 1e-7 * hk[:, 0]))
+    Fa = funcs.f(start, X[keep], controls_at(uf, start + 1e-7 * hk[:, 0], X[keep]))
+    Fb = funcs.f(end, X[keep + 1], controls_at(uf, end - 1e-7 * hk[:, 0], X[keep + 1]))
     s = np.arange(1, per + 1) / (per + 1)
     basis = [2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2]
     terms = [X[keep], hk * Fa, X[keep + 1], hk * Fb]

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import dop853
+from .functions import controls_at
 
 STIFF = 200.0          # |lambda| * piece length above which a piece is integrated by Radau
 
@@ -81,7 +82,7 @@ def _stiff(funcs, uf, t, X, scale) -> float:
     """Largest |eigenvalue| of df/dx over the rows (0 without states)."""
     if funcs.n == 0 or len(t) == 0:
         return 0.0
-    J = funcs.fx(t, X, uf.at(t), scale)
+    J = funcs.fx(t, X, controls_at(uf, t, X), scale)
     if not np.all(np.isfinite(J)):
         return np.inf
     return float(np.max(np.abs(np.linalg.eigvals(J))))
@@ -120,8 +121,12 @@ def dop853_split(fun, a, b, y0, t_eval, rtol, atol, cuts) -> dop853.Solution:
 def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
     u_of = uf.piece(0.5 * (a + b))
 
-    def fun(tt, y):
-        return funcs.augmented_point(tt, y, u_of(tt))
+    if getattr(uf, "state_dependent", False):     # projected onto path constraints at the flown state
+        def fun(tt, y):
+            return funcs.augmented_point(tt, y, u_of(tt, y.tolist()))
+    else:
+        def fun(tt, y):
+            return funcs.augmented_point(tt, y, u_of(tt))
 
     if method == "DOP853":
         sol = dop853_split(fun, a, b, y0, t_eval, rtol, atol, uf.kinks(a, b))
@@ -179,8 +184,8 @@ def joint_passes(funcs, uf, grid, breaks, from_x0, from_rows, rtol, scale, rho) 
     stiff or the joint integration fails: the caller then integrates the passes apart, with
     their stiff fallbacks."""
     w = funcs.n + len(funcs.integral_symbols)
-    if w == 0 or rho * float(np.max(np.diff(breaks))) > STIFF:
-        return None
+    if w == 0 or rho * float(np.max(np.diff(breaks))) > STIFF or getattr(uf, "state_dependent", False):
+        return None            # (a control of the state differs between the two passes)
     Yg = np.full((len(grid), w), np.nan)
     Yl = np.full((len(grid), w), np.nan)
     atol = np.tile(rtol * scale, 2) / math.sqrt(2.0)
@@ -241,7 +246,7 @@ def batched_local_pass(funcs, uf, grid, breaks, X_start, rtol, scale, rho) -> Pa
     def rhs(idx, sv, Y):
         _check_deadline(float(a[idx[0]] + sv[0] * h[idx[0]]))
         tt = np.minimum(a[idx] + sv * h[idx], inside[idx])
-        U = uf.at(tt)
+        U = controls_at(uf, tt, Y[:, :n])
         F = funcs.f(tt, Y[:, :n], U) if n else np.zeros((len(idx), 0))
         if nq:
             F = np.concatenate([F, funcs.q(tt, Y[:, :n], U)], axis=1)

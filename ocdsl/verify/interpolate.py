@@ -13,7 +13,9 @@ A :class:`~ocdsl.result.PhaseTrajectory` carries ``control_interpolation``:
   ``[t0, t0 + T]`` (parametric methods: ``ocdsl.simulate.ControlLayout``).
 
 Every interpolated control is clipped to its box bounds: between rows the control takes
-the bound-respecting value, never an overshoot that the solution did not have.
+the bound-respecting value, never an overshoot that the solution did not have. The
+verification also projects it onto what control-affine path constraints allow at the flown
+state (:mod:`ocdsl.verify.admissible`).
 """
 from __future__ import annotations
 
@@ -116,6 +118,8 @@ def _control_template(degree_terms: int, lo_finite: tuple, hi_finite: tuple):
 class SegmentPolynomials:
     """Control as a function of time: piecewise linear through the nodes, or, with segment
     boundaries, the Lagrange polynomial through each segment's nodes; clipped to bounds."""
+
+    state_dependent = False
 
     def __init__(self, t, U, bounds, segments=None):
         self.t, self.U = t, U
@@ -231,9 +235,10 @@ class SegmentPolynomials:
                 u = u * z + row
         return np.minimum(np.maximum(u, self.lo), self.hi)
 
-    def at(self, tt) -> np.ndarray:
+    def at(self, tt, X=None) -> np.ndarray:
         """The control at the times ``tt`` (P,) -> (P, m), as ``__call__`` at each time
-        (the same segment choice and Horner evaluation, vectorised)."""
+        (the same segment choice and Horner evaluation, vectorised). ``X``, the states there,
+        is for a projected control (verify/admissible.py); this one does not depend on them."""
         tt = np.asarray(tt, float)
         if self.segments is None:
             k = np.clip(np.searchsorted(self.t, tt) - 1, 0, len(self.t) - 2)
@@ -265,11 +270,12 @@ class _Clipped:
 
     lo: np.ndarray
     hi: np.ndarray
+    state_dependent = False
 
     def _raw(self, tt) -> np.ndarray:
         raise NotImplementedError
 
-    def at(self, tt) -> np.ndarray:
+    def at(self, tt, X=None) -> np.ndarray:
         return np.minimum(np.maximum(self._raw(tt), self.lo), self.hi)
 
     def kinks(self, a: float, b: float) -> list[float]:
