@@ -552,3 +552,56 @@ def test_one_converged_mesh_has_its_objective_checked_on_its_bisection(tmp_path)
     check = res.extra["bisection"]
     assert check["agrees"] is False and check["relative_differences"][0] > 1e-5
     assert "one mesh only" in res.message and "bisected" in res.message
+
+
+PENDULUM = """name: Minimum-time pendulum swing-up with a torque limit (unseen8)
+model:
+  states: [th, w]
+  controls: [u]
+  dynamics: {th: w, w: -sin(th) + u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-0.5 <= u <= 0.5, th(t0) == 0, w(t0) == 0, th(tf) == pi, w(tf) == 0, 1 <= tf <= 30]
+  objective: minimize tf
+  guess: {tf: 20}
+method: {transcription: LGR, segments: 4, degree: 3, mesh: {tolerance: 1.0e-6, max_iterations: 5}}
+"""
+PENDULUM_TF = 7.586693492826     # unseen8's shooting reference: u = -0.5, +0.5, -0.5
+
+
+def test_a_refined_mesh_that_fails_from_the_mesh_before_is_solved_from_the_guess(tmp_path):
+    """From the guess tf = 20 the first two meshes solve to multi-swing solutions, and the
+    third, warm-started from the second, ended infeasible: the run said infeasible, exit 1.
+    Now that mesh is solved once more from the file's guess, and the refinement goes on to the
+    right final time."""
+    path = tmp_path / "pendulum.yaml"
+    path.write_text(PENDULUM)
+    res = ocdsl.load(path).solve()
+    hist = res.extra["mesh_history"]
+    assert [h["status"] for h in hist[:3]] == ["optimal"] * 3
+    assert hist[0]["objective"] > 20 and abs(hist[2]["objective"] - PENDULUM_TF) < 1e-2
+    assert res.status in ("optimal", "mesh_not_converged") and abs(res.tf - PENDULUM_TF) < 1e-5 * PENDULUM_TF
+
+
+def test_a_later_mesh_that_fails_leaves_the_best_completed_mesh(tmp_path, monkeypatch):
+    """When a later mesh does not solve at all (here: Ipopt made to end infeasible from the
+    third solve on), the result is the best completed mesh, mesh_not_converged, with why it
+    stopped; not the failed iterate, and not 'infeasible' for the problem."""
+    from ocdsl.solve import ipopt
+
+    real, calls = ipopt.solve, []
+
+    def failing(model, *a, **k):
+        info = real(model, *a, **k)
+        calls.append(1)
+        if len(calls) >= 3:
+            info.status, info.message = "infeasible", "made infeasible by the test"
+        return info
+
+    monkeypatch.setattr(ipopt, "solve", failing)
+    path = tmp_path / "pendulum.yaml"
+    path.write_text(PENDULUM)
+    res = ocdsl.load(path).solve()
+    assert res.status == "mesh_not_converged", res.status
+    assert "ended 'infeasible'" in res.message and "best completed mesh" in res.message
+    assert res.objective == min((h for h in res.extra["mesh_history"][:2]), key=lambda h: h["max_error"])["objective"]

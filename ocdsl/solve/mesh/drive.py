@@ -132,6 +132,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from ...run import previous_phases, warm_start_notes
 
     previous: dict[str, PhaseTrajectory] = previous_phases(file, warm_start)
+    given = previous      # what the first mesh started from (a later mesh's retry starts there too)
     notes = warm_start_notes(file, previous)
     options = dict(file.spec.solver.options)
     # the NLP must be solved well below the mesh tolerance, or solver noise (Ipopt's
@@ -209,6 +210,23 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         # trial models of this iteration (switches.py) start from the best start's guess
                         rebuild = functools.partial(rebuild, guesses=g)
                         reg = getattr(tr.model, "mesh_regularisation", None)
+        if it > 1 and info.status not in GOOD and info.status not in ("time_limit", "interrupted"):
+            # a refined mesh that does not solve from the mesh before (a poor solution warm-starts
+            # a poor solve): once more from the file's guess, as the first mesh started (unseen8:
+            # a pendulum's third mesh ended infeasible after two multi-swing solutions)
+            with timer.measure("build"):
+                g0 = {ph.name: make_guess(problem, ph, given.get(ph.name)) for ph in problem.phases}
+                t0_ = rebuild(meshes, guesses=g0, collect=True)
+                ws.prepare(t0_.model)
+            with timer.measure("solve"):
+                retry = ipopt.solve(t0_.model, options, verbose=verbose, transcription=t0_,
+                                    progress=ipopt.Progress(progress, f"[mesh {it}, from the guess]"))
+            if retry.status in GOOD:
+                retry.message += (f" (from the file's guess: from the mesh before, Ipopt ended "
+                                  f"'{info.status}' after {info.iterations} iterations)")
+                retry.iterations += info.iterations
+                tr, info, mult = t0_, retry, None
+                reg = getattr(tr.model, "mesh_regularisation", None)
         if it == 1 and info.status == "infeasible":
             # as a single solve: one more start from seeded random controls, else the
             # conditions that cannot hold together named (run.recover_from_infeasibility)
@@ -319,6 +337,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         try:
             last = (max_err, it, tr, info, dict(meshes), errors)
             if info.status not in GOOD:
+                if coarsening and converged and info.status not in ("time_limit", "interrupted"):
+                    # a coarsened mesh that does not solve is a coarsening that missed: the
+                    # converged meshes stand (below)
+                    rec["coarsening_rejected"] = True
+                    break
                 status = info.status
                 message = (f"mesh iteration {it}: Ipopt ended with '{info.status}' ({info.message}); "
                            "mesh refinement stopped")
@@ -463,13 +486,20 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         else:
             status = "mesh_not_converged"
             chosen = best
-    elif status in ("time_limit", "interrupted") and best is not None:
-        # the last solve was cut short, earlier meshes solved: the best of those is the result
-        # (its trajectory and objective), not the cut-off iterate (whose objective was lost)
+    elif status not in GOOD and best is not None:
+        # the last solve was cut short or failed, earlier meshes solved: the best of those is
+        # the result (its trajectory and objective), not the failed iterate; a later mesh ending
+        # 'infeasible' from its warm start says nothing of the problem (unseen8: a pendulum whose
+        # third mesh ended infeasible after two solved was reported infeasible, exit 1)
         chosen = best
-        message += (f"; the result is mesh iteration {best[1]}'s solution, the best completed mesh "
-                    f"(Ipopt {best[3].status}, J = {best[3].objective:.10g}, largest estimated error "
-                    f"{best[0]:.3e} against the tolerance {spec.tolerance:.1e})")
+        if status in ("time_limit", "interrupted"):
+            message += (f"; the result is mesh iteration {best[1]}'s solution, the best completed mesh "
+                        f"(Ipopt {best[3].status}, J = {best[3].objective:.10g}, largest estimated error "
+                        f"{best[0]:.3e} against the tolerance {spec.tolerance:.1e})")
+        else:
+            stalled = (f"mesh iteration {last[1]}'s solve, started from the mesh before, ended '{status}' "
+                       f"({last[3].message}); the result is the best completed mesh")
+            status = "mesh_not_converged"
     else:
         chosen = last
     max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
