@@ -176,6 +176,9 @@ def _summary(result, out: Path) -> None:
         t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()))
     elif result.tf is not None:
         t.add_row("final time", f"{result.tf:.10g}")
+    starts = _starts_line(result.extra.get("starts") or [], result.objective)
+    if starts:
+        t.add_row("starts", starts)
     if result.nlp:
         t.add_row("NLP", f"{result.nlp.get('variables')} variables, {result.nlp.get('constraints')} constraints, "
                   f"{result.nlp.get('nonzeros')} Jacobian nonzeros")
@@ -204,6 +207,24 @@ def _summary(result, out: Path) -> None:
         if why.startswith(f"{verdict}: "):      # "inconclusive (inconclusive: ...)" said once
             why = why[len(verdict) + 2:]
         con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
+
+
+def _starts_line(records: list, best: float | None) -> str:
+    """How the starts of ``method: {starts: N}`` ended (unseen8: eight starts back in one
+    basin read as confirmation, and the summary did not say how they ended)."""
+    if len(records) < 2 or best is None:
+        return ""
+    solved = [r["objective"] for r in records if r.get("status") in ("optimal", "acceptable")
+              and r.get("objective") is not None]
+    same = sum(abs(j - best) <= 1e-6 * max(1.0, abs(best)) for j in solved)
+    others = sorted({round(j, 8) for j in solved if abs(j - best) > 1e-6 * max(1.0, abs(best))})
+    text = f"{len(records)}: {same} ended at this objective"
+    if others:
+        shown = ", ".join(f"{j:.8g}" for j in others[:4]) + (", ..." if len(others) > 4 else "")
+        text += f", {len(solved) - same} elsewhere ({shown})"
+    if len(solved) < len(records):
+        text += f", {len(records) - len(solved)} did not solve"
+    return text
 
 
 def _best_completed_mesh(result) -> tuple[int, str] | None:

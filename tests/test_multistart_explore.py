@@ -180,3 +180,15 @@ def test_random_controls_files_keep_their_redrawn_starts(tmp_path):
         np.testing.assert_array_equal(g.controls_at(s), old.controls_at(s))
     np.testing.assert_array_equal(start_guesses(problem, {}, 0, None, 3)[ph.name].controls_at(s),
                                   make_guess(problem, ph).controls_at(s))
+
+
+def test_the_summary_says_how_the_starts_ended():
+    """unseen8: eight starts back in one basin read as confirmation; the summary now counts
+    where they ended."""
+    from ocdsl.cli import _starts_line
+
+    rec = [{"status": "optimal", "objective": j} for j in (25.8727, 26.1567, 25.8727, 26.1567)]
+    rec.append({"status": "infeasible", "objective": None})
+    assert _starts_line(rec, 25.8727) == "5: 2 ended at this objective, 2 elsewhere (26.1567), 1 did not solve"
+    assert _starts_line(rec[:1], 25.8727) == ""
+    assert _starts_line([{"status": "optimal", "objective": 0.6893}] * 8, 0.6893) == "8: 8 ended at this objective"
