@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> str:
     text, p = table(rows)
     doc = " ".join(__doc__.split("\n\n")[1].split())
     out = ("# Derivative generation time against model size\n\n"
-           f"{machine()} (2 cores shared with other agents), {time.strftime('%Y-%m-%d %H:%M')}. "
+           f"{machine()}, {time.strftime('%Y-%m-%d %H:%M')}. "
            f"Made by `python -m ocdsl.bench.derivatives` (`make bench-peers`). {doc}\n\n"
            "compile = `exec` of the three sources: what a run on a warm cache (ocdsl/cache.py) "
            "pays instead of generate, besides reading the JSON entry. C compile = the C compiler "
