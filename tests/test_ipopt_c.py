@@ -121,7 +121,11 @@ def test_a_run_records_its_library_and_the_environment_chooses_it(configs, tmp_p
     assert result["tf"] == pytest.approx(2.0, rel=1e-6)
 
 
-def test_a_library_that_does_not_load_is_one_clear_error(configs, tmp_path):
-    p, result = _run(configs, tmp_path, {ipopt_c.LIBRARY_ENV: str(tmp_path / "nothing.so")})
+@pytest.mark.parametrize("library", ["nothing.so", "libm"])
+def test_a_library_that_does_not_load_is_one_clear_error(configs, tmp_path, library):
+    import ctypes.util
+
+    path = str(tmp_path / library) if library.endswith(".so") else ctypes.util.find_library("m")
+    p, result = _run(configs, tmp_path, {ipopt_c.LIBRARY_ENV: path})     # missing; not Ipopt
     assert p.returncode == 1 and "Traceback" not in p.stderr + p.stdout
     assert result["status"] == "error" and "OCDSL_IPOPT_LIBRARY" in result["message"]

@@ -39,7 +39,7 @@ _INTERMEDIATE = ctypes.CFUNCTYPE(_INT, _INT, _INT, _DBL, _DBL, _DBL, _DBL, _DBL,
 # package is installed (a dependency: Ipopt 3.14.19 with MUMPS 5.8.2 and METIS), else cyipopt's
 # (Ipopt 3.14.11, MUMPS 5.5.1). Why CasADi's first: on the same NLP and options its MUMPS
 # takes half the time per iteration (brachistochrone, 100 segments, 1,999 variables: Ipopt
-# without function evaluations 0.225 -> 0.106 s CPU for the same 27 iterations; section 14 of
+# without function evaluations 0.225 -> 0.106 s CPU for the same 27 iterations; section 21 of
 # reports/bench/levers.md), which sections 6, 8 and 12 there traced to MUMPS 5.5.1 against
 # 5.8.2 (not the BLAS, the ordering or the NLP).
 LIBRARY_ENV = "OCDSL_IPOPT_LIBRARY"
@@ -106,7 +106,8 @@ def _library(path: str | None = None):
     try:
         with _one_blas_thread():
             lib = ctypes.CDLL(path)
-    except OSError as e:
+        lib.IpoptSolve      # noqa: B018  (a library without Ipopt's C interface is refused here)
+    except (OSError, AttributeError) as e:
         if source == LIBRARY_ENV:
             raise OSError(f"{LIBRARY_ENV}={path} does not load as Ipopt's library: {e}") from None
         return None
