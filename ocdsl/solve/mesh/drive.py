@@ -216,16 +216,16 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # a pendulum's third mesh ended infeasible after two multi-swing solutions)
             with timer.measure("build"):
                 g0 = {ph.name: make_guess(problem, ph, given.get(ph.name)) for ph in problem.phases}
-                t0_ = rebuild(meshes, guesses=g0, collect=True)
-                ws.prepare(t0_.model)
+                cold = rebuild(meshes, guesses=g0, collect=True)
+                ws.prepare(cold.model)
             with timer.measure("solve"):
-                retry = ipopt.solve(t0_.model, options, verbose=verbose, transcription=t0_,
+                retry = ipopt.solve(cold.model, options, verbose=verbose, transcription=cold,
                                     progress=ipopt.Progress(progress, f"[mesh {it}, from the guess]"))
             if retry.status in GOOD:
                 retry.message += (f" (from the file's guess: from the mesh before, Ipopt ended "
                                   f"'{info.status}' after {info.iterations} iterations)")
                 retry.iterations += info.iterations
-                tr, info, mult = t0_, retry, None
+                tr, info, mult = cold, retry, None
                 reg = getattr(tr.model, "mesh_regularisation", None)
         if it == 1 and info.status == "infeasible":
             # as a single solve: one more start from seeded random controls, else the
@@ -557,8 +557,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        f"{confirm.objective:.10g} there and {confirm.describe()}: the error estimate does not "
                        "see what moves J (a chattering control, docs/mesh.md). Tighten the tolerance, or raise "
                        "max_iterations")
-        else:
+        elif confirm.agrees:
             notes.append(f"one mesh met the tolerance; J checked on it bisected: {confirm.describe()}")
+        else:
+            notes.append(f"one mesh met the tolerance, and J could not be checked on it bisected: "
+                         f"{confirm.describe()}")
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
