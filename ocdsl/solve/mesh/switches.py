@@ -17,8 +17,10 @@ Minimisation only (a maximised objective is left to the quadrature locator), and
 free initial or final time only (see ``move_switches``). The partial derivatives are forward differences of the model rebuilt with
 the breakpoint moved by ``DELTA`` (same nodes, same variables, same constraints: only the node
 times and segment widths change), evaluated by the two models' NumPy NLPs where they have one. The stationary breakpoint is then found by a secant on
-s_b -> dJ*/ds_b across mesh iterations (``memory``), its first step a fixed fraction of the
-neighbouring segments (no curvature known yet). A record of the memory is paired with the switch
+s_b -> dJ*/ds_b across mesh iterations (``memory``) where two records bracket a minimum (a
+positive slope); a pinned switch without one (J* is kinked there, and a record from the
+other side of the kink gives no slope) moves by the small step a warm-started trial solve
+found to lower J, and only then. A record of the memory is paired with the switch
 whose breakpoint it belongs to (``_pair_records``), not with the switch's order among those located:
 a locator that misses one switch, or finds a spurious one, would pair one switch's derivative with
 another's breakpoint and make the secant's target meaningless.
@@ -30,7 +32,6 @@ import math
 import numpy as np
 
 DELTA = 1e-7          # normalised-time step of the finite difference
-FIRST_STEP = 0.05     # first move without a known slope, fraction of the smaller neighbour
 
 
 def _values(model):
@@ -181,27 +182,33 @@ def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, me
             # than the tolerance asks of it
             if pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
                 continue
-            if pinned and prev is None:
+            slope = None
+            if prev is not None and abs(prev[0] - bps[q]) > 1e-15 and (g - prev[1]) != 0:
+                slope = (g - prev[1]) / (bps[q] - prev[0])
+            target = None
+            if pinned and not (slope is not None and slope > 0):
                 # a switch exactly on its breakpoint makes J*(s_b) kinked there (moving it
                 # either way forces interior control values: double integrator, switch at 1),
-                # and the multipliers give one subgradient only: the move is tried by a
-                # warm-started solve first, and kept only if it lowers J
+                # and the multipliers give one subgradient only; a secant across the kink
+                # (a record from the other side) has no meaning either. The move is tried by a
+                # warm-started solve first, kept only if it lowers J, and is that move: a
+                # fixed share of the segment instead took a breakpoint 1.5e-8 from the switch
+                # 0.016 away, and the next meshes spent their iterations coming back (double
+                # integrator from (1, 1), tolerance 1e-8: never converged in 12)
                 step = min(10 * tol, 0.01 * width)
                 j_trial = resolve(_moved(tr, name, q, -math.copysign(step, g)))
                 if j_trial is None or not (j_trial < j_model - 0.25 * abs(g) * step):
                     mem.pop(order, None)
                     continue
-            target = None
-            if prev is not None and abs(prev[0] - bps[q]) > 1e-15 and (g - prev[1]) != 0:
-                slope = (g - prev[1]) / (bps[q] - prev[0])
-                if slope > 0:          # a minimum of J*(s_b) (J* is what the NLP minimises)
-                    target = bps[q] - g / slope
-                    # the move would gain far less than the tolerance: the breakpoint is where
-                    # the objective needs it (J* can be flat in it: tumour, p(tf) at its minimum)
-                    if g * g / (2.0 * slope) <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
-                        target = float(bps[q])
-            if target is None:
-                target = f if not pinned else bps[q] - math.copysign(FIRST_STEP * width, g)
+                target = bps[q] - math.copysign(step, g)
+            elif slope is not None and slope > 0:     # a minimum of J*(s_b) (what the NLP minimises)
+                target = bps[q] - g / slope
+                # the move would gain far less than the tolerance: the breakpoint is where
+                # the objective needs it (J* can be flat in it: tumour, p(tf) at its minimum)
+                if g * g / (2.0 * slope) <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
+                    target = float(bps[q])
+            else:
+                target = f
             # within the two neighbouring segments
             target = float(min(max(target, bps[q - 1] + 0.1 * (bps[q] - bps[q - 1])),
                                bps[q + 1] - 0.1 * (bps[q + 1] - bps[q])))
