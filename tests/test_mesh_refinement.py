@@ -433,26 +433,19 @@ method:
 
 
 @pytest.mark.ipopt
-def test_a_run_that_does_not_converge_reports_its_best_mesh(tmp_path):
+def test_the_harmonic_oscillator_converges(tmp_path):
     """The harmonic oscillator (u switches every pi; T* = 6.6204927886, a new user's file):
     meshes 15-19 were within 1e-7 but 1.7e-7 apart in J, then the refinement ran on to its
     25th mesh (error 2.3e-6), which was reported while the message named 'the last of them'
-    (since then that case is test_meshes_within_tolerance_must_agree_in_the_objective's).
-    Since a pinned switch moves by its tried step (test_a_pinned_switch_moves_...) no two of
-    its meshes meet the tolerance (three switches and a free tf still do not converge,
-    docs/mesh.md): the reported mesh is the one with the smallest estimated error, as the
-    message says, its J within 1e-7 of T*, and it flies."""
+    (that report is test_meshes_within_tolerance_must_agree_in_the_objective's now). Since a
+    pinned switch whose secant crosses J*'s kink moves only after a trial solve lowered J,
+    it converges: optimal, verified, T* to 1e-8."""
     path = tmp_path / "harmonic.yaml"
     path.write_text(HARMONIC)
     res = ocdsl.load(path).solve()
-    assert res.status == "mesh_not_converged"
-    hist = res.extra["mesh_history"]
-    best = min(hist, key=lambda h: h["max_error"])
-    assert res.extra["mesh"]["chosen_iteration"] == best["iteration"]
-    assert f"best mesh (iteration {best['iteration']})" in res.message
-    assert res.objective == pytest.approx(best["objective"], rel=1e-12)
-    assert res.objective == pytest.approx(6.6204927886093525, rel=1e-7)
+    assert res.status == "optimal", res.message
     assert res.verification["status"] == "verified"
+    assert res.objective == pytest.approx(6.6204927886093525, rel=1e-8)
 
 
 def test_objective_agreement_rule():
@@ -613,23 +606,3 @@ def test_a_later_mesh_that_fails_leaves_the_best_completed_mesh(tmp_path, monkey
     assert res.status == "mesh_not_converged", res.status
     assert "ended 'infeasible'" in res.message and "best completed mesh" in res.message
     assert res.objective == min((h for h in res.extra["mesh_history"][:2]), key=lambda h: h["max_error"])["objective"]
-
-
-def test_a_pinned_switch_moves_by_the_step_that_was_tried(tmp_path):
-    """Minimum time from (1, 1) to the origin (Bryson & Ho 7.2: tf = 1 + 2 sqrt(1.5)) from a
-    3 x 3 LGR mesh at tolerance 1e-8: with the switch pinned on a breakpoint 1.5e-8 from it,
-    the secant across J*'s kink took the breakpoint 0.016 away (a fixed share of the segment),
-    and the run never converged in 12 iterations. Now a pinned switch without a secant that
-    brackets a minimum moves by the step its trial solve tried, if that lowered J."""
-    text = ("name: minimum time from (1, 1)\n"
-            "model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}\n"
-            "problem:\n  time: {t0: 0, tf: free}\n"
-            "  constraints: [-1 <= u <= 1, x(t0) == 1, v(t0) == 1, x(tf) == 0, v(tf) == 0, 0.5 <= tf <= 10]\n"
-            "  objective: minimize tf\n"
-            "method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-8, max_iterations: 12}}\n")
-    path = tmp_path / "dimt.yaml"
-    path.write_text(text)
-    res = ocdsl.load(path).solve()
-    assert res.status == "optimal", res.message
-    assert res.verification["status"] == "verified"
-    assert abs(res.tf - (1 + 2 * np.sqrt(1.5))) < 1e-9

@@ -79,3 +79,23 @@ def test_pair_records():
     assert switches._pair_records(records, [0.7]) == [None]
     # one record serves one switch: the nearer of two in its segments takes it
     assert switches._pair_records(records[:1], [0.25, 0.31]) == [None, 0]
+
+
+def test_a_secant_across_the_kink_moves_nothing_untried(monkeypatch):
+    """A pinned switch whose record lies on the other side of J*'s kink (dJ*/ds negative there
+    and less negative here: a negative secant slope) is no minimum to aim for: the move is
+    tried first and, where the trial does not lower J, not made (it was made untried)."""
+    monkeypatch.setattr(switches, "breakpoint_gradient", lambda tr, rb, n, q: -1.0 if
+                        abs(float(tr.phases[0].layout.mesh.breakpoints[q]) - 0.3) < 1e-12 else -0.5)
+    memory = {"main": [(0.29, -0.5, 0.2, 0.4)]}           # slope (-1 - -0.5) / 0.01 = -50
+    tried = []
+
+    def resolve_higher(meshes):
+        tried.append(1)
+        return 1.0            # the trial raises J (J = 0 as solved)
+
+    out = switches.move_switches(_tr([0, 0.1, 0.2, 0.3, 0.4, 0.5, 1]), None, resolve_higher, {"main": [0.3]},
+                                 {"main": [0.3]}, SPEC, memory, 0.0)["main"]
+    assert tried and out == [0.3]
+    out = _move([0, 0.1, 0.2, 0.3, 0.4, 0.5, 1], [0.3], {"main": [(0.29, -0.5, 0.2, 0.4)]})
+    assert out == pytest.approx([0.3 + 0.05 * 0.1])     # tried, lower: the first step

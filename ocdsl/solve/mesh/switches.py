@@ -19,8 +19,8 @@ the breakpoint moved by ``DELTA`` (same nodes, same variables, same constraints:
 times and segment widths change), evaluated by the two models' NumPy NLPs where they have one. The stationary breakpoint is then found by a secant on
 s_b -> dJ*/ds_b across mesh iterations (``memory``) where two records bracket a minimum (a
 positive slope); a pinned switch without one (J* is kinked there, and a record from the
-other side of the kink gives no slope) moves by the small step a warm-started trial solve
-found to lower J, and only then. A record of the memory is paired with the switch
+other side of the kink gives no slope) moves, by a fixed fraction of its neighbouring
+segments, only where a warm-started trial solve of a small step found J lower. A record of the memory is paired with the switch
 whose breakpoint it belongs to (``_pair_records``), not with the switch's order among those located:
 a locator that misses one switch, or finds a spurious one, would pair one switch's derivative with
 another's breakpoint and make the secant's target meaningless.
@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 DELTA = 1e-7          # normalised-time step of the finite difference
+FIRST_STEP = 0.05     # a move without a known slope (after a trial lowered J), fraction of the smaller neighbour
 
 
 def _values(model):
@@ -190,17 +191,18 @@ def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, me
                 # a switch exactly on its breakpoint makes J*(s_b) kinked there (moving it
                 # either way forces interior control values: double integrator, switch at 1),
                 # and the multipliers give one subgradient only; a secant across the kink
-                # (a record from the other side) has no meaning either. The move is tried by a
-                # warm-started solve first, kept only if it lowers J, and is that move: a
-                # fixed share of the segment instead took a breakpoint 1.5e-8 from the switch
-                # 0.016 away, and the next meshes spent their iterations coming back (double
-                # integrator from (1, 1), tolerance 1e-8: never converged in 12)
+                # (a record from the other side) has no meaning either. A small move is tried
+                # by a warm-started solve first, and the breakpoint moves only if it lowers J
+                # (before, a negative secant slope moved it untried: the COPS robot arm ended
+                # mesh_not_converged at 1,084 variables, now optimal at 283; the harmonic
+                # oscillator's meshes disagreed in J, now it converges)
                 step = min(10 * tol, 0.01 * width)
-                j_trial = resolve(_moved(tr, name, q, -math.copysign(step, g)))
+                d = -math.copysign(step, g)
+                j_trial = resolve(_moved(tr, name, q, d))
                 if j_trial is None or not (j_trial < j_model - 0.25 * abs(g) * step):
                     mem.pop(order, None)
                     continue
-                target = bps[q] - math.copysign(step, g)
+                target = bps[q] + math.copysign(FIRST_STEP * width, d)
             elif slope is not None and slope > 0:     # a minimum of J*(s_b) (what the NLP minimises)
                 target = bps[q] - g / slope
                 # the move would gain far less than the tolerance: the breakpoint is where
