@@ -115,6 +115,13 @@ def _control_template(degree_terms: int, lo_finite: tuple, hi_finite: tuple):
     return scope["factory"]
 
 
+def _power_basis(a: float, b: float, t, U):
+    """(centre, half-width, power-basis coefficients) of the polynomial through the nodes
+    ``t`` (values ``U``) of the segment [a, b], in z = (time - centre) / half-width."""
+    c, hw = 0.5 * (a + b), 0.5 * (b - a)
+    return c, hw, np.linalg.solve(np.vander((t - c) / hw, len(t)), U)
+
+
 class SegmentPolynomials:
     """Control as a function of time: piecewise linear through the nodes, or, with segment
     boundaries, the Lagrange polynomial through each segment's nodes; clipped to bounds."""
@@ -134,9 +141,7 @@ class SegmentPolynomials:
                 sel = np.flatnonzero(owner == k)
                 if len(sel) == 0:
                     raise ValueError("control interpolation: a segment holds no collocated row")
-                c, hw = 0.5 * (a + b), 0.5 * (b - a)
-                V = np.vander((t[sel] - c) / hw, len(sel))
-                self.coef.append((c, hw, np.linalg.solve(V, U[sel])))
+                self.coef.append(_power_basis(a, b, t[sel], U[sel]))
 
     @classmethod
     def of_segments(cls, breaks, times, values, bounds) -> "SegmentPolynomials":
@@ -151,11 +156,10 @@ class SegmentPolynomials:
         self._pieces = {}
         self.coef = []
         for a, b, t, U in zip(self.segments[:-1], self.segments[1:], times, values):
-            c, hw = 0.5 * (a + b), 0.5 * (b - a)
-            if not hw > 0:      # a segment of zero duration: its mean value
-                self.coef.append((c, 1.0, np.mean(np.atleast_2d(U), axis=0, keepdims=True)))
+            if not b > a:      # a segment of zero duration: its mean value
+                self.coef.append((0.5 * (a + b), 1.0, np.mean(np.atleast_2d(U), axis=0, keepdims=True)))
                 continue
-            self.coef.append((c, hw, np.linalg.solve(np.vander((np.asarray(t) - c) / hw, len(t)), U)))
+            self.coef.append(_power_basis(a, b, np.asarray(t, float), U))
         return self
 
     def piece(self, tt: float):

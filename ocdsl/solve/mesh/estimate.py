@@ -33,14 +33,15 @@ class SegmentError:
 _FLIGHTS: dict = {}      # id(phase) -> (phase, free parameter names, PhaseFunctions): one per run
 
 
-def flight_functions(pb, params: dict):
+def flight_functions(pb, params: dict, X, U, t0: float, tf: float):
     """What every flight of the estimate and of the terminal check integrates: the phase's
     dynamics and integrands at one point (the verification's ``PhaseFunctions``, plain
     floats through ``math``, its code cached on disk; the free parameters bound as
     arguments, so the mesh iterations share it), and the collocated controls clipped to
     their bounds, each segment's as straight-line Python (``SegmentPolynomials``). About a
     tenth of the cost per right-hand side of a lambdified NumPy function and a barycentric
-    control at one point, which were most of the mesh stage."""
+    control at one point, which were most of the mesh stage. ``X, U, t0, tf``: the phase's
+    ``solution_arrays``."""
     from ...verify.functions import PhaseFunctions
     from ...verify.interpolate import SegmentPolynomials
 
@@ -52,7 +53,6 @@ def flight_functions(pb, params: dict):
             _FLIGHTS.clear()
         hit = _FLIGHTS[id(ph)] = (ph, free, PhaseFunctions(ph, {}, ph.integrals, free=free))
     funcs = hit[2].bind({str(s): v for s, v in params.items()})
-    X, U, t0, tf = solution_arrays(pb)
     mesh = lay.mesh
     span = [t0 + (tf - t0) * lay.s_colloc[lay.colloc[k]] for k in range(mesh.segments)]
     uf = SegmentPolynomials.of_segments(t0 + (tf - t0) * np.asarray(mesh.breakpoints, float), span,
@@ -151,7 +151,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
     ph, lay = pb.phase, pb.layout
     free_syms = sorted(params, key=str)
     pvals = [params[s] for s in free_syms]
-    f, g, qf = phase_functions_all(ph, free_syms)
+    f, g, _ = phase_functions_all(ph, free_syms)
     X, U, t0, tf = solution_arrays(pb)
     nx, nu = X.shape[1], U.shape[1]
     scale = 1.0 + np.max(np.abs(X), axis=0)
@@ -164,7 +164,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
     xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
     xhi = np.array([ph.bounds_of(s)[1] for s in ph.states])
     mesh = lay.mesh
-    funcs, uf = flight_functions(pb, params)
+    funcs, uf = flight_functions(pb, params, X, U, t0, tf)
     K = mesh.segments
     bps = np.asarray(mesh.breakpoints, float)
     ta_all, tb_all = t0 + (tf - t0) * bps[:-1], t0 + (tf - t0) * bps[1:]
@@ -326,8 +326,8 @@ def phase_end(pb, params: dict, rtol: float = 1e-12, start=None) -> PhaseEnd:
 
     ph, lay = pb.phase, pb.layout
     mesh = lay.mesh
-    funcs, uf = flight_functions(pb, params)
     X, U, t0, tf = solution_arrays(pb)
+    funcs, uf = flight_functions(pb, params, X, U, t0, tf)
     nx = X.shape[1]
     nq = len(ph.integrals)
     quad_k = segment_quadratures(pb, params)

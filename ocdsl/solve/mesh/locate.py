@@ -8,7 +8,7 @@ import numpy as np
 
 from .boundary import boundary_controls
 from .mixed import locate_mixed_junctions
-from .segments import activity, control_polys, seg_polys, solution_arrays, state_evaluator
+from .segments import activity, control_polys, runs_of, seg_polys, solution_arrays, state_evaluator
 
 
 def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
@@ -216,7 +216,7 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
                 for k, a in enumerate(act)]
         # (edge segment, its other side's free segment, b, search window, memory key) per junction
         sides = []
-        for qa, qb in _runs(full):
+        for qa, qb in runs_of(full):
             for side, edge, other in (("entry", qa, next((q for q in range(qa - 1, -1, -1) if free[q]), None)),
                                       ("exit", qb, next((q for q in range(qb + 1, K) if free[q]), None))):
                 if other is None:
@@ -278,21 +278,6 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
     return sorted(g for g, _ in kept)
 
 
-def _runs(flags) -> list[tuple[int, int]]:
-    """(first, last) index of every run of consecutive true flags."""
-    runs, k = [], 0
-    while k < len(flags):
-        if not flags[k]:
-            k += 1
-            continue
-        qa = k
-        while k + 1 < len(flags) and flags[k + 1]:
-            k += 1
-        runs.append((qa, k))
-        k += 1
-    return runs
-
-
 # On a coarse mesh the discrete solution of an arc of a constraint of order >= 2 sags below the
 # bound between nodes where it touches it (the bound holds at the nodes only, and sagging costs
 # less control effort; of order 1, the control holds the state on the bound at no cost):
@@ -318,7 +303,7 @@ def _sagging_sides(lay, X, j, lo, hi, active_tol, free) -> list:
             continue
         scale = 1.0 + abs(bound)
         near = [bool(np.all(np.abs(X[lay.support[k], j] - bound) <= SAG * scale)) for k in range(K)]
-        for qa, qb in _runs(near):
+        for qa, qb in runs_of(near):
             times, touch = [], []
             for q in range(qa, qb + 1):
                 tau = np.asarray(mesh.scheme(q).support, float)

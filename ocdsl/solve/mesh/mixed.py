@@ -7,7 +7,7 @@ import math
 import numpy as np
 import sympy as sp
 
-from .segments import control_polys, phase_functions, solution_arrays, state_evaluator
+from .segments import control_polys, phase_functions, runs_of, solution_arrays, state_evaluator
 
 # a collocation point is on the constraint within this (relative to 1 + |bound|): looser than
 # the estimate's activity test, because the NLP meets a constraint whose multiplier is small
@@ -83,16 +83,7 @@ def locate_mixed_junctions(pb, params: dict) -> list[float]:
             full = [bool(np.all(d <= ON)) for d in dist]
             free = [bool(np.all(d[1:-1] > ON)) and float(np.max(d)) > AWAY if len(d) > 2
                     else bool(np.all(d > ON)) for d in dist]
-            k = 0
-            while k < K:
-                if not full[k]:
-                    k += 1
-                    continue
-                qa = k
-                while k + 1 < K and full[k + 1]:
-                    k += 1
-                qb = k
-                k += 1
+            for qa, qb in runs_of(full):
                 for side, edge, other in (("entry", qa, next((p for p in range(qa - 1, -1, -1) if free[p]), None)),
                                           ("exit", qb, next((p for p in range(qb + 1, K) if free[p]), None))):
                     if other is None:

@@ -99,6 +99,21 @@ def activity(values, lo, hi, tol):
     return out
 
 
+def runs_of(flags) -> list[tuple[int, int]]:
+    """(first, last) index of every run of consecutive true flags."""
+    runs, k = [], 0
+    while k < len(flags):
+        if not flags[k]:
+            k += 1
+            continue
+        qa = k
+        while k + 1 < len(flags) and flags[k + 1]:
+            k += 1
+        runs.append((qa, k))
+        k += 1
+    return runs
+
+
 def zigzag(u, step: float | None = None) -> bool:
     """Node-to-node chattering: the significant steps of u (above ``step``, default 1e-6 of
     1 + max |u|) alternate in sign at least twice."""
