@@ -216,8 +216,9 @@ def _starts_line(records: list, best: float | None) -> str:
         return ""
     solved = [r["objective"] for r in records if r.get("status") in ("optimal", "acceptable")
               and r.get("objective") is not None]
-    same = sum(abs(j - best) <= 1e-6 * max(1.0, abs(best)) for j in solved)
-    others = sorted({round(j, 8) for j in solved if abs(j - best) > 1e-6 * max(1.0, abs(best))})
+    near = 1e-6 * max(1.0, abs(best))
+    same = sum(abs(j - best) <= near for j in solved)
+    others = sorted({round(j, 8) for j in solved if abs(j - best) > near})
     text = f"{len(records)}: {same} ended at this objective"
     if others:
         shown = ", ".join(f"{j:.8g}" for j in others[:4]) + (", ..." if len(others) > 4 else "")

@@ -14,9 +14,11 @@ multipliers fixed, dJ*/ds_b = dJ/ds_b + sum_c y_c d(body_c)/ds_b, y_c the multip
 ``ipopt.solve`` loads them into the ``dual`` suffix (checked against re-solves on the tumour
 mesh [0, 0.16687, 1], degrees (4, 8): envelope 24.99, finite difference of J* 24.77).
 Minimisation only (a maximised objective is left to the quadrature locator), and phases with a
-free initial or final time only (see ``move_switches``). The partial derivatives are forward differences of the model rebuilt with
-the breakpoint moved by ``DELTA`` (same nodes, same variables, same constraints: only the node
-times and segment widths change), evaluated by the two models' NumPy NLPs where they have one. The stationary breakpoint is then found by a secant on
+free initial or final time only (see ``move_switches``). The partial derivatives are forward
+differences with the breakpoint moved by ``DELTA`` (same nodes, same variables, same
+constraints: only the node times and segment widths change), evaluated by the solved model's
+NumPy NLP and its copy on the moved mesh (``DirectNLP.with_breakpoints``); a model on the
+PyNumero route is rebuilt on the moved mesh instead. The stationary breakpoint is then found by a secant on
 s_b -> dJ*/ds_b across mesh iterations (``memory``) where two records bracket a minimum (a
 positive slope); a pinned switch without one (J* is kinked there, and a record from the
 other side of the kink gives no slope) moves, by a fixed fraction of its neighbouring
@@ -86,7 +88,7 @@ def _direct_difference(tr, phase: str, q: int):
         return None
     index = next(i for i, p in enumerate(tr.phases) if p.phase.name == phase)
     n1 = n0.with_breakpoints(index, _moved(tr, phase, q, DELTA)[phase])
-    x = n0.x0                 # tr's values, in the variable order both builds share
+    x = n0.x0                 # tr's values, in the variable order the copy shares
     dual = tr.model.dual
     y = np.array([dual.get(r) or 0.0 for r in n0.rows], float)
     with np.errstate(all="ignore"):
