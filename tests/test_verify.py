@@ -354,6 +354,38 @@ def test_free_final_time_held_by_an_active_bound_is_not_asked_to_be_stationary(t
     assert not [c for c in res.verification["checks"] if c["name"] == "free final time"]
 
 
+FREE_TF_RESTING = """
+name: Free tf with a state resting on its bound
+model:
+  states: [x, m]
+  controls: [u]
+  dynamics: {x: u, m: 0}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [0 <= u <= 1, m >= 0, x(t0) == 0, m(t0) == 0, 0.01 <= tf <= 10]
+  objective: minimize -x(tf) + tf**2/2
+  guess: {tf: 0.5}
+method: {transcription: LGR, segments: 4, degree: 4}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_state_resting_on_its_bound_at_tf_keeps_the_free_final_time_check(tmp_path):
+    """m = 0 on its bound m >= 0 with m' = 0 holds nothing: ending later or earlier keeps it
+    there, so J must still be stationary in t_f (the COPS Goddard rocket's m = 0.6 once the
+    thrust is off skipped the check, and a t_f 2.6e-4 off was 'verified'). Closed form:
+    u = 1, t_f = 1, J = -0.5."""
+    import ocdsl
+
+    path = tmp_path / "resting.yaml"
+    path.write_text(FREE_TF_RESTING)
+    res = ocdsl.load(path).solve()
+    assert res.status == "optimal" and res.verified, res.verification.get("summary")
+    assert res.objective == pytest.approx(-0.5, rel=1e-7) and res.tf == pytest.approx(1.0, rel=1e-7)
+    (check,) = [c for c in res.verification["checks"] if c["name"] == "free final time"]
+    assert check["passed"]
+
+
 def test_a_path_through_an_obstacle_between_the_dense_points_is_not_verified(tmp_path):
     """unseen2 #17: the NLP's straight line y = 0 runs through a disc of radius 0.1 that no row
     and no dense point falls in; the states interpolated between the dense points see it."""

@@ -45,7 +45,36 @@ def _endpoint_lagrangian(problem: Problem, result: Result) -> sp.Expr | str:
     return J
 
 
+# a boundary row's multiplier beyond this many times max(1, |J|): the rows are (nearly)
+# linearly dependent, not a sensitivity of J (see ``_degenerate_rows``)
+DEGENERATE_MULTIPLIER = 1e10
+
+
+def _degenerate_rows(result: Result) -> dict | None:
+    """Boundary rows whose NLP multipliers are astronomically large: a multiplier is dJ/dc,
+    and 1e17 on two rows that cancel means they are (nearly) the same row. Ipopt's
+    convergence test is scaled by the multipliers' size, so it then passes points that are
+    not stationary (unseen9 F1: a two-stage ascent 5e-4 below its optimum, optimal); the
+    certificate, which takes the multipliers as the NLP's, cannot stand on them either."""
+    scale = max(1.0, abs(float(result.objective))) if result.objective is not None else 1.0
+    rows = [(m.get("text", ""), float(m["multiplier"])) for m in result.extra.get("boundary_multipliers") or []
+            if m.get("multiplier") is not None]
+    big = [(text, nu) for text, nu in rows if not math.isfinite(nu) or abs(nu) > DEGENERATE_MULTIPLIER * scale]
+    if not big:
+        return None
+    shown = "; ".join(f"`{text.partition('   (')[0].strip()}` {nu:.3g}" for text, nu in big[:4])
+    return {"passed": False, "failed": ["multipliers"],
+            "multipliers": {"limit": DEGENERATE_MULTIPLIER * scale, "rows": [list(r) for r in big],
+                            "reason": f"boundary rows with multipliers beyond {DEGENERATE_MULTIPLIER:g} x max(1, |J|) "
+                                      f"({shown}): (nearly) linearly dependent conditions, so Ipopt's scaled "
+                                      "convergence test and these multipliers do not show stationarity; "
+                                      "remove the condition the others imply"}}
+
+
 def certify_result(problem: Problem, result: Result) -> dict:
+    degenerate = _degenerate_rows(result)
+    if degenerate is not None:
+        return degenerate
     J = _endpoint_lagrangian(problem, result)
     if isinstance(J, str):
         return {"passed": False, "skipped": J}

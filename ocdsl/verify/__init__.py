@@ -408,11 +408,16 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
 def _held_at_the_end(ph, run, tol: float) -> bool:
     """A state bound or path constraint active at t_f: ending later is then not free (x <= 0.3
     reached at t_f stops x(t_f) from growing), J is not differentiable in t_f there and its
-    one-sided dJ/dt_f need not vanish (unseen #29: exact optimum, dJ/dtf = -0.7)."""
+    one-sided dJ/dt_f need not vanish (unseen #29: exact optimum, dJ/dtf = -0.7). A state
+    that rests on its bound at t_f (rate 0: Goddard's m = 0.6 once the thrust is off) holds
+    nothing: ending a little later or earlier keeps it there."""
     x_end = run.X[-1]
+    duration = max(float(run.t[-1] - run.t[0]), 1e-12)
     for j, s in enumerate(ph.states):
         lo, hi = ph.state_bounds.get(s, (-INF, INF))
-        if min(abs(x_end[j] - lo), abs(hi - x_end[j])) <= tol * max(run.scale_x[j], abs(x_end[j])):
+        size = tol * max(run.scale_x[j], abs(x_end[j]))
+        arriving = abs(float(run.end_rate[j])) * duration > size
+        if arriving and min(abs(x_end[j] - lo), abs(hi - x_end[j])) <= size:
             return True
     if not ph.path:
         return False

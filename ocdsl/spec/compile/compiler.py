@@ -187,7 +187,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 boundary += self.relations(None, phases, text, ("links", i), link=True)
             else:
                 boundary += self.continuity(phases, *joined, text, ("links", i))
-        boundary += self.time_runs_forward(phases)
+        boundary += self.time_runs_forward(phases, boundary)
         if spec.problem is not None:
             obj = self.guarded(("problem", "objective"), self.objective, spec.problem.objective, phases[0], phases)
         else:
@@ -202,6 +202,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             self.check_objective_varies(obj, phases, ("problem", "objective") if spec.problem is not None else ("objective",))
         self.check_resolved(phases, boundary, obj)
         self.check_contradictions(boundary, phases)
+        self.check_repeated(boundary)
         if self.issues:
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)
@@ -230,14 +231,17 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                         "free what it names (e.g. `time: {tf: free}`) or write another objective", obj.text)
 
     @staticmethod
-    def time_runs_forward(phases: list[Phase]) -> list[Constraint]:
+    def time_runs_forward(phases: list[Phase], given: list[Constraint]) -> list[Constraint]:
         """tf >= t0 for a phase with both ends free (one fixed end bounds the other directly,
         ocdsl/spec/compile/phases.py): without it `minimize tf - t0` flew a phase backwards to a
-        duration of -10 and called it optimal."""
+        duration of -10 and called it optimal. Not where the file says it already (`tf - t0
+        >= 0`, or a positive minimum duration): a second identical row (``check_repeated``)."""
         multi = len(phases) > 1
         out = []
         for ph in phases:
-            if ph.t0 is None and ph.tf is None:
+            duration = ph.tf_symbol - ph.t0_symbol
+            said = any(c.expr == duration and c.lower >= 0.0 for c in given)
+            if ph.t0 is None and ph.tf is None and not said:
                 name = f"{ph.name}." if multi else ""
                 out.append(Constraint(ph.tf_symbol - ph.t0_symbol, 0.0, INF,
                                       f"{name}tf >= {name}t0 (time runs forward)"))

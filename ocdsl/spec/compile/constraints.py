@@ -3,6 +3,7 @@ constraints, links and `continuous(...)`, and the checks that they can be met an
 from __future__ import annotations
 
 import math
+import zlib
 
 import sympy as sp
 
@@ -102,6 +103,44 @@ class ConstraintCompiler:
                                      + (f" (line {line})" if line else "")
                                      + f": {bv.var} must lie in [{lo:g}, {hi:g}] at every time, "
                                      f"{bv.which} included", c.text))
+
+    def check_repeated(self, boundary: list[Constraint]) -> None:
+        """Two boundary constraints or links that say the same thing (`a.tf == b.t0` written
+        beside `continuous(a, b)`, which adds it; an equality again up to a constant factor)
+        are two identical rows of the NLP: its Jacobian loses rank, Ipopt's multipliers of
+        the pair grow to +-1e17 and cancel, and its convergence test, scaled by them, passed
+        a point 5e-4 below a two-stage ascent's optimum as optimal (unseen9 F1). An error
+        naming both; a single quantity given twice (`x(t0) == 0`, a variable's bound) is no row."""
+        groups: dict[frozenset, list[Constraint]] = {}
+        for c in boundary:
+            if not isinstance(c.expr, sp.Symbol):
+                groups.setdefault(frozenset(c.expr.free_symbols), []).append(c)
+        for group in groups.values():
+            if len(group) > 1:
+                self._check_repeated_among(group)
+
+    def _check_repeated_among(self, group: list[Constraint]) -> None:
+        seen: list[tuple[Constraint, tuple | None]] = []
+        for c in group:
+            # an equality's residual at three fixed pseudo-random points: proportional residuals
+            # are one condition (numbers, not sp.cancel, which ran for minutes on Delta III's links)
+            samples = _residual_samples(c) if c.is_equality else None
+            for other, other_samples in seen:
+                if samples is None or other_samples is None:
+                    same = (c.expr == other.expr and c.lower == other.lower and c.upper == other.upper)
+                else:
+                    same = _proportional(samples, other_samples)
+                if same:
+                    said, _, added_by = other.text.partition("   (")
+                    origin = f", which `{added_by[:-1]}` adds" if added_by.endswith(")") else ""
+                    self.issues.append(Issue(str(self.path), c.line, f"repeats `{said.strip()}`{origin}"
+                                             + (f" (line {other.line})" if other.line else "")
+                                             + ": a condition given twice is two identical rows of the NLP, "
+                                             "which makes its multipliers and its convergence test "
+                                             "meaningless; keep one", c.text))
+                    break
+            else:
+                seen.append((c, samples))
 
     def _phase_constraint_texts(self):
         spec = self.spec
@@ -219,3 +258,29 @@ class ConstraintCompiler:
             seen[(key, "hi")] = text
             self.bound_lines[(key, "hi")] = line
         return new
+
+
+def _residual_samples(c: Constraint) -> tuple | None:
+    """``expr - value`` of an equality at three fixed points (each symbol a value from its
+    name, so both sides of a comparison see the same point); None where it is not a finite
+    number at all three."""
+    symbols = sorted(c.expr.free_symbols, key=str)
+    out = []
+    for k in range(3):
+        point = {s: sp.Float(0.37 + 0.61 * (zlib.crc32(f'{s.name}/{k}'.encode()) % 9973) / 9973.0) for s in symbols}
+        try:
+            v = complex(sp.N(c.expr.xreplace(point) - c.lower))
+        except (TypeError, ValueError):
+            return None
+        if v.imag != 0.0 or not math.isfinite(v.real):
+            return None
+        out.append(v.real)
+    return tuple(out)
+
+
+def _proportional(a: tuple, b: tuple) -> bool:
+    """Residuals that are one nonzero constant times the other at every sample point."""
+    if any(x == 0.0 for x in b) or any(x == 0.0 for x in a):
+        return a == b
+    ratios = [x / y for x, y in zip(a, b)]
+    return all(abs(r - ratios[0]) <= 1e-10 * abs(ratios[0]) for r in ratios)
