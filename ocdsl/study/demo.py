@@ -71,6 +71,8 @@ def point(path, out_dir, parameters=None, seed=None, warm_start=None, quiet=True
         phases=[PhaseTrajectory("main", tgrid, states={"x": objective * tgrid})],
         problem={"name": model["name"], "phases": {"main": {"states": ["x"], "controls": []}},
                  "objective": {"sense": "minimize", "text": "demo", "latex": ""}},
+        # a synthetic point has no dynamics to fly: nothing to verify (its ok is its status)
+        verification={"status": "not_applicable", "summary": "synthetic demo point: nothing to verify"},
         extra={"warm_start_objective": warm_obj, "seed": seed, "pid": os.getpid(),
                "cache_builds": cache_stats()["builds"]})
     res.write(out_dir)

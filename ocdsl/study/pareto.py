@@ -309,6 +309,7 @@ class ParetoSet:
         """One Result for the whole set: the table, families, labels, warnings, expect checks."""
         front = self.front()
         return Result(
+            verification=self.verification(),
             expect=self.check(expect),
             name=name,
             status="optimal" if front else "infeasible",
@@ -322,6 +323,25 @@ class ParetoSet:
                    "pareto_labels": [p.label for p in front], "n_solutions": len(self.points),
                    "warnings": list(self.warnings)},
         )
+
+    def verification(self) -> dict[str, Any]:
+        """The set's verification: verified when every point's own passed (or does not
+        apply), failed naming those that did not (unseen9 F2: a set whose points were 7 of 8
+        unverified exited 0); not applicable when no point carries one (closed-form
+        solutions, whose residual is checked instead)."""
+        own = [(p.label, p.extra.get("verification")) for p in self.points]
+        judged = [(label, v) for label, v in own if isinstance(v, dict) and v.get("status")]
+        if not judged:
+            return {"status": "not_applicable",
+                    "summary": "no point carries a verification (closed-form solutions: their residual is checked)"}
+        bad = [label for label, v in judged
+               if not (v.get("status") in ("verified", "not_applicable") or v.get("mode") == "warn")]
+        n = len(judged)
+        if not bad:
+            return {"status": "verified", "summary": f"verified: all {n} points"}
+        shown = ", ".join(bad[:8]) + (" ..." if len(bad) > 8 else "")
+        return {"status": "failed", "summary": f"not verified: {n - len(bad)} of {n} points verified; "
+                                               f"not verified: {shown}", "failed_points": bad}
 
     def write(self, study_dir: str | Path, name: str, method: dict[str, Any] | None = None,
               problem: dict[str, Any] | None = None, wall_time_s: float | None = None,

@@ -165,7 +165,8 @@ def _summary(run_dir: Path) -> dict[str, Any]:
     data = json.loads((run_dir / "result.json").read_text())
     wall = data.get("wall_time_s") or {}
     sense = ((data.get("problem") or {}).get("objective") or {}).get("sense", "minimize")
-    return {"status": data.get("status"), "verification": (data.get("verification") or {}).get("status"),
+    return {"status": data.get("status"), "ok": data.get("ok"),
+            "verification": (data.get("verification") or {}).get("status"),
             "objective": _num(data.get("objective")),
             "tf": data.get("tf"), "iterations": data.get("iterations"),
             "wall_time_s": _num(wall.get("total")) if isinstance(wall, dict) else None,
