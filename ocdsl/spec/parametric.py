@@ -242,6 +242,32 @@ class ParametricSpec(_Strict):
             raise ValueError("continuation in tf needs polish: {method: least_squares}")
         return self
 
+    def problems_with(self, problem) -> list[tuple[tuple, str]]:
+        """What this block names that the problem does not have, as (key path under
+        ``method``, message): checked when the file is compiled (``ocdsl check``), not when
+        the search starts (unseen9 F4: `thetta` passed the check, the run ended with a
+        traceback in its message)."""
+        from ..hints import did_you_mean
+
+        ph = problem.phases[0]
+        controls = [c.name for c in ph.controls]
+        states = [s.name for s in ph.states]
+        out = []
+        for name in self.controls:
+            if name not in controls:
+                out.append((("controls", name), f"'{name}' is not a control of the model"
+                            + did_you_mean(name, controls) + f"; controls: {', '.join(controls)}"))
+        missing = [c for c in controls if c not in self.controls]
+        if missing:
+            out.append((("controls",), f"no series for the control(s) {', '.join(missing)}: "
+                                       "give one for every control of the model"))
+        for key in ("tolerances", "guards"):
+            for name in getattr(self, key):
+                if name not in states and not (key == "tolerances" and name == "default"):
+                    out.append(((key, name), f"'{name}' is not a state of the model"
+                                + did_you_mean(name, states) + f"; states: {', '.join(states)}"))
+        return out
+
 
 try:  # register with the lead's method registry when it is there
     from ocdsl.methods import register_method

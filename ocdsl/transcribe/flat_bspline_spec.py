@@ -73,6 +73,28 @@ class FlatBSplineMethod(BaseModel):
             raise ValueError("flat_outputs: give at least one state (or omit it for the search)")
         return self
 
+    def problems_with(self, problem) -> list[tuple[tuple, str]]:
+        """Flat outputs that are not states of their phase, and phases the mapping names
+        that the problem does not have, as (key path under ``method``, message): at compile
+        time (``ocdsl check``), not in the run (unseen9 F4)."""
+        from ..hints import did_you_mean
+
+        phases = {ph.name: ph for ph in problem.phases}
+        out = []
+        if isinstance(self.flat_outputs, dict):
+            for name in self.flat_outputs:
+                if name not in phases:
+                    out.append((("flat_outputs", name), f"'{name}' is not a phase" + did_you_mean(name, list(phases))))
+        for name, ph in phases.items():
+            states = [s.name for s in ph.states]
+            unknown = [o for o in self.outputs_for(name) or [] if o not in states]
+            if unknown:
+                where = ("flat_outputs", name) if isinstance(self.flat_outputs, dict) else ("flat_outputs",)
+                out.append((where, f"flat output(s) {', '.join(unknown)} not states of "
+                                   + (f"phase '{name}'" if len(phases) > 1 else "the model")
+                                   + did_you_mean(unknown[0], states) + f"; states: {', '.join(states)}"))
+        return out
+
     def outputs_for(self, phase: str) -> list[str] | None:
         if self.flat_outputs is None or isinstance(self.flat_outputs, list):
             return self.flat_outputs

@@ -67,6 +67,10 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         problem = None
         if spec.problem is not None or spec.phases is not None:
             problem = self.build_problem()
+        check = getattr(method, "problems_with", None)
+        if problem is not None and check is not None:
+            for where, message in check(problem):
+                self.issue(("method",) + where, message)
         expect = {}
         if problem is not None:
             for key in spec.expect:
@@ -80,6 +84,8 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             model = self.model(spec.model, ("model",)) if spec.model else None
             controller = self.guarded_pydantic(("controller",), "ocdsl.spec.controller", "ControllerSpec",
                                                spec.controller)
+            if model is not None and controller is not None:
+                self.check_controller(model, controller)
         unused = set(self.overrides) - self.used_overrides if hasattr(self, "used_overrides") else set()
         # a free parameter is in the file but the solver chooses it: "not in the file" misled
         free = {s.name: loc for s, loc in self.free_locs.items()}
@@ -132,6 +138,37 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         except (ValueError, KeyError) as e:
             self.issue(("method", "transcription") if "transcription" in data else ("method",), str(e).strip("'\""))
         return None
+
+    def check_controller(self, model, controller) -> None:
+        """The controller block against its plant, at compile time (``ocdsl check``): Q and R
+        of the plant's sizes, x0 naming its states, given A/B entries inside their matrices
+        (unseen9 F4: a 1x1 Q for two states passed the check and the run ended 'error')."""
+        from ...symbolic.sdc import _split_states
+
+        try:
+            xs, _ = _split_states(model, controller.auxiliary, controller.states)
+        except ValueError as e:
+            self.issue(("controller", "states" if controller.states else "auxiliary"), str(e))
+            return
+        n, m = len(xs), len(model.controls)
+        names = ", ".join(str(s) for s in xs)
+        for key, size, what in (("Q", n, f"the {n} controlled states ({names})"), ("R", m, f"the {m} controls")):
+            try:
+                controller.matrix(key, size)
+            except ValueError as e:
+                self.issue(("controller", key), f"{e} (for {what})")
+        try:
+            controller.simulate.initial_state([s.name for s in model.states])
+        except ValueError as e:
+            self.issue(("controller", "simulate", "x0"), str(e))
+        if controller.sdc == "given":
+            syms = {s.name: s for group in (model.states, model.controls, tuple(model.parameters),
+                                            tuple(model.expressions)) for s in group}
+            for key, shape in (("A", (n, n)), ("B", (n, m))):
+                try:
+                    controller.given_matrix(key, shape, syms)
+                except ValueError as e:
+                    self.issue(("controller", key), str(e))
 
     def guarded_pydantic(self, loc: tuple, module: str, cls: str, data):
         """Validate a block with a back end's pydantic class, errors at their file lines."""
