@@ -170,6 +170,9 @@ def _summary(result, out: Path) -> None:
         it, st = kept
         t.add_row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
                   "refinement cut short, so not a converged result)")
+    elif result.objective is not None and result.status == "feasible":
+        # a parametric search's answer: feasible in its control class, no optimality conditions
+        t.add_row("objective", f"{result.objective:.10g} (feasible: the best the search found)")
     elif result.objective is not None and result.iterations:
         t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
     free = result.extra.get("free_parameters", [])

@@ -1,5 +1,6 @@
 """PSO on functions with known minima (continuous and mixed integer); reproducibility."""
 import numpy as np
+import pytest
 
 from ocdsl.search.parametric import fourier_series, penalty
 from ocdsl.search.pso import PSOSettings, pso
@@ -103,3 +104,34 @@ def test_restarts_keep_the_best_of_independent_swarms():
     assert [d["seed"] for d in r.restarts] == [3, 4, 5]
     assert np.array_equal(r.history["best_f"], singles[k].history["best_f"])
     assert s.restarts == 1
+
+
+@pytest.mark.parametrize("a0,particles,iterations,on_box", [
+    ("[0.0, 1.0]", 32, 200, True),      # unseen9 F5: tf 3.67 with theta_c1 on its bound 3, exit 0
+    ("[-0.5, 0.5]", 48, 300, False),    # tf 1.8016 (the cycloid's 1.8016031), inside the box
+])
+def test_a_coefficient_on_its_search_bound_fails_the_run(tmp_path, a0, particles, iterations, on_box):
+    """The series box is the search's, not the problem's: a coefficient that ends on it says the
+    best control of the class may lie outside, so the run is not ok (certificate 'search_box')."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+    from ocdsl.result import certificate_verdict
+
+    text = (Path(__file__).parent / "data" / "pso_brachistochrone_polynomial.yaml").read_text()
+    text = text.replace("a0: [-0.5, 0.5]", f"a0: {a0}").replace(
+        "particles: 48, iterations: 300", f"particles: {particles}, iterations: {iterations}")
+    if on_box:
+        text = text.split("\nexpect:")[0] + "\n"
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    res = run_file(path, tmp_path / "run")
+    assert res.status == "feasible" and res.verified
+    if on_box:
+        assert certificate_verdict(res.certificate) == "failed" and res.certificate["failed"] == ["search_box"]
+        (c,) = res.certificate["search_box"]["coefficients"]
+        assert c["coefficient"] == "theta_c1" and c["bound"] == 3.0 and not res.ok
+        assert res.tf > 1.8016031 * 1.5
+    else:
+        assert res.certificate is None and res.ok
+        assert res.tf == pytest.approx(1.8016031224530815, rel=1e-4)

@@ -318,3 +318,18 @@ def test_angles_the_file_gave_in_degrees_are_drawn_in_degrees():
     ax_phi, ax_psi = fig.figure.axes[:2]
     assert np.allclose(ax_phi.get_lines()[0].get_ydata(), np.degrees(phi)) and "deg" in ax_phi.get_ylabel()
     assert np.allclose(ax_psi.get_lines()[0].get_ydata(), psi) and "rad" in ax_psi.get_ylabel()
+
+
+def test_a_control_bounded_differently_per_phase_has_a_row_per_bounds():
+    """unseen9 F7: burn-coast-burn with u fixed to 1, 0, -1 showed [1, 1] for all three."""
+    from ocdsl.report.tables.problem import variables_table
+    from ocdsl.result import Result
+
+    phases = {name: {"states": ["x"], "controls": ["u"], "bounds": {"u": [b, b]}}
+              for name, b in (("burn1", 1.0), ("coast", 0.0), ("burn2", -1.0))}
+    phases["burn3"] = {"states": ["x"], "controls": ["u"], "bounds": {"u": [1.0, 1.0]}}
+    t = variables_table(Result("r", "optimal", problem={"phases": phases}), "controls")
+    text = repr(t)
+    for phs in ("burn1, burn3", "coast", "burn2"):
+        assert phs in text, text
+    assert len(t["rows"]) == 3, t["rows"]

@@ -9,24 +9,24 @@ from ocdsl.report.tables.details import _flatten
 
 
 def variables_table(res: Result, kind: str) -> dict | None:
-    """States or controls: name, unit, bounds, phases."""
+    """States or controls: name, unit, bounds, phases; one row per name and distinct bounds
+    (unseen9 F7: a control bounded [1, 1], [0, 0] and [-1, -1] in three phases was shown with
+    the first phase's bounds for all three)."""
     problem = res.problem or {}
     units = problem.get("units") or {}
-    seen: dict[str, dict] = {}
+    seen: dict[tuple, dict] = {}
     for pname, info in (problem.get("phases") or {}).items():
         for n in info.get(kind) or []:
-            e = seen.setdefault(n, {"phases": [], "bounds": None})
-            e["phases"].append(pname)
             b = (info.get("bounds") or {}).get(n)
-            if b is not None and e["bounds"] is None:
-                e["bounds"] = b
+            e = seen.setdefault((n, None if b is None else tuple(b)), {"phases": [], "bounds": b})
+            e["phases"].append(pname)
     if not seen:  # no description: fall back to the trajectory's columns
         for p in res.phases:
             for n in getattr(p, kind):
-                seen.setdefault(n, {"phases": [], "bounds": None})["phases"].append(p.name)
+                seen.setdefault((n, None), {"phases": [], "bounds": None})["phases"].append(p.name)
     multi = len(problem.get("phases") or {}) > 1
     rows = []
-    for n, e in seen.items():
+    for (n, _), e in seen.items():
         lo, hi = (e["bounds"] if isinstance(e["bounds"], (list, tuple)) and len(e["bounds"]) == 2
                   else (None, None))
         lo, hi = finite_or_none(lo), finite_or_none(hi)
