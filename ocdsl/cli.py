@@ -175,6 +175,11 @@ def _summary(result, out: Path) -> None:
         t.add_row("objective", f"{result.objective:.10g} (feasible: the best the search found)")
     elif result.objective is not None and result.iterations:
         t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
+    for law in result.extra.get("laws", []):       # a controller file: each law's closed loop
+        rec = result.extra.get(law) or {}
+        cost = rec.get("cost")
+        t.add_row(law, f"{rec.get('status', '?')}, J = {cost:.10g}" if isinstance(cost, (int, float))
+                  else str(rec.get("status", "?")))
     free = result.extra.get("free_parameters", [])
     if free and result.status in ("optimal", "acceptable", "mesh_not_converged"):
         t.add_row("free parameters", ", ".join(f"{n} {result.parameters[n]:.10g}" for n in free

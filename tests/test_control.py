@@ -1,6 +1,8 @@
 """LQR, SDRE and Theta-D on the seed-3 spacecraft (seed_003.md section 5)."""
 from pathlib import Path
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -255,3 +257,39 @@ def test_robustness_file_full_sweep():
     res = robustness_sweep(m, d["controller"], parameters=d["model"]["parameters"])
     tab = res.tables["robustness"]
     assert len(tab["factor"]) == 5 and np.isfinite(tab["sdre.cost"]).all()
+
+
+SCALAR_LAWS = """name: scalar x' = x^2 + u, three laws
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: x**2 + u}
+controller:
+  type: [lqr, sdre]
+  Q: [1]
+  R: [1]
+  simulate:
+    x0: {x: 1}
+    horizon: 6
+    step: 0.01
+    integrator: rk4
+"""
+
+
+def test_one_law_that_does_not_regulate_leaves_the_others_verified(tmp_path):
+    """unseen9 F9: x = 1 is an equilibrium of the LQR loop designed at the origin (u = -x), so
+    LQR does not regulate; the SDRE run was then 'verification skipped: nothing to verify'.
+    Every law's simulation is checked; the summary prints each law's status and J."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "laws.yaml"
+    path.write_text(SCALAR_LAWS)
+    run = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(path), "--out", str(tmp_path / "r")],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 1            # a law that does not regulate fails the run
+    data = json.loads((tmp_path / "r" / "result.json").read_text())
+    assert data["status"] == "unstable" and data["extra"]["lqr"]["status"] == "unstable"
+    v = data["verification"]
+    assert v["status"] == "verified" and v["checks"], v["summary"]
+    assert "lqr             unstable, J = " in run.stdout and "sdre            stable, J = " in run.stdout

@@ -95,7 +95,11 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     # a mesh run cut short by its time limit returns the best completed mesh's solution: that
     # trajectory is checked like any other (the run still fails on its status)
     completed = (result.extra.get("mesh") or {}).get("chosen_status") in CONVERGED
-    if result.status not in CONVERGED and not (result.status in ("time_limit", "interrupted") and completed):
+    # a closed-loop run simulates every law, whether it regulates or not: each trajectory is
+    # checked all the same (one unstable law left the others unverified, unseen9 F9)
+    simulated = not settings.open_loop and result.status == "unstable"
+    if result.status not in CONVERGED and not simulated \
+            and not (result.status in ("time_limit", "interrupted") and completed):
         return {**head, "status": "skipped", "checks": [],
                 "summary": f"the solver ended '{result.status}': nothing to verify"}
     start = time.perf_counter()
