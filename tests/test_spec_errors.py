@@ -74,8 +74,8 @@ CASES = [
      "contradicts the bound `x <= 0.5` (line 12)"),
     ("misspelt mesh key", ("degree: 3}", "degree: 3, mesh: {tolerence: 1.0e-6}}"), 18, "did you mean 'tolerance'"),
     ("misspelt method key", ("segments: 4", "segmnts: 4"), 18, "did you mean 'segments'"),
-    ("time not a constant", ("tf: free}", "tf: 2*pix}"), 9, "`2*pix` is not a number (unknown name 'pix')"),
-    ("time from a parameter", ("tf: free}", "tf: T}"), 9, "constant expression such as 2*pi"),
+    ("time not a constant", ("tf: free}", "tf: 2*pix}"), 9, "`2*pix`: unknown name 'pix'; a time is a number, `free`"),
+    ("time from a parameter", ("tf: free}", "tf: T}"), 9, "`T`: unknown name 'T'; a time is a number, `free`, or an expression of the file's constant parameters"),
     ("unit of an undeclared name", ("    v: u\n", "    v: u\n  units: {x: m, vv: m/s}\n"), 8,
      "a unit for 'vv', which the model does not declare (did you mean 'v'?)"),
     # a prime reads to Python as an unclosed string (was: "unterminated string literal")
@@ -336,3 +336,18 @@ def test_a_phase_integral_in_the_top_level_objective_says_where_it_is_written(tm
     ).replace("    constraints: [x(tf) == 1, v(tf) == 0]", "    constraints: [x(tf) == 1, v(tf) == 0]\n    objective: integral(u**2)")
     p.write_text(fixed)
     assert compile_file(p).problem.objective.expr.free_symbols      # both integrals in it
+
+
+def test_a_time_may_name_a_constant_parameter(tmp_path):
+    """unseen9 F11: `tf: T` with `parameters: {T: 1.0}` said "unknown name 'T'" of a declared
+    parameter; it is the parameter's value (and --param or a sweep changes it)."""
+    text = ("name: t\nparameters: {T: 1.5}\nmodel:\n  states: [x]\n  controls: [u]\n  dynamics: {x: u}\n"
+            "problem:\n  time: {t0: 0, tf: 2*T}\n  constraints: [x(t0) == 0, x(tf) == 1]\n"
+            "  objective: minimize integral(u**2)\n")
+    p = tmp_path / "f.yaml"
+    p.write_text(text)
+    assert compile_file(p).problem.phases[0].tf == 3.0
+    assert compile_file(p, {"T": 2.0}).problem.phases[0].tf == 4.0
+    p.write_text(text.replace("tf: 2*T", "tf: 2*TT"))
+    with pytest.raises(SpecError, match=r"f.yaml:8: .*`2\*TT`: unknown name 'TT'.*did you mean 'T'"):
+        compile_file(p)

@@ -66,7 +66,7 @@ class ModelSpec(Strict):
         return self
 
 
-def constant_number(value):
+def constant_number(value, allow_names: bool = False):
     """A number written as a constant expression (``2*pi``, ``sqrt(2)/3``), read by the safe
     parser with no names but the constants; anything that is not a number stays as it is for
     the field's own check (so `free` and a wrong type keep their messages)."""
@@ -81,16 +81,21 @@ def constant_number(value):
         if e.is_number and e.is_real and e.is_finite:
             return float(e)
     except ExprError as err:
+        if allow_names and err.message.startswith("unknown name"):
+            return value       # names a parameter, perhaps: the compiler resolves it
         why = err.message
     raise ValueError(f"`{value}` is not a number ({why}): write a number, a constant expression "
-                     "such as 2*pi or sqrt(2)/3 (no parameters), or `free`")
+                     "such as 2*pi or sqrt(2)/3" + (", an expression of the file's constants" if allow_names
+                                                    else " (no parameters)") + ", or `free`")
 
 
 # what a file may write (the JSON Schema of `ocdsl schema`): a number, `free`, or a constant
 # expression such as 2*pi, which the "before" validators turn into a number
 _EXPRESSION = {"type": "string", "description": "a constant expression such as 2*pi (no names but pi)"}
-TimeValue = Annotated[Union[float, Literal["free"]], WithJsonSchema(
-    {"anyOf": [{"type": "number"}, {"const": "free", "type": "string"}, _EXPRESSION]})]
+_TIME_EXPRESSION = {"type": "string", "description": "an expression of constants and the file's constant "
+                                                     "parameters, such as 2*pi or T"}
+TimeValue = Annotated[Union[float, Literal["free"], str], WithJsonSchema(
+    {"anyOf": [{"type": "number"}, {"const": "free", "type": "string"}, _TIME_EXPRESSION]})]
 # a constraints/links item may itself be a list (`- *bounds`, an anchored list of shared
 # relations), spliced in its place by the validator (spec/validate.py splice_lists)
 Relations = Annotated[list[str], WithJsonSchema(
@@ -107,7 +112,9 @@ class TimeSpec(Strict):
     @field_validator("t0", "tf", mode="before")
     @classmethod
     def _constant(cls, v):
-        return constant_number(v)
+        # `tf: T` names a constant parameter: kept as text, resolved with the phase's constants
+        # (spec/compile/phases.py); it said "unknown name 'T'" of a declared parameter (unseen9 F11)
+        return constant_number(v, allow_names=True)
 
 
 GuessValue = Union[float, list[float], dict[str, list[float]]]

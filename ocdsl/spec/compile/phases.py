@@ -28,6 +28,31 @@ NONSMOOTH_INTEGRAL = ("abs() in an integral is not differentiable at 0, where an
 class PhaseCompiler:
     """The compiler's phase part (mixed into :class:`~.compiler.Compiler`)."""
 
+    def time_value(self, value, constants: dict, loc: tuple) -> float | None:
+        """A phase's t0 or tf: None for `free`, else the number, or the value of an expression
+        of the phase's constants (`tf: T`, T a parameter; --param T=... and a study's sweep
+        change it like any constant)."""
+        if value == "free":
+            return None
+        if not isinstance(value, str):
+            return float(value)
+        from ..errors import ExprError
+        from ..expr import Scope, parse_expression
+
+        names = {s.name: s for s in constants}
+        try:
+            e = parse_expression(value, Scope(names)).xreplace({s: sp.Float(v) for s, v in constants.items()})
+        except ExprError as err:
+            self.issue(loc, f"`{value}`: {err.message}; a time is a number, `free`, or an expression of "
+                            "the file's constant parameters" + did_you_mean(value, list(names)))
+            return None      # as if free: no knock-on error (a constant objective `minimize tf`)
+        if not (e.is_number and e.is_real and e.is_finite):
+            free = sorted(n.name for n in e.free_symbols) if not e.is_number else []
+            self.issue(loc, f"`{value}` is not a constant" + (f" ({', '.join(free)} has no value: a free "
+                            "parameter cannot set a time; write `tf: free` and a constraint)" if free else ""))
+            return None
+        return float(e)
+
     def phase(self, name, model, time: TimeSpec, constraints, guess, loc, top_params, values) -> Phase | None:
         if model is None:
             return None
@@ -44,8 +69,8 @@ class PhaseCompiler:
             if v is None and s not in self.free:
                 self.issue(loc, f"model parameter '{s}' has no value; give it under model: parameters:")
         t0s, tfs = sym(prefix + "t0"), sym(prefix + "tf")
-        tf = None if time.tf == "free" else float(time.tf)
-        t0 = None if time.t0 == "free" else float(time.t0)
+        tf = self.time_value(time.tf, constants, loc + ("time", "tf"))
+        t0 = self.time_value(time.t0, constants, loc + ("time", "t0"))
         if tf is not None and t0 is not None and tf <= t0:
             self.issue(loc + ("time", "tf"), f"tf = {tf} must be greater than t0 = {t0}")
         guess_items = dict(guess.model_extra or {})
