@@ -211,3 +211,23 @@ def test_flat_refinement_reaches_bryson_denham_optimum(tmp_path):
     res = ocdsl.load(f).solve()
     assert res.status == "optimal" and res.verified
     assert res.objective == pytest.approx(4.0, rel=1e-6)
+
+
+def test_no_verified_level_reports_the_one_that_misses_least_and_stops_when_worse(tmp_path):
+    """unseen9 F6: min-time double integrator (tf* = 2, bang-bang) by flat B-splines: the
+    levels' tf went 2.014, 2.009, 1.669, 0.711 with u between the collocation points at 53
+    against its bound 1, and the last (worst) level was the result. Now the refinement stops
+    when a level misses by more than 10x the best so far, the least-missing level is
+    reported, and a note says why the flat transcription cannot hold this control."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "flat_min_time_bang_bang.yaml", tmp_path / "run")
+    assert not res.verified and not res.ok
+    levels = res.extra["refinement"]["levels"]
+    ratios = [lv["worst_check"]["value"] / lv["worst_check"]["limit"] for lv in levels]
+    assert len(levels) < 4 and ratios[-1] > 10 * min(ratios)         # stopped at the divergence
+    kept = levels[ratios.index(min(ratios))]
+    assert res.tf == kept["tf"] and abs(res.tf - 2.0) < 0.02
+    assert any("collocation points only" in n for n in res.extra["notes"])

@@ -60,8 +60,17 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     levels = [_level(first, mp.opts, first.verification, first_wall_s)]
     best, current = first, mp
     verified: list[tuple[Result, object]] = []       # (level, its options), coarse to fine
-    settled = False
+    solved: list[tuple[float, Result, object]] = []  # (worst check / its limit, level, options)
+    settled = diverging = False
     for step in range(method.refinements + 1):
+        if best.status in CONVERGED:
+            solved.append((_worst_ratio(best.verification), best, current.opts))
+            # a level that misses the verification by far more than the best one so far: the
+            # refinement is making it worse (unseen9 F6: a bang-bang control, u between the
+            # collocation points 345 -> 3.8e5 -> 2.6e6 times its bound as the levels doubled)
+            if best.verification.get("status") != "verified" and solved[-1][0] > 10.0 * min(r for r, _, _ in solved):
+                diverging = True
+                break
         if best.verification.get("status") == "verified":       # each pass holds a new level
             verified.append((best, current.opts))
             if len(verified) > 1 and _relative_change(verified[-2][0], best) <= tol:
@@ -95,6 +104,22 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
             best, opts = coarser, coarser_opts
             partner = f"the finer level's ({finer.nlp.get('variables')} variables, Ipopt {finer.status})"
         confirmed = f", its objective agreeing with {partner} to {apart:.1e}"
+    elif not verified and solved:
+        # nothing verified: the level that misses least, not the last (the finest can be the
+        # worst: tf 0.71 against 2 with u at 53 between the points, for 2.009 at the second level)
+        ratio, best, opts = min(solved, key=lambda r: r[0])
+        worst = (best.verification.get("checks") and max(best.verification["checks"],
+                 key=lambda c: c["value"] / c["limit"] if c["limit"] else 0)) or {}
+        why = (" The flat transcription imposes bounds on controls and path constraints at its "
+               "collocation points only, and a control that rides its bounds (bang-bang) is not what "
+               "smooth B-spline outputs represent: a pseudospectral method with `mesh:` resolves it."
+               if worst.get("name") in ("control bounds", "path constraints") else "")
+        said = ("no level was verified" + (" and refining made the verification worse, so it stopped"
+                                           if diverging else "")
+                + f"; the level that misses least ({opts.n_ctrl} control points, worst check "
+                  f"{ratio:.3g} times its limit) is reported.{why}")
+        best.message = f"{best.message}; {said}"
+        best.extra.setdefault("notes", []).append(said)      # printed under the headline
     elif best.verification.get("status") == "verified" and best.status in ("optimal", "acceptable"):
         change = ("no finer level was verified to compare it with" if len(verified) < 2 else
                   f"it changed by {_relative_change(verified[-2][0], best):.2e} from the previous verified "
@@ -109,6 +134,12 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
                     f"{opts.n_col} {opts.residual} equations in {len(levels) - 1} step(s), "
                     f"verification {best.verification.get('status')} at {tol:g}{confirmed}")
     return best
+
+
+def _worst_ratio(verification: dict) -> float:
+    """The largest check value over its limit (inf where a check has no finite value)."""
+    ratios = [c["value"] / c["limit"] for c in verification.get("checks", []) if c.get("limit")]
+    return max(ratios, default=0.0 if verification.get("status") == "verified" else float("inf"))
 
 
 def _relative_change(a: Result, b: Result) -> float:
