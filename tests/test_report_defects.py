@@ -333,3 +333,16 @@ def test_a_control_bounded_differently_per_phase_has_a_row_per_bounds():
     for phs in ("burn1, burn3", "coast", "burn2"):
         assert phs in text, text
     assert len(t["rows"]) == 3, t["rows"]
+
+
+def test_a_pareto_table_shows_its_labels_and_families_as_text():
+    """unseen9 F8: labels 'e.1', 'e.2' were shown as 'label major NaN', 'label minor 1, 2'."""
+    import numpy as np
+
+    from ocdsl.report.build.run import _pareto_labels
+
+    tab = {"family_id": np.array([0.0, 1.0]), "label_major": np.array([np.nan, np.nan]),
+           "label_minor": np.array([1.0, 2.0]), "fuel": np.array([1.0, 0.5])}
+    shown = _pareto_labels(tab, {"labels": ["e.1", "e.2"], "families": ["a", "b"]})
+    assert shown["label"] == ["e.1", "e.2"] and shown["family"] == ["a", "b"]
+    assert "label_major" not in shown and "family_id" not in shown and list(shown["fuel"]) == [1.0, 0.5]

@@ -132,6 +132,22 @@ def _mesh_table(res: Result) -> dict[str, np.ndarray] | None:
     return None
 
 
+def _pareto_labels(tab: dict, extra: dict) -> dict:
+    """The set's table with its labels and families as text (``extra.labels`` and
+    ``extra.families`` of the summary): the CSV holds them as numbers (label 'e.3' as major
+    NaN, minor 3; unseen9 F8: the report showed 'label major NaN')."""
+    labels, families = extra.get("labels"), extra.get("families")
+    n = len(next(iter(tab.values()), []))
+    out = {}
+    if isinstance(labels, list) and len(labels) == n:
+        out["label"] = list(labels)
+    if isinstance(families, list) and "family_id" in tab:
+        out["family"] = [families[int(i)] if np.isfinite(i) and 0 <= int(i) < len(families) else "" for i in tab["family_id"]]
+    skip = ({"label_major", "label_minor"} if "label" in out else set()) | ({"family_id"} if "family" in out else set())
+    out.update({k: v for k, v in tab.items() if k not in skip})
+    return out
+
+
 def _tables_sections(doc: Doc, res: Result) -> None:
     cl = F.closed_loop_tables(res.tables)
     if cl:
@@ -154,7 +170,8 @@ def _tables_sections(doc: Doc, res: Result) -> None:
             b = doc.section(f"tab-{name}", f"Pareto set ({name})")
             rows = _rows_of(tab)
             crit = pareto_criteria(rows, {"objectives": (res.extra or {}).get("objectives")})
-            doc.table(b, doc.guard(f"table {name}", lambda: T.column_table(name, f"Solutions ({name}).", tab)))
+            shown = _pareto_labels(tab, res.extra or {})
+            doc.table(b, doc.guard(f"table {name}", lambda: T.column_table(name, f"Solutions ({name}).", shown)))
             if crit:
                 doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, res.problem.get("units"))))
     other = [n for n in sorted(res.tables) if n not in ("mesh_history", "mesh_error")
