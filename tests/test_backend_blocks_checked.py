@@ -62,7 +62,13 @@ method:
     (FLAT, FLAT.replace("flat_outputs: [x]", "flat_outputs: [z]"), 12, "flat output(s) z not states of the model"),
     (PARAMETRIC, PARAMETRIC.replace("    theta: {", "    thetta: {"), 13, "'thetta' is not a control of the model (did you mean 'theta'?)"),
     (PARAMETRIC, PARAMETRIC.replace("{x: 1.0e-4, y", "{xx: 1.0e-4, y"), 14, "'xx' is not a state of the model"),
-], ids=["Q size", "x0 state", "R size", "flat output", "series control", "tolerance state"])
+    (CONTROLLER, CONTROLLER.replace("  R: [1]\n", "  R: [1]\n  saturation: [10, 11]\n"), 10, "saturation needs 1 positive limits"),
+    (CONTROLLER, CONTROLLER + "  robustness: {parameters: [mass], factors: [0.9, 1.1]}\n", 14, "'mass' is not a parameter of the model"),
+    (CONTROLLER, CONTROLLER + "expect:\n  objective: 0.866\n", 14, "expect: is not checked in a controller file"),
+    (CONTROLLER, CONTROLLER + "problem:\n  time: {t0: 0, tf: 1}\n  objective: minimize integral(u**2)\n", 6,
+     "either a controller: block (a closed-loop study) or problem:/phases:"),
+], ids=["Q size", "x0 state", "R size", "flat output", "series control", "tolerance state", "saturation shape",
+        "robustness parameter", "expect in a controller file", "controller and problem"])
 def test_a_back_end_block_that_does_not_fit_the_model_is_refused_at_its_line(tmp_path, good, bad, line, fragment):
     ok = tmp_path / "good.yaml"
     ok.write_text(good)

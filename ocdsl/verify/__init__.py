@@ -97,7 +97,7 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     completed = (result.extra.get("mesh") or {}).get("chosen_status") in CONVERGED
     # a closed-loop run simulates every law, whether it regulates or not: each trajectory is
     # checked all the same (one unstable law left the others unverified, unseen9 F9)
-    simulated = not settings.open_loop and result.status == "unstable"
+    simulated = not settings.open_loop and result.status in ("unstable", "error")
     if result.status not in CONVERGED and not simulated \
             and not (result.status in ("time_limit", "interrupted") and completed):
         return {**head, "status": "skipped", "checks": [],

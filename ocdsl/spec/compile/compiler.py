@@ -9,6 +9,7 @@ from typing import Any
 import pydantic
 import sympy as sp
 
+from ...hints import did_you_mean
 from ...symbolic.model import TIME
 from ...symbolic.problem import INF, BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
 from ..errors import ExprError, FollowOnError, Issue, SpecError
@@ -78,6 +79,14 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 if e is not None:
                     expect[key] = e
         model = controller = None
+        if spec.controller is not None and problem is not None:
+            # one or the other: the controller block was silently not read (helper review)
+            self.issue(("controller",), "a file has either a controller: block (a closed-loop study) or "
+                                        "problem:/phases: (an optimal control problem), not both")
+        if spec.controller is not None and problem is None and spec.expect:
+            # its laws' costs are in result.json extra.<law>.cost; an expect was silently never checked
+            self.issue(("expect",), "expect: is not checked in a controller file (each law's cost J is in "
+                                    "result.json extra.<law>.cost and printed by ocdsl run); remove it")
         if spec.controller is not None and problem is None:
             self.used_overrides = set()
             self.constants_in_force = {}
@@ -161,6 +170,19 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             controller.simulate.initial_state([s.name for s in model.states])
         except ValueError as e:
             self.issue(("controller", "simulate", "x0"), str(e))
+        from ...control.simulate import saturation_limits
+
+        try:
+            saturation_limits(controller.saturation, m)
+        except ValueError as e:
+            self.issue(("controller", "saturation"), f"{e} (for the {m} control(s))")
+        if controller.robustness is not None:
+            names = [str(p) for p in model.parameters]
+            for i, name in enumerate(controller.robustness.parameters):
+                if name not in names:
+                    self.issue(("controller", "robustness", "parameters", i),
+                               f"'{name}' is not a parameter of the model" + did_you_mean(name, names)
+                               + (f"; parameters: {', '.join(names)}" if names else " (it has none)"))
         if controller.sdc == "given":
             syms = {s.name: s for group in (model.states, model.controls, tuple(model.parameters),
                                             tuple(model.expressions)) for s in group}
