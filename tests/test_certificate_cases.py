@@ -116,14 +116,26 @@ def test_failed_certificate_exits_1_and_names_it(name, check, tmp_path):
     assert overall.text == "not ok (exit 1)" and f"certificate failed: {', '.join(failed)}" in overall.title
 
 
-def test_bang_bang_hamiltonian_is_inconclusive_not_failed():
-    # switch on a breakpoint: the NLP's lambda_v is t - 1 shifted by 0.13, H = -1 -+ 0.13
-    res = run_file(Path(__file__).parents[1] / "configs" / "mesh_double_integrator.yaml", None)
+def test_bang_bang_hamiltonian_is_inconclusive_not_failed(tmp_path):
+    # a fixed mesh with the switch on its breakpoint: every control node on a bound, so the
+    # NLP's multipliers are a family and the one Ipopt returns has H = -1 -+ 0.03 on the arcs
+    text = (Path(__file__).parents[1] / "configs" / "mesh_double_integrator.yaml").read_text()
+    path = tmp_path / "fixed.yaml"
+    path.write_text("\n".join(line for line in text.splitlines() if not line.strip().startswith("mesh:")))
+    res = run_file(path, None)
     cert = res.certificate
-    assert res.status == "optimal" and res.verified
+    assert res.status == "optimal" and res.verified and res.method["meshes"]["main"]["segments"] == 2
     assert cert["hamiltonian"]["passed"] is None and "bang-bang" in cert["inconclusive"]
     assert cert["switching"]["passed"] and not cert["failed"]
     assert res.ok
+
+
+def test_a_refined_bang_bang_mesh_has_the_pmp_costates():
+    """With `mesh:`, the converged mesh is solved once more with its switch breakpoints as
+    unknowns (their stationarity is H's continuity): the costates are PMP's, H = -1 passes."""
+    res = run_file(Path(__file__).parents[1] / "configs" / "mesh_double_integrator.yaml", None)
+    assert res.status == "optimal" and res.verified
+    assert res.certificate["passed"] and res.certificate["hamiltonian"]["passed"]
 
 
 def test_ok_counts_only_a_failed_certificate():

@@ -149,8 +149,10 @@ def _solve(configs, name, direct: bool, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["brachistochrone", "moon_landing", "two_phase_double_integrator",
-                                  "seed4_unrestricted", "mesh_moon_landing", "goddard"])
+                                  "seed4_unrestricted", "mesh_bryson_denham", "goddard"])
 def test_direct_route_same_optimum(configs, name, monkeypatch):
+    # a mesh run whose switches end as NLP unknowns (mesh_moon_landing) has its last solve on
+    # the PyNumero route either way (DirectNLP declines free breakpoints): a fixed-time one here
     plain = _solve(configs, name, False, monkeypatch)
     fast = _solve(configs, name, True, monkeypatch)
     assert plain.nlp["evaluation"].startswith("PyNumero")

@@ -1,4 +1,6 @@
 """Adaptive mesh refinement (issue 12): ocdsl/solve/mesh/ on configs/mesh_*.yaml."""
+import math
+
 import numpy as np
 import pytest
 
@@ -606,3 +608,76 @@ def test_a_later_mesh_that_fails_leaves_the_best_completed_mesh(tmp_path, monkey
     assert res.status == "mesh_not_converged", res.status
     assert "ended 'infeasible'" in res.message and "best completed mesh" in res.message
     assert res.objective == min((h for h in res.extra["mesh_history"][:2]), key=lambda h: h["max_error"])["objective"]
+
+
+def _oscillator_reference(x0, v0):
+    """Pontryagin's time-optimal oscillator x'' + x = u, |u| <= 1, from (x0, v0): u = -1, +1,
+    -1 with the middle arc pi long (each arc a rotation by its length about (u, 0)); t1 and
+    the last arc solved from x(tf) = 0 by Newton on the closed form, independently of ocdsl."""
+    import math
+
+    from scipy.optimize import fsolve
+
+    def arc(x, v, u, t):
+        c, s = math.cos(t), math.sin(t)
+        return u + (x - u) * c + v * s, -(x - u) * s + v * c
+
+    def end(p):
+        t1, t3 = p
+        x, v = arc(x0, v0, -1.0, t1)
+        x, v = arc(x, v, 1.0, math.pi)
+        return arc(x, v, -1.0, t3)
+
+    t1, t3 = fsolve(end, [0.5, 1.8], xtol=1e-14)
+    assert max(map(abs, end([t1, t3]))) < 1e-12
+    return t1, t1 + math.pi + t3
+
+
+PONTRYAGIN = """name: Pontryagin's oscillator, minimum time from (3.5, 1.5)
+model:
+  states: [x1, x2]
+  controls: [u]
+  dynamics: {x1: x2, x2: -x1 + u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x1(t0) == 3.5, x2(t0) == 1.5, x1(tf) == 0, x2(tf) == 0, 1 <= tf <= 20]
+  objective: minimize tf
+  guess: {tf: 6}
+method: {transcription: LGR, segments: 4, degree: 3, mesh: {tolerance: 1.0e-7}}
+"""
+
+
+@pytest.mark.ipopt
+def test_two_switches_and_a_free_final_time_converge_with_the_pmp_costates(tmp_path):
+    """unseen8 p01 (Pontryagin et al. 1962, ch. 1 sec. 5): from 4 x 3 segments the refinement
+    wandered between meshes 1e-6 apart in J (mesh_not_converged, certificate failed). With
+    the switch breakpoints solved as NLP unknowns (bang controls held on their segments), it
+    converges to the closed form's tf, and on the final mesh the switch times are unknowns
+    once more, so the costates are PMP's (H = -1): the certificate passes."""
+    path = tmp_path / "oscillator.yaml"
+    path.write_text(PONTRYAGIN)
+    res = ocdsl.load(path).solve()
+    t1, tf = _oscillator_reference(3.5, 1.5)
+    assert res.status == "optimal", res.message
+    assert res.verification["status"] == "verified"
+    assert res.certificate["passed"], res.certificate.get("hamiltonian")
+    assert res.tf == pytest.approx(tf, rel=1e-9)
+    bps = res.method["meshes"]["main"]["breakpoints"]
+    assert min(abs(b * res.tf - t1) for b in bps) < 1e-7          # a breakpoint on each switch
+    assert min(abs(b * res.tf - (t1 + math.pi)) for b in bps) < 1e-7
+    assert "switch times solved as NLP unknowns" in res.message
+
+
+@pytest.mark.ipopt
+def test_the_double_integrator_from_one_one_converges_at_1e8(tmp_path):
+    """Bryson & Ho sec. 7.2: tf = 1 + 2 sqrt(1.5); at tolerance 1e-8 from LGR 3 x 3 the switch,
+    pinned 1.5e-8 from the truth, was sent 5 % of its segment away and back for 12 meshes."""
+    text = PONTRYAGIN.replace("name: Pontryagin's oscillator, minimum time from (3.5, 1.5)", "name: di")
+    text = text.replace("{x1: x2, x2: -x1 + u}", "{x1: x2, x2: u}").replace("x1(t0) == 3.5, x2(t0) == 1.5",
+                                                                          "x1(t0) == 1, x2(t0) == 1")
+    text = text.replace("segments: 4, degree: 3, mesh: {tolerance: 1.0e-7}", "segments: 3, degree: 3, mesh: {tolerance: 1.0e-8}")
+    path = tmp_path / "di.yaml"
+    path.write_text(text)
+    res = ocdsl.load(path).solve()
+    assert res.status == "optimal" and res.verified, res.message
+    assert res.tf == pytest.approx(1 + 2 * math.sqrt(1.5), rel=1e-10)

@@ -190,9 +190,8 @@ class MeshSpec(Strict):
         "multipliers", description="how each new mesh's solve starts from the previous mesh's solution: "
         "'multipliers' = states, controls and all NLP multipliers mapped through the costates "
         "(ocdsl/solve/warm_start.py), 'primal' = states and controls only")
-    move_switches: bool = Field(True, description="move a breakpoint that holds a bang-bang switch to where "
-                                "the discrete optimum is stationary in it (envelope derivative, secant; "
-                                "docs/mesh.md)")
+    move_switches: bool = Field(True, description="solve the breakpoints that hold bang-bang switches as NLP "
+                                "unknowns (free-time phases; docs/mesh.md, 'Switch times as NLP unknowns')")
     symbolic: bool = Field(True, description="the symbolic steps of refinement (the boundary control of a "
                            "bounded state, used to locate state-constrained arcs); false turns them off")
     symbolic_time: float = Field(10.0, gt=0, description="seconds each symbolic step may take; above it the "

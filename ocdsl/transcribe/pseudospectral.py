@@ -35,6 +35,9 @@ class PhaseBlock:
     defects: dict = field(default_factory=dict)     # (segment, i, j) -> constraint data
     ends: dict = field(default_factory=dict)        # LG (segment, j) -> end constraint data
     integral_exprs: dict = field(default_factory=dict)
+    # breakpoint index -> its Pyomo variable, for a build whose breakpoints there are unknowns
+    # (``build(free_breakpoints=...)``); the layout keeps the mesh the variables start from
+    free_breakpoints: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -142,7 +145,8 @@ def gc_frozen():
 
 
 def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess],
-          mutable: dict[sp.Symbol, float] | None = None, collect: bool = True) -> Transcription:
+          mutable: dict[sp.Symbol, float] | None = None, collect: bool = True,
+          free_breakpoints: dict[str, list[int]] | None = None) -> Transcription:
     """Build the Pyomo model of ``problem`` on ``meshes`` (one per phase) from ``guesses``.
 
     ``mutable``: constant parameters the problem keeps as symbols (compiled with them not
@@ -152,13 +156,18 @@ def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGue
     ``collect``: first free what earlier builds left for the collector, once it is more than
     ``COLLECT_AFTER`` objects (a full collection walks the whole heap); false for
     the short-lived trial models of a mesh iteration (ocdsl/solve/mesh/switches.py), whose
-    garbage the next build that collects frees."""
+    garbage the next build that collects frees.
+
+    ``free_breakpoints``: per phase, interior breakpoints whose normalised times are unknowns
+    of the NLP (each between the middles of its neighbouring segments), not data: a
+    bang-bang switch's time solved for with everything else (ocdsl/solve/mesh/switches.py).
+    Such a model is evaluated by Pyomo's route, not ``direct_nlp``."""
     with _gc_paused(collect):
-        return _build(problem, meshes, guesses, mutable or {})
+        return _build(problem, meshes, guesses, mutable or {}, free_breakpoints or {})
 
 
 def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGuess],
-           mutable: dict[sp.Symbol, float]) -> Transcription:
+           mutable: dict[sp.Symbol, float], free_breakpoints: dict[str, list[int]]) -> Transcription:
     m = pyo.ConcreteModel(name=problem.name)
     m.dual = pyo.Suffix(direction=pyo.Suffix.IMPORT)
     scalars: dict[sp.Symbol, Any] = {}
@@ -173,7 +182,7 @@ def _build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGu
     blocks = []
     for ph in problem.phases:
         pb = _build_phase(m, ph, meshes[ph.name], guesses[ph.name], problem, scalars,
-                          sorted(mutable, key=str))
+                          sorted(mutable, key=str), free_breakpoints.get(ph.name, ()))
         blocks.append(pb)
     # boundary values are the first/last state nodes
     for s, bv in problem.boundary_values.items():
@@ -237,8 +246,19 @@ def _ranged(e, lo: float, hi: float):
     return e <= hi
 
 
+def _free_breakpoints(b, mesh: Mesh, free) -> list:
+    """The phase's breakpoints: floats, and Pyomo variables at the indices ``free``."""
+    bps = [float(x) for x in mesh.breakpoints]
+    free = sorted({int(q) for q in free if 0 < int(q) < len(bps) - 1})
+    if not free:
+        return bps
+    mid = lambda q: 0.5 * (bps[q] + bps[q + 1])      # noqa: E731
+    b.S = pyo.Var(free, bounds=lambda _, q: (mid(q - 1), mid(q)), initialize=lambda _, q: bps[q])
+    return [b.S[q] if q in free else x for q, x in enumerate(bps)]
+
+
 def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, scalars,
-                 consts: list = ()) -> PhaseBlock:
+                 consts: list = (), free_breakpoints=()) -> PhaseBlock:
     lay = Layout.of(mesh)
     b = pyo.Block()
     m.add_component(f"phase_{ph.name}", b)
@@ -285,6 +305,8 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
     L = pyomo_function(args, integrands) if integrands else None
 
     pb = PhaseBlock(ph, lay, b)
+    bps = _free_breakpoints(b, mesh, free_breakpoints)
+    pb.free_breakpoints = {q: v for q, v in enumerate(bps) if not isinstance(v, float)}
     linear = FAST["linear_defects"]
     if linear:
         from pyomo.core.expr.numeric_expr import LinearExpression, MonomialTermExpression
@@ -297,7 +319,8 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
     integral_terms = [0.0] * len(integrands)
     for k in range(mesh.segments):
         sc = mesh.scheme(k)
-        half_h = (mesh.breakpoints[k + 1] - mesh.breakpoints[k]) / 2.0
+        half_h = (bps[k + 1] - bps[k]) / 2.0
+        moving = not isinstance(half_h, float)
         scale = duration * half_h
         sup = lay.support[k]
         Fk = []
@@ -306,7 +329,10 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
             Drows = [[(float(sc.D[i, l]), int(sup[l])) for l in range(len(sup)) if sc.D[i, l] != 0.0]
                      for i in range(sc.D.shape[0])]
         for i, (cn, sn) in enumerate(zip(lay.colloc[k], lay.colloc_state[k])):
-            t = b.t0 + duration * float(lay.s_colloc[cn])
+            if moving:
+                t = b.t0 + duration * (bps[k] + (float(sc.colloc[i]) + 1.0) * half_h)
+            else:
+                t = b.t0 + duration * float(lay.s_colloc[cn])
             if linear:
                 xs, us = Xd[sn], Ud[cn]
             else:
@@ -329,7 +355,7 @@ def _build_phase(m, ph: Phase, mesh: Mesh, guess: PhaseGuess, problem: Problem, 
                 # free time, (tf - t0) * sum(...) is one nonlinear element of the NL file in
                 # all the nodes' variables, and the ASL gives it a dense Hessian (moon landing,
                 # 800 segments: 10.3 M nonzeros, 430 ms per evaluation); per node it is sparse
-                weight = float(sc.weights[i]) * half_h
+                weight = float(sc.weights[i]) * half_h     # an expression when the segment moves
                 for q, e in enumerate(L(*vals)):
                     integral_terms[q] = integral_terms[q] + weight * duration * e
         if integral_form:

@@ -86,8 +86,9 @@ Refinement rule
       the control chattered (``chattering_segments``, ``regularise``); the reported objective
       leaves the term out. It changes the problem (measured bias in docs/mesh-refinement.md).
 
-Switches pinned on breakpoints (``switches.move_switches``, free-time phases): moved to
-where the discrete optimum is stationary in the breakpoint (envelope derivative, secant).
+Switches on or near breakpoints (``switches.solve_switch_times``, free-time phases): the
+breakpoints are NLP unknowns in one more solve, the bang controls of their segments held;
+the converged mesh is solved that way once more for PMP's costates (``with_switch_costates``).
 Symbolic steps (``budget.bounded``): in a forked child with a time and memory bound, skipped
 with a note past it; ``symbolic: false`` turns them off.
 

@@ -15,9 +15,9 @@ from .estimate import estimate_errors, flight_amplification, phase_end, segment_
 from .junction import limit_junction_controls
 from .locate import locate_features, locate_switches, misplaced
 from .refine import MeshStalled, refine, same_mesh
+from .switches import solve_switch_times, with_switch_costates
 from .regularise import check_unregularised, chattering_segments, merge_intervals, regularise
 from .segments import control_polys, seg_polys, solution_arrays
-from .switches import move_switches
 from .terminal import TerminalError, terminal_error
 from .budget import Budget
 
@@ -114,7 +114,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     import pyomo.core as pyo
 
     from ...run import _result
-    from ...transcribe.guess import make_guess, start_guesses
+    from ...transcribe.guess import make_guess, solved_guesses, start_guesses
+    from ...transcribe.mesh import Mesh
     from ...transcribe.pseudospectral import build
     from .. import ipopt
     from .. import warm_start as ws
@@ -161,7 +162,6 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     if not spec.symbolic:
         budget.notes.append("symbolic steps off (mesh: {symbolic: false}): no boundary controls, "
                             "state-constrained arcs located from the control polynomials only")
-    switch_memory: dict = {}   # per phase: records (breakpoint, dJ*/ds, lo, hi) of the pinned switches (switches.py)
     noted = 0            # budget notes already printed
     from ...progress import Stage
 
@@ -175,10 +175,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        for ph in problem.phases}
             built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
 
-            def rebuild(ms, guesses=guesses, built_with=built_with, collect=False):
+            def rebuild(ms, guesses=guesses, built_with=built_with, collect=False, free_breakpoints=None):
                 """The model on meshes ``ms``, built as this iteration's (switches.py: trial
                 models, built without the collection that precedes the iteration's own)."""
-                t = build(problem, ms, guesses, collect=collect)
+                t = build(problem, ms, guesses, collect=collect, free_breakpoints=free_breakpoints)
                 _scale(file, t)
                 if spec.regularise:
                     regularise(t, built_with[0], reg_weight)
@@ -368,19 +368,25 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         bang[pb.phase.name] = []
                 if spec.move_switches:
                     try:
-                        pinned = bang
-                        here = ws.take(tr) if spec.warm_start == "multipliers" else None
-
-                        def resolve(ms, here=here, rebuild=rebuild):
-                            """Objective of a warm-started solve on meshes ``ms`` (switches.py)."""
-                            t = rebuild(ms)
+                        def solve_free(t):
                             ws.prepare(t.model)
-                            mu = ws.apply(here, t) if here is not None else None
-                            res = ipopt.solve(t.model, options, multipliers=mu, transcription=t)
-                            return res.objective if res.status in GOOD else None
+                            res = ipopt.solve(t.model, options, transcription=t)
+                            return res.status, res.objective
 
-                        features = move_switches(tr, rebuild, resolve, features, pinned, spec, switch_memory,
-                                                 info.objective if info.objective is not None else 0.0)
+                        def rebuild_here(ms, tr=tr, **kw):
+                            """This iteration's build on ``ms``, started from ``tr``'s solution."""
+                            return rebuild(ms, guesses=solved_guesses(problem, tr), **kw)
+
+                        features, moved = solve_switch_times(tr, rebuild_here, solve_free, features, bang, spec,
+                                                             info.objective if info.objective is not None else 0.0)
+                        for name, qs in moved.items():
+                            # exactly there: refine counts a feature within corner_tolerance of a
+                            # breakpoint as on it, and would leave the breakpoint where it was
+                            m = meshes[name]
+                            bps = np.asarray(m.breakpoints, float).copy()
+                            for q, target in qs.items():
+                                bps[q] = target
+                            meshes[name] = Mesh(m.scheme_name, bps, tuple(m.degrees))
                     except Exception as exc:  # an aid, as the locators
                         _say(progress, f"mesh {it}: moving switches failed: {exc}")
             off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
@@ -525,6 +531,31 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                    f"largest estimated error {max_err:.3e} {where}. "
                    + (f"Stopped early because {stalled}." if stalled else
                       "Raise max_iterations or max_degree, or loosen the tolerance."))
+    if status == "optimal" and spec.move_switches and getattr(tr_c.model, "mesh_regularisation", None) is None \
+            and problem.objective.sense == "minimize":
+        with timer.measure("mesh"):
+            try:
+                params_c = {s: float(pyo.value(tr_c.scalars[s])) for s in problem.free_parameters}
+                bang = {pb.phase.name: locate_switches(tr_c, pb, params_c, max(1e-6, 0.1 * spec.tolerance))
+                        for pb in tr_c.phases}
+
+                def build_free(ms, free, tr_c=tr_c):
+                    t = build(problem, ms, solved_guesses(problem, tr_c), free_breakpoints=free)
+                    _scale(file, t)
+                    ws.prepare(t.model)
+                    return t
+
+                swapped = with_switch_costates(
+                    tr_c, build_free, lambda t: ipopt.solve(t.model, options, verbose=verbose, transcription=t,
+                                                           progress=ipopt.Progress(progress, "[switch times]")),
+                    bang, spec, float(info_c.objective))
+            except Exception as exc:  # an aid: the converged mesh stands as it is
+                _say(progress, f"switch costates: {exc}")
+                swapped = None
+        if swapped is not None:
+            tr_c, info_c = swapped
+            meshes_c = {pb.phase.name: pb.layout.mesh for pb in tr_c.phases}
+            message += "; its switch times solved as NLP unknowns (the costates are then the PMP ones)"
     unreg = None
     if status == "optimal" and getattr(tr_c.model, "mesh_regularisation", None) is not None:
         with timer.measure("mesh"):

@@ -1,31 +1,24 @@
-"""Breakpoints held by bang-bang switches, moved to where the objective is stationary in them.
+"""Bang-bang switch times as unknowns of the NLP (``build(free_breakpoints=...)``).
 
 A switch on a breakpoint is pinned there: with the control at one bound on every node before
-it and at the other bound after it, the next solve shows no interior control value, and the
+it and at the other after it, the next solve shows no interior control value, and the
 quadrature locator (``locate.locate_switches``) sees the switch exactly on the breakpoint
 whether or not it belongs there. Where a free final time or an integral constraint can absorb
 the misplacement, the discrete optimum then sits with the switch pinned and t_f off
 (configs/mesh_tumour.yaml: dose window fixed at s_b t_f, t_f 2.2e-3 off the exact bang-off
 solution with every error estimate within 1e-7).
 
-For a breakpoint s_b the derivative of the discrete optimum J*(s_b) is, by the envelope
-theorem, the partial derivative of the Lagrangian at the solution: with the primal values and
-multipliers fixed, dJ*/ds_b = dJ/ds_b + sum_c y_c d(body_c)/ds_b, y_c the multipliers as
-``ipopt.solve`` loads them into the ``dual`` suffix (checked against re-solves on the tumour
-mesh [0, 0.16687, 1], degrees (4, 8): envelope 24.99, finite difference of J* 24.77).
-Minimisation only (a maximised objective is left to the quadrature locator), and phases with a
-free initial or final time only (see ``move_switches``). The partial derivatives are forward
-differences with the breakpoint moved by ``DELTA`` (same nodes, same variables, same
-constraints: only the node times and segment widths change), evaluated by the solved model's
-NumPy NLP and its copy on the moved mesh (``DirectNLP.with_breakpoints``); a model on the
-PyNumero route is rebuilt on the moved mesh instead. The stationary breakpoint is then found by a secant on
-s_b -> dJ*/ds_b across mesh iterations (``memory``) where two records bracket a minimum (a
-positive slope); a pinned switch without one (J* is kinked there, and a record from the
-other side of the kink gives no slope) moves, by a fixed fraction of its neighbouring
-segments, only where a warm-started trial solve of a small step found J lower. A record of the memory is paired with the switch
-whose breakpoint it belongs to (``_pair_records``), not with the switch's order among those located:
-a locator that misses one switch, or finds a spurious one, would pair one switch's derivative with
-another's breakpoint and make the secant's target meaningless.
+``solve_switch_times``: each switch located on or near a breakpoint whose move would change J
+(dJ*/ds_b by the envelope theorem, ``breakpoint_gradient``: the Lagrangian's partial
+derivative at the solution, from the direct NLP on the moved mesh) gets that breakpoint as an
+unknown, the bang controls of its two segments held at their bounds, all switches of the
+problem in one solve with t_f; the next mesh puts its breakpoints there exactly. It replaced
+a secant on s_b -> dJ*/ds_b across mesh iterations, under which two switches with a free
+final time disturbed each other through t_f for 12-30 meshes (docs/mesh.md).
+
+``with_switch_costates``: the converged mesh solved once more the same way, for its
+multipliers. Minimisation only, and phases with a free initial or final time only (on the
+fixed-time bang-off-bang problem breakpoint moves made the terminal error oscillate).
 """
 from __future__ import annotations
 
@@ -34,7 +27,6 @@ import math
 import numpy as np
 
 DELTA = 1e-7          # normalised-time step of the finite difference
-FIRST_STEP = 0.05     # a move without a known slope (after a trial lowered J), fraction of the smaller neighbour
 
 
 def _values(model):
@@ -108,119 +100,139 @@ def _moved(tr, phase: str, q: int, step: float) -> dict:
     return meshes
 
 
-def _pair_records(records: list, points) -> list:
-    """For each breakpoint in ``points`` (one per switch located this iteration), the index in
-    ``records`` of the previous record of the same switch, or None. A record is
-    ``(breakpoint, dJ*/ds, lo, hi)``, lo and hi the neighbouring breakpoints when it was
-    written (the outer ends of its two segments). Criterion: a record can belong to a breakpoint only when the breakpoint lies
-    strictly inside the record's (lo, hi) -- ``move_switches`` clamps every move within those two
-    segments, and ``refine`` puts the breakpoint on the moved target, so the same switch is found
-    there next iteration whatever refinement did to the segments around it, while a switch beyond
-    a neighbouring breakpoint of the record is another one. Among those candidates the nearest
-    pairs first, and each record serves one switch at most (two located switches never share
-    one, and a spurious switch between two real ones gets a record only a real one left)."""
-    pts = [float(b) for b in points]
-    cand = sorted((abs(r[0] - b), i, j) for i, b in enumerate(pts) for j, r in enumerate(records)
-                  if r[2] < b < r[3])
-    out: list = [None] * len(pts)
-    used = set()
-    for _, i, j in cand:
-        if out[i] is None and j not in used:
-            out[i] = j
-            used.add(j)
-    return out
-
-
-def move_switches(tr, rebuild, resolve, features: dict, switches: dict, spec, memory: dict,
-                  objective: float) -> dict:
-    """Per phase: the features with those on breakpoint-pinned switches replaced by the
-    breakpoint the secant on dJ*/ds predicts (left as they are when that is within
-    ``corner_tolerance`` or the derivative is insignificant). ``switches``: per phase, the
-    bound-to-bound switches located this iteration; ``memory``: per phase, the list of previous
-    records (breakpoint, derivative, lo, hi) of the switches (``_pair_records``), replaced by this
-    iteration's: a record no located switch is paired with is dropped, one whose switch is
-    located but not moved this time is kept. ``resolve(meshes)``: the objective of a
-    warm-started solve on other meshes (None when it fails)."""
+def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec, objective: float) -> dict:
+    """Per phase: the features with those on or near breakpoint-held switches replaced by the
+    breakpoints an NLP with those breakpoints as unknowns puts them at (``build(free_breakpoints=)``,
+    every switch of the problem at once, with t_f and the rest); ``solve(model)`` is
+    (status, objective) of a solve warm-started from ``tr``'s solution."""
     import pyomo.core as pyo
 
     out = dict(features)
-    obj = next(tr.model.component_data_objects(pyo.Objective, active=True))
-    if obj.sense == pyo.maximize:
-        return out
-    j_model = float(pyo.value(obj.expr))   # as solved (a regularisation term included)
+    moved: dict = {}
     tol = spec.corner_tolerance
+    free: dict = {}
+    plan: dict = {}       # phase -> [(switch located, breakpoint index, pinned)]
     for pb in tr.phases:
         name = pb.phase.name
         if pb.phase.tf is not None and pb.phase.t0 is not None:
-            # fixed times: the quadrature locator's switches converge by themselves, and the
-            # secant made configs/mesh_bang_off_bang.yaml oscillate (terminal error 1e-6 ->
-            # 8.6e-3 -> 2.8e-3 ... in 20 iterations, against 1.4e-7 without it)
-            continue
+            continue       # fixed times: the quadrature locator's switches converge by themselves
         bps = np.asarray(pb.layout.mesh.breakpoints, float)
-        feats = list(features.get(name, []))
-        located = sorted(switches.get(name, []))
-        qs = [int(np.argmin(np.abs(bps - f))) for f in located]
-        records = list(memory.get(name, []))
-        pairing = _pair_records(records, [bps[q] for q in qs])
-        # the switches located this time keep their records until replaced below; the records
-        # of switches not located this time (missed, or never real) are dropped
-        mem = {k: records[j] for k, j in enumerate(pairing) if j is not None}   # by order, this time
-        for order, f in enumerate(located):
-            q = qs[order]
+        for f in sorted(switches.get(name, [])):
+            q = int(np.argmin(np.abs(bps - f)))
             if not (0 < q < len(bps) - 1):
                 continue
             width = min(bps[q] - bps[q - 1], bps[q + 1] - bps[q])
             pinned = abs(bps[q] - f) <= tol
-            # a switch off its breakpoint but near it: the breakpoint is on its way there (the
-            # quadrature estimate f is a fixed-point map that only halves the distance per
-            # iteration, tumour: 0.200237, 0.200129, 0.20007, ...): the secant on dJ*/ds takes over
             if not pinned and abs(bps[q] - f) > spec.snap * width:
                 continue
             g = breakpoint_gradient(tr, rebuild, name, q)
-            if not math.isfinite(g):
-                continue
-            prev = mem.get(order)
-            mem[order] = (float(bps[q]), g, float(bps[q - 1]), float(bps[q + 1]))
             # insignificant: moving the breakpoint by corner_tolerance changes J by far less
             # than the tolerance asks of it
-            if pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
+            if not math.isfinite(g) or (pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective))):
                 continue
-            slope = None
-            if prev is not None and abs(prev[0] - bps[q]) > 1e-15 and (g - prev[1]) != 0:
-                slope = (g - prev[1]) / (bps[q] - prev[0])
-            target = None
-            if pinned and not (slope is not None and slope > 0):
-                # a switch exactly on its breakpoint makes J*(s_b) kinked there (moving it
-                # either way forces interior control values: double integrator, switch at 1),
-                # and the multipliers give one subgradient only; a secant across the kink
-                # (a record from the other side) has no meaning either. A small move is tried
-                # by a warm-started solve first, and the breakpoint moves only if it lowers J
-                # (before, a negative secant slope moved it untried: the COPS robot arm ended
-                # mesh_not_converged at 1,084 variables, now optimal at 283; the harmonic
-                # oscillator's meshes disagreed in J, now it converges)
-                step = min(10 * tol, 0.01 * width)
-                d = -math.copysign(step, g)
-                j_trial = resolve(_moved(tr, name, q, d))
-                if j_trial is None or not (j_trial < j_model - 0.25 * abs(g) * step):
-                    mem.pop(order, None)
-                    continue
-                target = bps[q] + math.copysign(FIRST_STEP * width, d)
-            elif slope is not None and slope > 0:     # a minimum of J*(s_b) (what the NLP minimises)
-                target = bps[q] - g / slope
-                # the move would gain far less than the tolerance: the breakpoint is where
-                # the objective needs it (J* can be flat in it: tumour, p(tf) at its minimum)
-                if g * g / (2.0 * slope) <= 1e-2 * spec.tolerance * (1.0 + abs(objective)):
-                    target = float(bps[q])
-            else:
-                target = f
-            # within the two neighbouring segments
-            target = float(min(max(target, bps[q - 1] + 0.1 * (bps[q] - bps[q - 1])),
-                               bps[q + 1] - 0.1 * (bps[q + 1] - bps[q])))
-            if abs(target - bps[q]) > tol:
-                feats = [target if abs(x - f) <= tol else x for x in feats]
-            elif not pinned:
-                # the secant says the breakpoint is where it belongs: the switch counts as on it
-                feats = [float(bps[q]) if abs(x - f) <= tol else x for x in feats]
-        memory[name] = [mem[k] for k in sorted(mem)]
+            plan.setdefault(name, []).append((f, q, pinned))
+            free.setdefault(name, set()).add(q)
+    if not free:
+        return out, moved
+    model = rebuild({p.phase.name: p.layout.mesh for p in tr.phases},
+                    free_breakpoints={k: sorted(v) for k, v in free.items()})
+    for pb_old, pb in zip(tr.phases, model.phases):
+        for q in free.get(pb.phase.name, ()):
+            _hold_bang_controls(pb_old, pb, q, tol)
+    status, j_free = solve(model)
+    if status not in ("optimal", "acceptable") or j_free is None:
+        return out, moved
+    for pb in model.phases:
+        name = pb.phase.name
+        bps = np.asarray(pb.layout.mesh.breakpoints, float)
+        feats = list(features.get(name, []))
+        for f, q, pinned in plan.get(name, []):
+            target = float(pyo.value(pb.free_breakpoints[q]))
+            # the NLP's switch time: the breakpoint goes exactly there (not through the
+            # features, which count anything within corner_tolerance as on a breakpoint)
+            moved.setdefault(name, {})[q] = target
+            feats = [target if abs(x - f) <= tol or abs(x - bps[q]) <= tol else x for x in feats]
         out[name] = sorted(feats)
-    return out
+    return out, moved
+
+
+def _hold_bang_controls(solved, pb, q: int, tol: float) -> int:
+    """In the model ``pb`` (breakpoint ``q`` an unknown), each control that ``solved`` has at
+    one bound on the first node of segment q - 1 and at the other on the last node of segment
+    q (a switch between them) is fixed to those bounds on the two segments: the breakpoint is
+    then the switch's time (without, the NLP moves the switch into a segment, where the
+    collocation's error lowers J). Returns how many controls were held."""
+    import pyomo.core as pyo
+
+    lay = solved.layout
+    left, right = lay.colloc[q - 1], lay.colloc[q]
+    held = 0
+    for j, u in enumerate(solved.phase.controls):
+        lo, hi = solved.phase.control_bounds.get(u, (-math.inf, math.inf))
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            continue
+
+        def at(nodes, v, j=j, span=max(1.0, hi - lo)):
+            return all(abs(pyo.value(solved.block.U[i, j]) - v) <= tol * span for i in nodes)
+
+        for a, b in ((lo, hi), (hi, lo)):
+            if at(left[:1], a) and at(right[-1:], b):
+                for i in left:
+                    pb.block.U[i, j].fix(a)
+                for i in right:
+                    pb.block.U[i, j].fix(b)
+                held += 1
+    return held
+
+
+def with_switch_costates(tr, build_free, solve, switches: dict, spec, objective: float):
+    """The converged ``tr`` solved once more with its switch breakpoints as unknowns and the
+    bang controls on their two segments held (``solve_switch_times``' model), returned as the
+    transcription of the moved mesh (layouts updated), or None when that does not hold.
+
+    Why: on a mesh whose breakpoints carry the switches, every control node sits on a bound,
+    and the fixed NLP's multipliers are a family (the terminal multipliers are free but for
+    t_f's stationarity); Ipopt returns one whose H jumps at the switches (harmonic
+    oscillator: H from -1.10 to -0.95 against -1, certificate failed on an exact tf). With the
+    breakpoints unknowns, their stationarity is H's continuity there: the multipliers are
+    the PMP costates. The primal moves by the breakpoint's error only (it must stay within
+    corner_tolerance and J within the tolerance)."""
+    import pyomo.core as pyo
+
+    from ...transcribe.mesh import Layout, Mesh
+
+    tol = spec.corner_tolerance
+    free = {}
+    for pb in tr.phases:
+        if pb.phase.tf is not None and pb.phase.t0 is not None:
+            continue
+        bps = np.asarray(pb.layout.mesh.breakpoints, float)
+        qs = sorted({int(np.argmin(np.abs(bps - f))) for f in switches.get(pb.phase.name, [])
+                     if abs(bps[int(np.argmin(np.abs(bps - f)))] - f) <= tol})
+        qs = [q for q in qs if 0 < q < len(bps) - 1]
+        if qs:
+            free[pb.phase.name] = qs
+    if not free:
+        return None
+    model = build_free({p.phase.name: p.layout.mesh for p in tr.phases}, free)
+    held = 0
+    for pb_old, pb in zip(tr.phases, model.phases):
+        for q in free.get(pb.phase.name, ()):
+            held += _hold_bang_controls(pb_old, pb, q, tol)
+    if not held:
+        return None
+    info = solve(model)
+    if info.status != "optimal" or info.objective is None \
+            or abs(info.objective - objective) > spec.tolerance * (1.0 + abs(objective)):
+        return None
+    for pb in model.phases:
+        if not pb.free_breakpoints:
+            continue
+        mesh = pb.layout.mesh
+        bps = np.asarray(mesh.breakpoints, float).copy()
+        for q, var in pb.free_breakpoints.items():
+            bps[q] = float(pyo.value(var))
+        if np.max(np.abs(bps - mesh.breakpoints)) > tol:
+            return None
+        pb.layout = Layout.of(Mesh(mesh.scheme_name, bps, tuple(mesh.degrees)))
+    return model, info

@@ -77,6 +77,8 @@ class DirectNLP:
             return None, "the model's objective was replaced"
         if tr.model.objective.expr is not tr.built_objective:
             return None, "the objective was changed after the build"
+        if any(pb.free_breakpoints for pb in tr.phases):
+            return None, "breakpoints are unknowns of this NLP"
         try:
             compiled = getattr(tr, "_direct_nlp", None)
             if compiled is None:
