@@ -336,3 +336,33 @@ def test_a_root_of_zero_at_the_guess_is_a_diagnosed_failure_with_a_run_folder(tm
     saved = json.loads((out / "result.json").read_text())
     assert saved["status"] == "error"
     assert "`sqrt(integral(u**2))`" in saved["message"] and "Ipopt was not started" in saved["message"]
+
+
+def test_every_attempt_of_a_solve_gets_the_time_left(monkeypatch):
+    """unseen10 F1: a mesh's warm-started solve (given multipliers) was built from the options
+    without the run's time left, and ran 75 s past a 100 s limit; and a retry without the
+    multipliers gets what is left after the first attempt, not the whole again."""
+    import time as _time
+
+    import pyomo.core as pyo
+
+    from ocdsl.solve import ipopt
+
+    seen = []
+
+    def attempt(model, opts, verbose, progress, on_iteration, multipliers, transcription=None):
+        seen.append((multipliers is not None, opts.get("max_wall_time")))
+        _time.sleep(0.2)
+        return ipopt.SolveInfo("max_iter" if multipliers is not None else "optimal", "", 1, 0.0, 0.2)
+
+    monkeypatch.setattr(ipopt, "_attempt", attempt)
+    monkeypatch.setattr(ipopt, "check_available", lambda: None)
+    m = pyo.ConcreteModel()
+    m.x = pyo.Var(initialize=1.0)
+    m.o = pyo.Objective(expr=m.x ** 2)
+    with ipopt.time_limit(5.0):
+        ipopt.solve(m, {}, multipliers=ipopt.Multipliers())
+    (warm, w_left), (cold, c_left) = seen
+    assert warm and not cold
+    assert w_left is not None and 4.0 < w_left <= 5.0
+    assert c_left is not None and c_left <= w_left - 0.19

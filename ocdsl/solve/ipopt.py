@@ -329,28 +329,35 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         out.setdefault("sb", "yes")
         return out
 
-    opts = options_with(DEFAULT_OPTIONS, options or {})
     if interrupted():
         return SolveInfo("interrupted", "interrupted (Ctrl-C) before this solve", 0, None, 0.0)
     deadline = _DEADLINE.get()
-    if deadline is not None:
-        left = deadline[0] - time.monotonic()
-        if left <= 0:
-            return SolveInfo("time_limit", f"the run's time limit of {deadline[1]:g} s was reached before "
-                             "this solve (solver: time_limit, or ocdsl run --time-limit)", 0, None, 0.0)
-        opts["max_wall_time"] = min(float(opts.get("max_wall_time", left)), left)
+    if deadline is not None and deadline[0] - time.monotonic() <= 0:
+        return SolveInfo("time_limit", f"the run's time limit of {deadline[1]:g} s was reached before "
+                         "this solve (solver: time_limit, or ocdsl run --time-limit)", 0, None, 0.0)
+
+    def limited(out):
+        """``out`` with the run's time left now as Ipopt's max_wall_time (every attempt's
+        options: the warm-started one lost it, and a mesh's solve ran 75 s past a 100 s limit,
+        unseen10 F1; a retry after it gets what is left then)."""
+        if deadline is not None:
+            left = max(deadline[0] - time.monotonic(), 1e-3)
+            out["max_wall_time"] = min(float(out.get("max_wall_time", left)), left)
+        return out
+
+    opts = limited(options_with(DEFAULT_OPTIONS, options or {}))
     try:
         if multipliers is None:
             return _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
         start = [(v, v.value) for v in model.component_data_objects(pyo.Var) if not v.fixed]
-        warm = _attempt(model, options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {}), verbose,
+        warm = _attempt(model, limited(options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {})), verbose,
                         progress, on_iteration, multipliers, transcription)
-        if warm.status in ("optimal", "acceptable"):
+        if warm.status in ("optimal", "acceptable", "time_limit", "interrupted"):
             return warm
         # never worse than without the multipliers: the same primal start, Ipopt's own duals
         for v, x in start:
             v.set_value(x, skip_validation=True)
-        info = _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
+        info = _attempt(model, limited(opts), verbose, progress, on_iteration, None, transcription)
         info.message = (f"{info.message} (started from the given multipliers Ipopt ended '{warm.status}' "
                         f"after {warm.iterations} iterations; solved again without them, iterations "
                         "counted together)")
