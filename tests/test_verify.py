@@ -170,6 +170,10 @@ def test_irregular_controls_spikes_and_zigzags_but_not_bangs_or_noise():
     assert len(notes) == 2, notes
     assert notes[0].startswith("spike jumps at a single node (t = 0.35)")
     assert notes[1].startswith("zigzag zigzags from node to node")
+    assert "`transcription: LG`" in notes[1]
+    # unseen10 F3: a file on LG is not told to try LG
+    on_lg = irregular_controls(t, U, ["smooth", "spike", "zigzag", "bang", "noise"], "LG")
+    assert len(on_lg) == 2 and all("transcription: LG" not in n for n in on_lg)
 
 
 @pytest.mark.ipopt
