@@ -628,7 +628,7 @@ def _oscillator_reference(x0, v0):
         x, v = arc(x, v, 1.0, math.pi)
         return arc(x, v, -1.0, t3)
 
-    t1, t3 = fsolve(end, [0.5, 1.8], xtol=1e-14)
+    t1, t3 = fsolve(end, [0.5, 1.8], xtol=1e-12)
     assert max(map(abs, end([t1, t3]))) < 1e-12
     return t1, t1 + math.pi + t3
 
