@@ -351,3 +351,13 @@ def test_a_time_may_name_a_constant_parameter(tmp_path):
     p.write_text(text.replace("tf: 2*T", "tf: 2*TT"))
     with pytest.raises(SpecError, match=r"f.yaml:8: .*`2\*TT`: unknown name 'TT'.*did you mean 'T'"):
         compile_file(p)
+
+
+def test_a_vector_literal_in_a_flow_list_says_how_to_write_it(tmp_path):
+    """unseen10 F6: `[r(t0) == [1, 0.5], ...]` is a YAML error whose message did not say why."""
+    p = tmp_path / "f.yaml"
+    p.write_text("name: v\nmodel:\n  states: [r]\n  controls: [u]\n  dynamics: {r: u}\nproblem:\n"
+                 "  time: {t0: 0, tf: 1}\n  constraints: [r(t0) == [1, 0.5], r(tf) == 0]\n"
+                 "  objective: minimize integral(u**2)\n")
+    with pytest.raises(SpecError, match=r"f.yaml:8: YAML syntax error: .*write the relations one per line"):
+        compile_file(p)

@@ -1,6 +1,8 @@
 """Read a YAML problem file keeping the line of every value, for error messages."""
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 from typing import Any
 
@@ -92,6 +94,10 @@ def load_yaml_text(text: str, name: str = "<string>") -> Located:
             msg = f"the '{bracket}' opened here is not closed ({msg} at line {mark.line + 1})"
             line = opened.line + 1
         src = lines_of_text[line - 1].strip() if line and line <= len(lines_of_text) else ""
+        if "flow sequence" in context and re.search(r"(==|<=|>=|<|>)\s*\[", src):
+            # unseen10 F6: `constraints: [r(t0) == [1, 0.5, 0.3], ...]`: valid YAML can not hold it
+            msg += ("; a vector [...] inside a [...] list: YAML takes its commas for the list's, so "
+                    "write the relations one per line (- r(t0) == [1, 0.5, 0.3]) or quote each")
         raise SpecError([Issue(name, line, f"YAML syntax error: {msg}", src)]) from None
     if node is None:
         raise SpecError([Issue(name, 1, "the file is empty")])
