@@ -78,7 +78,7 @@ def test_a_repeat_past_the_file_check_fails_the_certificate_not_optimal(tmp_path
     from ocdsl.api import run_file
     from ocdsl.spec.compile.constraints import ConstraintCompiler
 
-    monkeypatch.setattr(ConstraintCompiler, "check_repeated", lambda self, boundary: None)
+    monkeypatch.setattr(ConstraintCompiler, "check_repeated", lambda self, boundary, phases=(): None)
     res = run_file(REPEATED, tmp_path / "run")
     split, speed = _staging_optimum()
     from ocdsl.result import certificate_verdict
@@ -88,3 +88,23 @@ def test_a_repeat_past_the_file_check_fails_the_certificate_not_optimal(tmp_path
     assert not res.ok
     # the point it stopped at is not the optimum: what the check is for
     assert abs(res.objective - speed) > 1e-5
+
+
+def test_an_integral_written_twice_is_one_integral_and_its_repeated_bound_is_refused(tmp_path):
+    """unseen10 F4: `integral(u**2) <= 1.5` twice made two integrals and two identical rows."""
+    text = """
+name: repeated integral
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, integral(u**2) <= 1.5, 0.1 <= tf <= 10]
+  objective: minimize tf + integral(u**2)
+"""
+    ok = tmp_path / "ok.yaml"
+    ok.write_text(text)
+    ph = compile_file(ok).problem.phases[0]
+    assert len(ph.integrals) == 1            # the objective's and the constraint's are one
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("integral(u**2) <= 1.5,", "integral(u**2) <= 1.5, integral(u**2) <= 1.5,"))
+    with pytest.raises(SpecError, match=r"bad.yaml:6: repeats `integral\(u\*\*2\) <= 1.5`"):
+        compile_file(bad)

@@ -261,7 +261,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             self.check_objective_varies(obj, phases, ("problem", "objective") if spec.problem is not None else ("objective",))
         self.check_resolved(phases, boundary, obj)
         self.check_contradictions(boundary, phases)
-        self.check_repeated(boundary)
+        self.check_repeated(boundary, phases)
         if self.issues:
             raise SpecError(self.issues)
         desc = self.describe(phases, obj, multi)

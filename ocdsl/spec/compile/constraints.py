@@ -104,16 +104,17 @@ class ConstraintCompiler:
                                      + f": {bv.var} must lie in [{lo:g}, {hi:g}] at every time, "
                                      f"{bv.which} included", c.text))
 
-    def check_repeated(self, boundary: list[Constraint]) -> None:
+    def check_repeated(self, boundary: list[Constraint], phases: list[Phase] = ()) -> None:
         """Two boundary constraints or links that say the same thing (`a.tf == b.t0` written
         beside `continuous(a, b)`, which adds it; an equality again up to a constant factor)
         are two identical rows of the NLP: its Jacobian loses rank, Ipopt's multipliers of
         the pair grow to +-1e17 and cancel, and its convergence test, scaled by them, passed
         a point 5e-4 below a two-stage ascent's optimum as optimal (unseen9 F1). An error
         naming both; a single quantity given twice (`x(t0) == 0`, a variable's bound) is no row."""
+        integrals = {s for p in phases for s in p.integrals}     # an integral is a row, not a bound
         groups: dict[frozenset, list[Constraint]] = {}
         for c in boundary:
-            if not isinstance(c.expr, sp.Symbol):
+            if not isinstance(c.expr, sp.Symbol) or c.expr in integrals:
                 groups.setdefault(frozenset(c.expr.free_symbols), []).append(c)
         for group in groups.values():
             if len(group) > 1:

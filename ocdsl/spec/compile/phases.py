@@ -188,6 +188,9 @@ class PhaseCompiler:
             expanded = target.substitute(integrand)
             if expanded.has(sp.Abs):
                 raise ExprError(NONSMOOTH_INTEGRAL)
+            for known, e in target.integrals.items():
+                if e == expanded:       # one integral, however often it is written (a constraint
+                    return known        # repeated is then the same row: check_repeated, unseen10 F4)
             self.integral_count += 1
             s = sym(f"integral{self.integral_count}_{target.name}")
             target.integrals[s] = expanded
