@@ -675,3 +675,18 @@ def test_the_double_integrator_from_one_one_converges_at_1e8(tmp_path):
     res = ocdsl.load(path).solve()
     assert res.status == "optimal" and res.verified, res.message
     assert res.tf == pytest.approx(1 + 2 * math.sqrt(1.5), rel=1e-10)
+
+
+@pytest.mark.ipopt
+def test_a_refinement_that_only_grows_the_nlp_stops_and_says_why(tmp_path):
+    """unseen10 F2: the Park-Ramirez bioreactor (singular feed arcs) tripled its mesh each
+    iteration, 10 -> 813 segments and 15,600 variables, while the largest error fell from
+    2.2e-1 to 2.2e-2; no result within 150 s. Two refinements that multiply the NLP by five
+    (to 2,000 variables or more) while the error falls by less than ten times now end it."""
+    from pathlib import Path
+
+    res = ocdsl.load(Path(__file__).parent / "data" / "mesh_not_converging_bioreactor.yaml").solve()
+    assert res.status == "mesh_not_converged"
+    assert "the refinement is not converging" in res.message and "regularise" in res.message
+    hist = res.extra["mesh_history"]
+    assert len(hist) <= 5 and not res.verified

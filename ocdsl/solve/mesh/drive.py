@@ -28,6 +28,14 @@ GOOD = ("optimal", "acceptable")
 AMPLIFICATION = 1e6
 
 
+# two refinements that multiply the NLP by this much, to at least GROWTH_FLOOR variables, while
+# the error falls by less than ten times end the refinement (``solve_adaptive``); small meshes
+# grow fast on their way (Goddard: 14 -> 72 variables in its first two refinements, then
+# converged at 1,092)
+GROWTH_LIMIT = 5.0
+GROWTH_FLOOR = 2000
+
+
 def _objective_disagreement(converged: list, tolerance: float) -> str | None:
     """Meshes within the error tolerance must agree in J to it too: on Fuller's problem three
     of them (the second and third by coarsening) gave J 5e-4 apart, still falling, while every
@@ -146,6 +154,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     best = None          # (max_error, iteration, tr, info, meshes, errors)
     status, message = None, ""
     stalled = ""         # why the refinement stopped before max_iterations without converging
+    growth: list = []    # (NLP variables, largest error) of each refined (not coarsened) mesh
     last = None
     solved_before = None   # (meshes, largest error) of the previous iteration that missed the tolerance
     converged = []       # iterations within tolerance with every located switch on a breakpoint
@@ -435,6 +444,18 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 rec["stalled"] = stalled
                 break
             solved_before = (dict(meshes), max_err)
+            growth.append((int(info.nlp.get("variables", 0)), max_err))
+            if len(growth) >= 3 and growth[-1][0] >= max(GROWTH_LIMIT * growth[-3][0], GROWTH_FLOOR) \
+                    and growth[-1][1] > 0.1 * growth[-3][1]:
+                # two refinements multiplied the NLP while the error barely fell: refining on
+                # only grows it (unseen10 F2: a bioreactor's singular feed arcs, 10 -> 813
+                # segments and 15,600 variables, error 2.2e-1 -> 2.2e-2, no result in 150 s)
+                stalled = (f"mesh iteration {it}: the refinement is not converging: the NLP grew from "
+                           f"{growth[-3][0]} to {growth[-1][0]} variables in two meshes while the largest error "
+                           f"fell only from {growth[-3][1]:.3e} to {growth[-1][1]:.3e} (a singular arc or a "
+                           "chattering control? `regularise:` in mesh:, docs/mesh.md)")
+                rec["stalled"] = stalled
+                break
             if it == spec.max_iterations:
                 break
             previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
