@@ -310,9 +310,9 @@ def schema():
     """Print the JSON Schema of the problem language (for editors)."""
     import json
 
-    from .spec.schema import ProblemFile
+    from .spec.schema import json_schema
 
-    click.echo(json.dumps(ProblemFile.model_json_schema(), indent=2))
+    click.echo(json.dumps(json_schema(), indent=2))
 
 
 @main.command()

@@ -29,6 +29,12 @@ def method_spec_class(name: str):
     return _SPECS[name]
 
 
+def registered_method_classes() -> list:
+    """The spec classes of the registered methods, by name (for ``ocdsl schema``)."""
+    _load()
+    return [_SPECS[name] for name in sorted(_SPECS)]
+
+
 def _load() -> None:
     """Import the optional back ends' spec modules (each registers itself)."""
     import importlib

@@ -382,3 +382,31 @@ class ProblemFile(Strict):
                 if ph.model is None and self.model is None:
                     raise ValueError(f"phase {name!r} has no model and there is no top-level model")
         return self
+
+
+def json_schema() -> dict[str, Any]:
+    """The JSON Schema of a problem file for editors (``ocdsl schema``): ProblemFile's, with
+    the blocks it keeps open typed by their back ends' own classes: ``method`` as one of the
+    pseudospectral method and every registered method (``ocdsl.methods``), ``controller`` as
+    ``ControllerSpec`` (unseen9 D2: both were ``{}``, so an editor validated neither). A file
+    with a ``pareto:`` block is its own format (``ocdsl.spec.pareto``, read before this schema's
+    blocks), which this schema does not describe."""
+    from ..methods import registered_method_classes
+    from .controller import ControllerSpec
+
+    base = ProblemFile.model_json_schema()
+    defs = base.setdefault("$defs", {})
+
+    def ref(model) -> dict[str, Any]:
+        sub = model.model_json_schema(ref_template="#/$defs/{model}")
+        for name, definition in sub.pop("$defs", {}).items():
+            if defs.setdefault(name, definition) != definition:
+                raise ValueError(f"two schema definitions named {name}")   # kept apart by a test
+        defs[model.__name__] = sub
+        return {"$ref": f"#/$defs/{model.__name__}"}
+
+    props = base["properties"]
+    props["method"] = {"anyOf": [ref(PseudospectralMethod), *map(ref, registered_method_classes())],
+                       "description": props["method"].get("description", "the transcription and its settings")}
+    props["controller"] = {"anyOf": [ref(ControllerSpec), {"type": "null"}], "default": None}
+    return base
