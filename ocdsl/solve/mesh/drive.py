@@ -123,7 +123,6 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
 
     from ...run import _result
     from ...transcribe.guess import make_guess, solved_guesses, start_guesses
-    from ...transcribe.mesh import Mesh
     from ...transcribe.pseudospectral import build
     from .. import ipopt
     from .. import warm_start as ws
@@ -379,8 +378,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     try:
                         def solve_free(t):
                             ws.prepare(t.model)
-                            res = ipopt.solve(t.model, options, transcription=t)
-                            return res.status, res.objective
+                            return ipopt.solve(t.model, options, transcription=t)
 
                         def rebuild_here(ms, tr=tr, **kw):
                             """This iteration's build on ``ms``, started from ``tr``'s solution."""
@@ -388,14 +386,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
 
                         features, moved = solve_switch_times(tr, rebuild_here, solve_free, features, bang, spec,
                                                              info.objective if info.objective is not None else 0.0)
-                        for name, qs in moved.items():
-                            # exactly there: refine counts a feature within corner_tolerance of a
-                            # breakpoint as on it, and would leave the breakpoint where it was
-                            m = meshes[name]
-                            bps = np.asarray(m.breakpoints, float).copy()
-                            for q, target in qs.items():
-                                bps[q] = target
-                            meshes[name] = Mesh(m.scheme_name, bps, tuple(m.degrees))
+                        meshes.update(moved)
                     except Exception as exc:  # an aid, as the locators
                         _say(progress, f"mesh {it}: moving switches failed: {exc}")
             off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
@@ -560,8 +551,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 bang = {pb.phase.name: locate_switches(tr_c, pb, params_c, max(1e-6, 0.1 * spec.tolerance))
                         for pb in tr_c.phases}
 
-                def build_free(ms, free, tr_c=tr_c):
-                    t = build(problem, ms, solved_guesses(problem, tr_c), free_breakpoints=free)
+                def build_free(ms, free_breakpoints, tr_c=tr_c):
+                    t = build(problem, ms, solved_guesses(problem, tr_c), free_breakpoints=free_breakpoints)
                     _scale(file, t)
                     ws.prepare(t.model)
                     return t

@@ -100,18 +100,18 @@ def _moved(tr, phase: str, q: int, step: float) -> dict:
     return meshes
 
 
-def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec, objective: float) -> dict:
-    """Per phase: the features with those on or near breakpoint-held switches replaced by the
-    breakpoints an NLP with those breakpoints as unknowns puts them at (``build(free_breakpoints=)``,
-    every switch of the problem at once, with t_f and the rest); ``solve(model)`` is
-    (status, objective) of a solve warm-started from ``tr``'s solution."""
-    import pyomo.core as pyo
-
+def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec, objective: float):
+    """(features, meshes): per phase, the features with those on or near breakpoint-held
+    switches replaced by the breakpoints an NLP with those breakpoints as unknowns puts them
+    at (``build(free_breakpoints=)``, every switch of the problem at once, with t_f and the
+    rest), and the meshes of the phases whose breakpoints so moved, exactly there (not through
+    the features, which count anything within corner_tolerance as on a breakpoint).
+    ``rebuild(meshes, free_breakpoints=None)`` builds as ``tr`` was built, from its solution;
+    ``solve(model)`` is the SolveInfo of a solve of it."""
     out = dict(features)
-    moved: dict = {}
     tol = spec.corner_tolerance
     free: dict = {}
-    plan: dict = {}       # phase -> [(switch located, breakpoint index, pinned)]
+    plan: dict = {}       # phase -> [(switch located, breakpoint index)]
     for pb in tr.phases:
         name = pb.phase.name
         if pb.phase.tf is not None and pb.phase.t0 is not None:
@@ -130,30 +130,51 @@ def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec,
             # than the tolerance asks of it
             if not math.isfinite(g) or (pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective))):
                 continue
-            plan.setdefault(name, []).append((f, q, pinned))
+            plan.setdefault(name, []).append((f, q))
             free.setdefault(name, set()).add(q)
     if not free:
-        return out, moved
-    model = rebuild({p.phase.name: p.layout.mesh for p in tr.phases},
-                    free_breakpoints={k: sorted(v) for k, v in free.items()})
-    for pb_old, pb in zip(tr.phases, model.phases):
-        for q in free.get(pb.phase.name, ()):
-            _hold_bang_controls(pb_old, pb, q, tol)
-    status, j_free = solve(model)
-    if status not in ("optimal", "acceptable") or j_free is None:
-        return out, moved
-    for pb in model.phases:
-        name = pb.phase.name
-        bps = np.asarray(pb.layout.mesh.breakpoints, float)
+        return out, {}
+    model, _ = _switch_model(tr, rebuild, {k: sorted(v) for k, v in free.items()}, tol)
+    info = solve(model)
+    if info.status not in ("optimal", "acceptable") or info.objective is None:
+        return out, {}
+    meshes = solved_meshes(model)
+    before = {p.phase.name: np.asarray(p.layout.mesh.breakpoints, float) for p in tr.phases}
+    for name, pairs in plan.items():
+        bps = before[name]
         feats = list(features.get(name, []))
-        for f, q, pinned in plan.get(name, []):
-            target = float(pyo.value(pb.free_breakpoints[q]))
-            # the NLP's switch time: the breakpoint goes exactly there (not through the
-            # features, which count anything within corner_tolerance as on a breakpoint)
-            moved.setdefault(name, {})[q] = target
+        for f, q in pairs:
+            target = float(meshes[name].breakpoints[q])
             feats = [target if abs(x - f) <= tol or abs(x - bps[q]) <= tol else x for x in feats]
         out[name] = sorted(feats)
-    return out, moved
+    return out, meshes
+
+
+def _switch_model(tr, rebuild, free: dict, tol: float):
+    """(model, controls held): ``tr``'s problem on its meshes with the breakpoints ``free``
+    (phase -> indices) as unknowns and the bang controls of their two segments held."""
+    model = rebuild({p.phase.name: p.layout.mesh for p in tr.phases}, free_breakpoints=free)
+    held = sum(_hold_bang_controls(old, new, q, tol)
+               for old, new in zip(tr.phases, model.phases) for q in free.get(new.phase.name, ()))
+    return model, held
+
+
+def solved_meshes(model) -> dict:
+    """Phase -> its mesh with the breakpoints the solve of ``model`` put its unknown ones at
+    (phases with such breakpoints only)."""
+    import pyomo.core as pyo
+
+    from ...transcribe.mesh import Mesh
+
+    out = {}
+    for pb in model.phases:
+        if pb.free_breakpoints:
+            mesh = pb.layout.mesh
+            bps = np.asarray(mesh.breakpoints, float).copy()
+            for q, var in pb.free_breakpoints.items():
+                bps[q] = float(pyo.value(var))
+            out[pb.phase.name] = Mesh(mesh.scheme_name, bps, tuple(mesh.degrees))
+    return out
 
 
 def _hold_bang_controls(solved, pb, q: int, tol: float) -> int:
@@ -185,10 +206,11 @@ def _hold_bang_controls(solved, pb, q: int, tol: float) -> int:
     return held
 
 
-def with_switch_costates(tr, build_free, solve, switches: dict, spec, objective: float):
+def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: float):
     """The converged ``tr`` solved once more with its switch breakpoints as unknowns and the
-    bang controls on their two segments held (``solve_switch_times``' model), returned as the
-    transcription of the moved mesh (layouts updated), or None when that does not hold.
+    bang controls on their two segments held (``solve_switch_times``' model), returned as
+    (transcription of the moved mesh, layouts updated; its SolveInfo), or None when that does
+    not hold.
 
     Why: on a mesh whose breakpoints carry the switches, every control node sits on a bound,
     and the fixed NLP's multipliers are a family (the terminal multipliers are free but for
@@ -197,9 +219,7 @@ def with_switch_costates(tr, build_free, solve, switches: dict, spec, objective:
     breakpoints unknowns, their stationarity is H's continuity there: the multipliers are
     the PMP costates. The primal moves by the breakpoint's error only (it must stay within
     corner_tolerance and J within the tolerance)."""
-    import pyomo.core as pyo
-
-    from ...transcribe.mesh import Layout, Mesh
+    from ...transcribe.mesh import Layout
 
     tol = spec.corner_tolerance
     free = {}
@@ -207,32 +227,24 @@ def with_switch_costates(tr, build_free, solve, switches: dict, spec, objective:
         if pb.phase.tf is not None and pb.phase.t0 is not None:
             continue
         bps = np.asarray(pb.layout.mesh.breakpoints, float)
-        qs = sorted({int(np.argmin(np.abs(bps - f))) for f in switches.get(pb.phase.name, [])
-                     if abs(bps[int(np.argmin(np.abs(bps - f)))] - f) <= tol})
-        qs = [q for q in qs if 0 < q < len(bps) - 1]
+        qs = {int(np.argmin(np.abs(bps - f))) for f in switches.get(pb.phase.name, [])}
+        qs = sorted(q for q in qs if 0 < q < len(bps) - 1
+                    and min(abs(bps[q] - f) for f in switches[pb.phase.name]) <= tol)
         if qs:
             free[pb.phase.name] = qs
     if not free:
         return None
-    model = build_free({p.phase.name: p.layout.mesh for p in tr.phases}, free)
-    held = 0
-    for pb_old, pb in zip(tr.phases, model.phases):
-        for q in free.get(pb.phase.name, ()):
-            held += _hold_bang_controls(pb_old, pb, q, tol)
+    model, held = _switch_model(tr, rebuild, free, tol)
     if not held:
         return None
     info = solve(model)
     if info.status != "optimal" or info.objective is None \
             or abs(info.objective - objective) > spec.tolerance * (1.0 + abs(objective)):
         return None
+    meshes = solved_meshes(model)
     for pb in model.phases:
-        if not pb.free_breakpoints:
-            continue
-        mesh = pb.layout.mesh
-        bps = np.asarray(mesh.breakpoints, float).copy()
-        for q, var in pb.free_breakpoints.items():
-            bps[q] = float(pyo.value(var))
-        if np.max(np.abs(bps - mesh.breakpoints)) > tol:
-            return None
-        pb.layout = Layout.of(Mesh(mesh.scheme_name, bps, tuple(mesh.degrees)))
+        if pb.phase.name in meshes:
+            if np.max(np.abs(meshes[pb.phase.name].breakpoints - pb.layout.mesh.breakpoints)) > tol:
+                return None
+            pb.layout = Layout.of(meshes[pb.phase.name])
     return model, info
