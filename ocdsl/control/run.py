@@ -37,21 +37,13 @@ def _as_spec(spec) -> ControllerSpec:
     return spec if isinstance(spec, ControllerSpec) else ControllerSpec.model_validate(spec)
 
 
-def _symbols(model: Model) -> dict[str, sp.Basic]:
-    out = {}
-    for group in (model.states, model.controls, tuple(model.parameters), tuple(model.expressions)):
-        for s in group:
-            out[s.name] = s
-    return out
-
-
 def build_sdc(model: Model, spec: ControllerSpec) -> sdcmod.SDC:
     """The SDC factorisation the spec asks for (auto with its split, or given A/B)."""
     if spec.sdc == "auto":
         return sdcmod.factorise(model, auxiliary=spec.auxiliary, states=spec.states, split=spec.split)
     xs, _ = sdcmod._split_states(model, spec.auxiliary, spec.states)
     n, m = len(xs), len(model.controls)
-    syms = _symbols(model)
+    syms = model.symbols()
     A = spec.given_matrix("A", (n, n), syms)
     B = spec.given_matrix("B", (n, m), syms)
     return sdcmod.given(model, A, B, auxiliary=spec.auxiliary, states=spec.states)

@@ -106,10 +106,15 @@ class Model:
     def default_parameters(self) -> dict[sp.Symbol, float]:
         return {k: v for k, v in self.parameters.items() if v is not None}
 
-    def symbol(self, name: str) -> sp.Symbol:
-        """Look up any model symbol (state, control, parameter, expression) by name."""
+    def symbols(self) -> dict[str, sp.Symbol]:
+        """Name -> symbol of every state, control, parameter and named expression (the first
+        of a name, in that order)."""
+        out: dict[str, sp.Symbol] = {}
         for group in (self.states, self.controls, tuple(self.parameters), tuple(self.expressions)):
             for s in group:
-                if s.name == name:
-                    return s
-        raise KeyError(name)
+                out.setdefault(s.name, s)
+        return out
+
+    def symbol(self, name: str) -> sp.Symbol:
+        """Look up any model symbol (state, control, parameter, expression) by name."""
+        return self.symbols()[name]

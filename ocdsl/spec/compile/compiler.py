@@ -184,11 +184,9 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                                f"'{name}' is not a parameter of the model" + did_you_mean(name, names)
                                + (f"; parameters: {', '.join(names)}" if names else " (it has none)"))
         if controller.sdc == "given":
-            syms = {s.name: s for group in (model.states, model.controls, tuple(model.parameters),
-                                            tuple(model.expressions)) for s in group}
             for key, shape in (("A", (n, n)), ("B", (n, m))):
                 try:
-                    controller.given_matrix(key, shape, syms)
+                    controller.given_matrix(key, shape, model.symbols())
                 except ValueError as e:
                     self.issue(("controller", key), str(e))
 
@@ -302,7 +300,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             said = any(c.expr == duration and c.lower >= 0.0 for c in given)
             if ph.t0 is None and ph.tf is None and not said:
                 name = f"{ph.name}." if multi else ""
-                out.append(Constraint(ph.tf_symbol - ph.t0_symbol, 0.0, INF,
+                out.append(Constraint(duration, 0.0, INF,
                                       f"{name}tf >= {name}t0 (time runs forward)"))
         return out
 

@@ -36,9 +36,6 @@ class PhaseCompiler:
             return None
         if not isinstance(value, str):
             return float(value)
-        from ..errors import ExprError
-        from ..expr import Scope, parse_expression
-
         names = {s.name: s for s in constants}
         try:
             e = parse_expression(value, Scope(names)).xreplace({s: sp.Float(v) for s, v in constants.items()})
