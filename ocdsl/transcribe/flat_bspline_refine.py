@@ -22,8 +22,7 @@ def _level(result, opts, verification: dict, wall_s: float) -> dict:
     """One row of ``extra["refinement"]``: the setting, NLP size, t_f, objective, dense
     residual, the verification's verdict and its largest miss."""
     failed = [c for c in verification.get("checks", []) if not c["passed"]]
-    worst = max(verification.get("checks", []), key=lambda c: c["value"] / c["limit"] if c["limit"] else 0,
-                default=None)
+    _, worst = _worst_check(verification)
     dyn = [c["value"] for c in verification.get("checks", []) if c["name"] == "dynamics from x(t0)"]
     return {"control_points": opts.n_ctrl, "collocation_points": opts.n_col, "residual": opts.residual,
             "status": result.status, "variables": result.nlp.get("variables"),
@@ -64,7 +63,7 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     settled = diverging = False
     for step in range(method.refinements + 1):
         if best.status in CONVERGED:
-            solved.append((_worst_ratio(best.verification), best, current.opts))
+            solved.append((_worst_check(best.verification)[0], best, current.opts))
             # a level that misses the verification by far more than the best one so far: the
             # refinement is making it worse (unseen9 F6: a bang-bang control, u between the
             # collocation points 345 -> 3.8e5 -> 2.6e6 times its bound as the levels doubled)
@@ -108,8 +107,7 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         # nothing verified: the level that misses least, not the last (the finest can be the
         # worst: tf 0.71 against 2 with u at 53 between the points, for 2.009 at the second level)
         ratio, best, opts = min(solved, key=lambda r: r[0])
-        worst = (best.verification.get("checks") and max(best.verification["checks"],
-                 key=lambda c: c["value"] / c["limit"] if c["limit"] else 0)) or {}
+        worst = _worst_check(best.verification)[1] or {}
         why = (" The flat transcription imposes bounds on controls and path constraints at its "
                "collocation points only, and a control that rides its bounds (bang-bang) is not what "
                "smooth B-spline outputs represent: a pseudospectral method with `mesh:` resolves it."
@@ -136,10 +134,14 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     return best
 
 
-def _worst_ratio(verification: dict) -> float:
-    """The largest check value over its limit (inf where a check has no finite value)."""
-    ratios = [c["value"] / c["limit"] for c in verification.get("checks", []) if c.get("limit")]
-    return max(ratios, default=0.0 if verification.get("status") == "verified" else float("inf"))
+def _worst_check(verification: dict) -> tuple[float, dict | None]:
+    """(largest check value over its limit, that check); with no check that has a limit,
+    0 for a verified level and inf for any other (nothing shows how far it misses)."""
+    checks = [c for c in verification.get("checks", []) if c.get("limit")]
+    if not checks:
+        return (0.0 if verification.get("status") == "verified" else float("inf")), None
+    worst = max(checks, key=lambda c: c["value"] / c["limit"])
+    return worst["value"] / worst["limit"], worst
 
 
 def _relative_change(a: Result, b: Result) -> float:
