@@ -92,3 +92,28 @@ def test_an_anchored_list_of_constraints_is_spliced_and_errors_keep_its_lines(tm
     assert {s.name: b for s, b in ph.state_bounds.items()}["v"][1] == 2.0
     issues = _errors(tmp_path, text.replace("- v <= 2", "- w <= 2"))
     assert [(i.line, "unknown name 'w'" in i.message) for i in issues] == [(5, True)]
+
+
+@pytest.mark.parametrize("dynamics, model_message", [
+    ("{x: v, v: u}", "state 'w' has no dynamics"),
+    ("{x: v, v: u, w: 0, q: 1}", "dynamics given for 'q', which is not a state"),
+])
+def test_a_dynamics_mistake_leaves_the_constraints_and_objective_checked(tmp_path, dynamics, model_message):
+    """unseen10 F5: a state without dynamics (or dynamics of a non-state) hid the strict
+    inequality and the unknown name below it until it was fixed."""
+    issues = _errors(tmp_path, f"""\
+        name: misc
+        model:
+          states: [x, v, w]
+          controls: [u]
+          dynamics: {dynamics}
+        problem:
+          time: {{t0: 0, tf: 2}}
+          constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, u < 1]
+          objective: minimize integral(u**2 + gain*x)
+        """)
+    msgs = [(i.line, i.message) for i in issues]
+    assert len(msgs) == 3, msgs
+    assert model_message in msgs[0][1]
+    assert msgs[1][0] == 8 and "strict" in msgs[1][1]
+    assert msgs[2][0] == 9 and "unknown name 'gain'" in msgs[2][1]

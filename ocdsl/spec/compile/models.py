@@ -136,7 +136,7 @@ class ModelCompiler:
                 continue
             targets = self.dynamics_targets(name, m, vectors, loc)
             if targets is None:
-                ok = False
+                unparsed = True     # the declared names are sound: the rest is still checked
                 continue
             covered.update(targets)
             e = self.guarded(loc + ("dynamics", name), parse_expression, text, scope, len(targets) > 1)
@@ -147,17 +147,17 @@ class ModelCompiler:
             if len(values) != len(targets):
                 self.issue(loc + ("dynamics", name), f"'{name}' has {len(targets)} components but its "
                            f"right-hand side has {len(values)}")
-                ok = False
+                unparsed = True
                 continue
             for target, value in zip(targets, values):
                 if names[target] in dynamics:
                     self.issue(loc + ("dynamics", name), f"dynamics of '{target}' given twice")
-                    ok = False
+                    unparsed = True
                 dynamics[names[target]] = value
         for i, s in enumerate(m.states):
             if s not in covered and s in names:
                 self.issue(loc + ("states", i), f"state '{s}' has no dynamics (add `{s}: ...` under dynamics)")
-                ok = False
+                unparsed = True
         for key in m.units:       # a unit label of no declared name was dropped without a word
             if key not in names and key not in self.spec.parameters:
                 self.issue(loc + ("units", key), f"a unit for '{key}', which the model does not declare"
