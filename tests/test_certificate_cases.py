@@ -167,8 +167,13 @@ def test_a_state_constrained_arc_makes_the_hamiltonian_inconclusive_not_failed()
     from ocdsl.solve.certificate import _state_arcs
 
     problem = compile_file(DATA / "cert_speed_limited.yaml").problem
-    assert _state_arcs(problem.phases[0].model, np.array([[0.0, 0.4], [0.1, 0.5], [0.2, 0.4]]),
-                       {"v": (-0.5, 0.5)}) == []          # one node at the bound: a touch, not an arc
+    model, t = problem.phases[0].model, np.array([0.0, 0.5, 1.0, 1.5])
+    assert _state_arcs(model, t, np.array([[0.0, 0.4], [0.1, 0.5], [0.2, 0.4], [0.3, 0.5]]),
+                       {"v": (-0.5, 0.5)}) == []          # one node at a time at the bound
+    # unseen10 F8: a run of nodes on the bound is said as what it is (nodes and times), not
+    # as an "arc" (it was said so of an order-2 touch point held at two nodes)
+    assert _state_arcs(model, t, np.array([[0.0, 0.4], [0.1, 0.5], [0.2, 0.5], [0.3, 0.4]]),
+                       {"v": (-0.5, 0.5)}) == ["v <= 0.5 at 2 consecutive nodes, t = 0.5 to 1"]
 
 
 @pytest.mark.parametrize("value", ["-1", "1"])

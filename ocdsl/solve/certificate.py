@@ -598,14 +598,14 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         # wrong at a node, still fails
         h["inconclusive"] = "every control is bang-bang: the costates are not unique, H is not judged"
         h["passed"] = None
-    held = _state_arcs(model, X, state_bounds)
+    held = _state_arcs(model, t, X, state_bounds)
     if not h["passed"] and held and h.get("inconclusive") is None:
         # on a state-constrained arc the bound's multipliers at consecutive nodes and the
         # collocation duals are not independent (the speed-limited double integrator: H =
         # -1.34 on the bang arcs, -0.77 on the arc at |v| = 0.5, for the exact tf = 2.5): the
         # costates there, and so H, are not determined by the NLP; the verification judges it
-        h["inconclusive"] = (f"a state bound is active on an arc ({', '.join(held)}): the NLP's costates "
-                             "are not unique there, H is not judged")
+        h["inconclusive"] = (f"a state bound holds at consecutive nodes ({'; '.join(held)}): the "
+                             "NLP's costates are not unique there, H is not judged")
         h["passed"] = None
     out["failed"] = [k for k in checks if out[k]["passed"] is False]
     incl = [k for k in checks if out[k]["passed"] is None]
@@ -618,8 +618,10 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     return out
 
 
-def _state_arcs(model: Model, X, state_bounds, run: int = 2) -> list[str]:
-    """``name <= bound`` of each state at one of its bounds at ``run`` or more nodes in a row."""
+def _state_arcs(model: Model, t, X, state_bounds, run: int = 2) -> list[str]:
+    """``name <= bound`` of each state at one of its bounds at ``run`` or more nodes in a row,
+    with the longest such run's node count and times (a few nodes may be a touch point the
+    mesh resolves as a short arc: the nodes, not a guess of which, are said)."""
     held = []
     for j, st in enumerate(model.states):
         lo, hi = ((state_bounds or {}).get(st.name) or (None, None))[:2]
@@ -628,11 +630,14 @@ def _state_arcs(model: Model, X, state_bounds, run: int = 2) -> list[str]:
                 continue
             at = np.abs(X[:, j] - b) <= 1e-6 * max(1.0, abs(b))
             longest = cur = 0
-            for a in at:
+            end = -1
+            for i, a in enumerate(at):
                 cur = cur + 1 if a else 0
-                longest = max(longest, cur)
+                if cur > longest:
+                    longest, end = cur, i
             if longest >= run:
-                held.append(f"{st.name} {op} {b:g}")
+                held.append(f"{st.name} {op} {b:g} at {longest} consecutive nodes, "
+                            f"t = {t[end - longest + 1]:.6g} to {t[end]:.6g}")
     return held
 
 
