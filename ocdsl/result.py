@@ -246,22 +246,37 @@ def _trajectory_file(phase: str, n_phases: int) -> str:
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
-    arrays = {k: np.atleast_1d(np.asarray(v, float)) for k, v in columns.items()}
+    """Numbers as ``repr(float)`` (they read back bit for bit); a column of text (a law's
+    name, a status) as its text."""
+    arrays = {k: np.atleast_1d(_column(v)) for k, v in columns.items()}
     n = max((len(a) for a in arrays.values()), default=0)
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(list(arrays))
         for i in range(n):
-            w.writerow([repr(float(a[i])) if i < len(a) else "" for a in arrays.values()])
+            w.writerow([("" if i >= len(a) else str(a[i]) if a.dtype.kind in "USO" else repr(float(a[i])))
+                        for a in arrays.values()])
+
+
+def _column(values) -> np.ndarray:
+    a = np.asarray(values)
+    return a if a.dtype.kind in "US" else a.astype(str) if a.dtype.kind == "O" else a.astype(float)
 
 
 def read_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read a run-folder CSV into column arrays (empty cells become NaN)."""
+    """Read a run-folder CSV into column arrays: numbers (empty cells become NaN), or text
+    where a cell is not a number."""
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
     header, body = rows[0], rows[1:]
-    return {h: np.array([float(r[j]) if j < len(r) and r[j] != "" else math.nan for r in body])
-            for j, h in enumerate(header)}
+    out = {}
+    for j, h in enumerate(header):
+        cells = [r[j] if j < len(r) else "" for r in body]
+        try:
+            out[h] = np.array([float(c) if c != "" else math.nan for c in cells])
+        except ValueError:
+            out[h] = np.array(cells, dtype=str)
+    return out
 
 
 def _jsonable(obj: Any) -> Any:

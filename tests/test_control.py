@@ -293,3 +293,8 @@ def test_one_law_that_does_not_regulate_leaves_the_others_verified(tmp_path):
     v = data["verification"]
     assert v["status"] == "verified" and v["checks"], v["summary"]
     assert "lqr             unstable, J = " in run.stdout and "sdre            stable, J = " in run.stdout
+    # unseen9 F10: the comparison table names each law and its status (it wrote 0.0, 1.0 and
+    # stable 0.0/1.0), and the text reads back as text
+    table = Result.read(tmp_path / "r").tables["controllers"]
+    assert list(table["law"]) == ["lqr", "sdre"] and list(table["status"]) == ["unstable", "stable"]
+    assert table["cost"].dtype.kind == "f"

@@ -177,8 +177,8 @@ def run_controllers(model: Model, spec_list: Sequence[ControllerSpec | dict],
 
 
 def summary_table(results: Sequence[Result]) -> dict[str, np.ndarray]:
-    """One row per law: cost, status, max |metric states| after check times, timing."""
-    cols: dict[str, list] = {"law": [], "stable": [], "cost": [], "controller_time_mean_s": []}
+    """One row per law: its name, status, cost, max |metric states| after check times, timing."""
+    cols: dict[str, list] = {"law": [], "status": [], "cost": [], "controller_time_mean_s": []}
     keys: list[str] = []
     for r in results:
         met = r.extra.get("metrics", {})
@@ -187,15 +187,15 @@ def summary_table(results: Sequence[Result]) -> dict[str, np.ndarray]:
                 keys.append(k)
     for k in keys:
         cols[k] = []
-    for i, r in enumerate(results):
+    for r in results:
         met = r.extra.get("metrics", {})
-        cols["law"].append(i)
-        cols["stable"].append(1.0 if r.status == "stable" else 0.0)
+        cols["law"].append(r.extra.get("controller") or r.name.split(":")[-1])
+        cols["status"].append(r.status)
         cols["cost"].append(r.objective if r.objective is not None else np.nan)
         cols["controller_time_mean_s"].append(met.get("controller_time_s", {}).get("mean", np.nan))
         for k in keys:
             cols[k].append(met.get(k, np.nan))
-    return {k: np.asarray(v, float) for k, v in cols.items()}
+    return {k: np.asarray(v, str if k in ("law", "status") else float) for k, v in cols.items()}
 
 
 def robustness_sweep(model: Model, spec: ControllerSpec | dict, factors: Sequence[float] | None = None,
