@@ -180,6 +180,9 @@ def _summary(result, out: Path) -> None:
         cost = rec.get("cost")
         t.add_row(law, f"{rec.get('status', '?')}, J = {cost:.10g}" if isinstance(cost, (int, float))
                   else str(rec.get("status", "?")))
+    robust = _robustness_line(result.tables.get("robustness"))
+    if robust:
+        t.add_row("robustness", robust)
     free = result.extra.get("free_parameters", [])
     if free and result.status in ("optimal", "acceptable", "mesh_not_converged"):
         t.add_row("free parameters", ", ".join(f"{n} {result.parameters[n]:.10g}" for n in free
@@ -219,6 +222,20 @@ def _summary(result, out: Path) -> None:
         if why.startswith(f"{verdict}: "):      # "inconclusive (inconclusive: ...)" said once
             why = why[len(verdict) + 2:]
         con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
+
+
+def _robustness_line(table) -> str:
+    """Where each law of a robustness sweep regulated the plant (the sweep leaves the run's
+    status alone, docs/controllers.md, so its outcome is said here)."""
+    if not table or "factor" not in table:
+        return ""
+    factors = [f"{f:g}" for f in table["factor"]]
+    parts = []
+    for col, values in table.items():
+        if col.endswith(".stable"):
+            held = [f for f, v in zip(factors, values) if v == 1]
+            parts.append(f"{col[:-len('.stable')]} regulates at {', '.join(held) or 'none'}")
+    return f"factors {', '.join(factors)}: " + "; ".join(parts) if parts else ""
 
 
 def _starts_line(records: list, best: float | None) -> str:

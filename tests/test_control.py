@@ -298,3 +298,31 @@ def test_one_law_that_does_not_regulate_leaves_the_others_verified(tmp_path):
     table = Result.read(tmp_path / "r").tables["controllers"]
     assert list(table["law"]) == ["lqr", "sdre"] and list(table["status"]) == ["unstable", "stable"]
     assert table["cost"].dtype.kind == "f"
+
+
+def test_the_robustness_sweep_outcome_is_printed(tmp_path):
+    """The sweep leaves the run's status alone (docs/controllers.md), so the summary says where
+    each law regulated: x' = a x + u, LQR designed at a = 1 (gain 1 + sqrt 2) loses the
+    plant at a = 10 (closed-loop pole 10 - 2.41 > 0)."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "rob.yaml"
+    path.write_text("""name: scalar robustness
+model:
+  states: [x]
+  controls: [u]
+  parameters: {a: 1}
+  dynamics: {x: a*x + u}
+controller:
+  type: lqr
+  Q: [1]
+  R: [1]
+  simulate: {x0: {x: 1}, horizon: 8, step: 0.01, integrator: rk4}
+  robustness: {parameters: [a], factors: [0.5, 1, 10]}
+""")
+    run = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(path), "--out", str(tmp_path / "r")],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
+    line = next(ln for ln in run.stdout.splitlines() if ln.strip().startswith("robustness"))
+    assert "factors 0.5, 1, 10: lqr regulates at 0.5, 1" in line and "10;" not in line, line
