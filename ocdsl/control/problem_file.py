@@ -43,7 +43,7 @@ def run_controller_file(file, timer) -> Result:
     if spec.robustness is not None:
         with timer.measure("solve"):
             rob = robustness_sweep(model, spec, parameters=params)
-        combined.tables.update({f"robustness": t for t in rob.tables.values()})
+        combined.tables.update({"robustness": t for t in rob.tables.values()})
     combined.objective = None
     combined.wall_time_s = timer.breakdown()
     return combined
