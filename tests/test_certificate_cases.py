@@ -232,3 +232,22 @@ def test_one_collocation_node_is_skipped_with_its_reason(tmp_path):
     assert certificate_verdict(res.certificate) == "skipped"
     reason = certificate_reason(res.certificate)
     assert "1 collocation node" in reason and "Error" not in reason
+
+
+def test_controls_held_by_active_path_constraints_leave_h_unjudged(tmp_path):
+    """unseen11 F1: `-p <= u <= p` as path constraints, active at every node, fix u as box
+    bounds do, so the NLP's costates are not unique there; H (spread 5 % on this mesh) was
+    judged and failed the exact answer p = 4. Now inconclusive, as for bang-bang box bounds,
+    and the path multipliers' signs are still checked."""
+    res = run_file(DATA / "cert_minimax_path.yaml", None)
+    cert = res.certificate
+    assert res.status == "optimal" and res.verified and abs(res.parameters["p"] - 4) < 1e-8
+    assert cert["hamiltonian"]["passed"] is None, cert["hamiltonian"]
+    assert "held by its bounds or by active path constraints" in cert["inconclusive"]
+    assert cert["path_multipliers"]["passed"] and not cert["failed"]
+    # the switch inside a segment (3 segments): J is 1 % off, some node's control is not
+    # held, and H is judged and fails as before
+    text = (DATA / "cert_minimax_path.yaml").read_text().replace("segments: 2", "segments: 3")
+    (tmp_path / "m3.yaml").write_text(text)
+    wrong = run_file(tmp_path / "m3.yaml", None)
+    assert wrong.parameters["p"] > 4.01 and "hamiltonian" in wrong.certificate["failed"]
