@@ -148,7 +148,15 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=
     ts = np.clip(t0 + (tf - t0) * np.concatenate([lay.s_state[inside], pts]), min(ta, tb), max(ta, tb))
     t_eval = np.unique(ts)
     nu = len(ph.controls)
-    for _q, i, ub in boundary_controls(ph, [], budget=budget).values():
+    scale = np.broadcast_to(np.asarray(xscale, float), (X.shape[1],))
+    for j, (_q, i, ub) in boundary_controls(ph, [], budget=budget).items():
+        # a boundary arc holds its state on the bound at every node: a bound the arc's nodes
+        # are off is not followed (its boundary control may drive the flight anywhere: the
+        # hang glider's never-active x >= 0 and vx >= 0 took 2 s of its first converged mesh)
+        near = [b for b in ph.bounds_of(ph.states[j])[:2] if math.isfinite(b)
+                and np.all(np.abs(X[inside, j] - b) <= threshold * scale[j])]
+        if not near:
+            continue
         lo, hi = ph.bounds_of(ph.controls[i])
 
         def control(x, t, i=i, ub=ub):
