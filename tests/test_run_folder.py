@@ -190,3 +190,25 @@ def test_study_and_report_outputs_refuse_a_users_folder(tmp_path):
     assert made and run_folder.read_marker(tmp_path / "cmp")["kind"] == "comparison"
     make_comparison_report([run], tmp_path / "cmp", formats=("html",))     # its own: rewritten
     assert run_folder.foreign_entries(tmp_path / "cmp") == []
+
+
+def test_a_report_never_replaces_a_report_file_ocdsl_did_not_write(tmp_path):
+    """unseen12 F1: `ocdsl report DIR` replaced a report.html the user had put in a run folder
+    (and in a pre-marker-looking folder with a result.json), exit 0. Now refused, exit 2,
+    the file untouched; the report the run folder's marker lists is rewritten as before."""
+    run = _result("r").write(tmp_path / "run")
+    (run / "report.html").write_text("<p>mine</p>")
+    r = _ocdsl("report", run)
+    assert r.returncode == 2 and "report.html" in r.stderr and "did not write" in r.stderr, r.stderr
+    assert (run / "report.html").read_text() == "<p>mine</p>" and not (run / "report.pdf").exists()
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "result.json").write_text((run / "result.json").read_text())
+    (old / "report.html").write_text("<h1>my report</h1>")
+    r = _ocdsl("report", old)
+    assert r.returncode == 2 and (old / "report.html").read_text() == "<h1>my report</h1>", r.stderr
+    (run / "report.html").unlink()
+    for _ in range(2):      # ocdsl's own report: written, then replaced
+        r = _ocdsl("report", run)
+        assert r.returncode == 0, r.stderr
+    assert "report.html" in run_folder.read_marker(run)["entries"]

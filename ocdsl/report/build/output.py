@@ -2,6 +2,7 @@
 Chromium), the figure files, into an ocdsl folder only."""
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -53,17 +54,30 @@ def _atomic_write(path: Path, data: bytes | str) -> None:
     run_folder.atomic_write_text(path, data)
 
 
+class ReportFolderError(ReportError, run_folder.FolderError):
+    """A report refused before anything is written: its folder holds what ocdsl did not write
+    (a usage error, exit 2, like ``run --out``)."""
+
+
 def _output_folder(out_dir: Path, names: Sequence[str]) -> None:
     """Reports go into an ocdsl folder (a run, a study) or a new one, never over files
-    ocdsl did not write (ocdsl/run_folder.py)."""
-    if out_dir.is_dir() and run_folder.read_marker(out_dir) is not None:
+    ocdsl did not write (ocdsl/run_folder.py): in an ocdsl folder, a report file that exists
+    must be one its marker lists (unseen12 F1: a report.html the user put in a run folder was
+    replaced); in a run folder of an ocdsl from before the marker, none may exist."""
+    marker = run_folder.read_marker(out_dir) if out_dir.is_dir() else None
+    if marker is not None or (out_dir / "result.json").is_file():
+        listed = set(marker.get("entries", [])) if marker else set()
+        foreign = [n for n in names if os.path.lexists(out_dir / n) and n not in listed
+                   and not any(n.startswith(e + "/") for e in listed)]
+        if foreign:
+            raise ReportFolderError(f"{out_dir} holds {', '.join(foreign[:4])}{' ...' if len(foreign) > 4 else ''}, "
+                              "which ocdsl did not write; ocdsl does not replace it: move it, or write the "
+                              "report elsewhere with --out")
         return
-    if (out_dir / "result.json").is_file():
-        return                  # a run folder of an ocdsl from before the marker: its reports are ocdsl's
     try:
         run_folder.check_destination(out_dir, "comparison")
     except run_folder.FolderError as e:
-        raise ReportError(str(e)) from None
+        raise ReportFolderError(str(e)) from None
     out_dir.mkdir(parents=True, exist_ok=True)
     run_folder.write_marker(out_dir, "comparison", names)
 
@@ -131,7 +145,7 @@ def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str
     if bad:
         raise ReportError(f"unknown report format(s) {bad}; choose from {list(FORMATS)}")
     written: dict[str, Path] = {}
-    _output_folder(out_dir, [f"{stem}.{f}" for f in formats])
+    _output_folder(out_dir, [f"{stem}.{f}" for f in formats] + list(files or ()))
     run_folder.claim(out_dir, [f"{stem}.{f}" for f in formats])
     if files:       # each figure as SVG and PDF, for reuse in a paper
         marker = run_folder.read_marker(out_dir)
