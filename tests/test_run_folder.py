@@ -212,3 +212,13 @@ def test_a_report_never_replaces_a_report_file_ocdsl_did_not_write(tmp_path):
         r = _ocdsl("report", run)
         assert r.returncode == 0, r.stderr
     assert "report.html" in run_folder.read_marker(run)["entries"]
+
+
+def test_bench_refuses_an_out_file_it_did_not_write(tmp_path):
+    """unseen12 F3: `ocdsl bench FILE --out notes.md` replaced the user's notes.md. Refused
+    before any run (exit 2, the file untouched)."""
+    notes = tmp_path / "notes.md"
+    notes.write_text("mine\n")
+    r = _ocdsl("bench", PROBLEM, "--runs", "1", "--out", notes, cwd=tmp_path)
+    assert r.returncode == 2 and "not a table ocdsl bench wrote" in r.stderr, r.stderr
+    assert notes.read_text() == "mine\n"

@@ -28,6 +28,7 @@ def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, seri
         raise click.UsageError(f"--scaling-segments / --series-solve take integers separated by commas: {e}") from None
     if solve and scaling_file is None:
         raise click.UsageError("--series-solve needs --scaling FILE (the problem of the scaling series)")
+    _refuse_foreign(Path(out))
     try:
         import casadi  # noqa: F401
     except ImportError:
@@ -36,3 +37,25 @@ def bench(files, runs, out, scaling_file, scaling_segments, scaling_repeat, seri
 
     click.echo(main_peers([Path(f) for f in files], runs, Path(out), Path(scaling_file) if scaling_file else None,
                           seg, solve, scaling_repeat))
+
+
+HEADING = "# ocdsl against a generated CasADi script"     # the first line of what bench writes
+
+
+class _Refused(click.ClickException):
+    exit_code = 2      # a usage error, as a refused `run --out`
+
+
+def _refuse_foreign(out: Path) -> None:
+    """Before any run: ``out`` is new or an earlier bench table (its first line), never a
+    file of the user's (unseen12 F3: `--out notes.md` replaced it)."""
+    if not out.exists():
+        return
+    try:
+        with open(out, encoding="utf-8") as fh:
+            first = fh.readline().rstrip("\n")
+    except (OSError, UnicodeDecodeError):
+        first = ""
+    if not out.is_file() or first != HEADING:
+        raise _Refused(f"{out} exists and is not a table ocdsl bench wrote (its first line is not "
+                       f"'{HEADING}'); nothing was run: choose another --out, or move it")

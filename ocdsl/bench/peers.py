@@ -303,6 +303,7 @@ def _start_server(serve_dir: Path) -> tuple[Path | None, dict | None]:
 def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("reports/bench/peers.md"),
                scaling_file: Path | None = None, scaling_segments: list[int] | None = None,
                series_solve: list[int] | None = None, scaling_repeat: int = 3) -> str:
+    from .cli import HEADING
     from .core import machine
 
     cases = []
@@ -324,7 +325,7 @@ def main_peers(files: list[Path], runs: int = 3, out: Path | None = Path("report
         scale_text = ""
         if scaling_file is not None and scaling_segments:
             scale_text, _ = scaling(Path(scaling_file), scaling_segments, tmp, repeat=scaling_repeat)
-    text = (f"# ocdsl against a generated CasADi script\n\n{machine()}, {time.strftime('%Y-%m-%d %H:%M')}, "
+    text = (f"{HEADING}\n\n{machine()}, {time.strftime('%Y-%m-%d %H:%M')}, "
             f"{runs} runs each, alternating, medians; seconds.\n\n"
             "Whole processes, with Python's bytecode cache (PYTHONDONTWRITEBYTECODE is not passed on). ocdsl: start-up+imports = process wall minus `ocdsl run`'s own total, plus the "
             "lazy imports inside it (Pyomo, cyipopt); hand-over = solve stage minus Ipopt's own total "
