@@ -326,3 +326,33 @@ controller:
     assert run.returncode == 0, run.stdout + run.stderr
     line = next(ln for ln in run.stdout.splitlines() if ln.strip().startswith("robustness"))
     assert "factors 0.5, 1, 10: lqr regulates at 0.5, 1" in line and "10;" not in line, line
+
+
+def test_a_loop_still_swinging_is_not_stable_when_tf_hits_a_zero_crossing(tmp_path):
+    """unseen12 F2: x' = w, w' = -x + u with nearly free control (Q tiny, R huge): the loop
+    keeps the open-loop swing (poles ~ -5e-7 +- 1i). With the horizon ending on a zero crossing
+    of x (t = 10.5 pi + 1e-3) ||x(tf)|| was 1e-3 ||x(0)||: 'stable', exit 0."""
+    import math
+    import subprocess
+    import sys
+
+    horizon = 10.5 * math.pi
+    path = tmp_path / "osc.yaml"
+    path.write_text(f"""name: oscillator, LQR with expensive control
+model:
+  states: [x, w]
+  controls: [u]
+  dynamics: {{x: w, w: -x + u}}
+controller:
+  type: lqr
+  Q: [1.0e-12, 1.0e-12]
+  R: [1.0e+6]
+  simulate: {{x0: {{x: 1, w: 0}}, horizon: {horizon!r}, step: 0.001, integrator: rk4}}
+""")
+    run = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(path), "--out", str(tmp_path / "r")],
+                         capture_output=True, text=True, cwd=tmp_path)
+    data = json.loads((tmp_path / "r" / "result.json").read_text())
+    x = Result.read(tmp_path / "r").phases[0].states["x"]
+    assert abs(x[-1]) < 0.01 and np.max(np.abs(x[-int(0.1 * len(x)):])) > 0.9   # the case: a zero crossing
+    assert data["status"] == "unstable" and run.returncode == 1, run.stdout
+    assert "last tenth of the horizon" in run.stdout

@@ -13,11 +13,13 @@ time of every controller call is recorded (``time.perf_counter``), as well as it
 time (``time.thread_time``).
 
 Status: ``stable`` when the run reached the horizon with finite states and
-||x(tf)|| <= ``stable_ratio`` * ||x(0)|| (controlled states), otherwise ``unstable``
+||x(t)|| <= ``stable_ratio`` * ||x(0)|| over the horizon's last tenth (controlled states),
+otherwise ``unstable``
 (the run stops early when the state leaves ``blowup`` times its initial norm).
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -167,13 +169,18 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
             zc = sol.y[:, -1]
     T, Z, U, Uraw, C = T[:last + 1], Z[:last + 1], U[:last + 1], Uraw[:last + 1], C[:last + 1]
     if status == "stable":
-        xf = np.linalg.norm(Z[-1][idx])
-        if not np.isfinite(xf) or xf > stable_ratio * x0n:
+        # the largest ||x|| over the horizon's last tenth, not ||x(tf)|| alone: a loop that
+        # still swings at full amplitude passed when tf fell on a zero crossing (unseen12 F2:
+        # closed-loop poles -5e-7 +- 1i, ||x(tf)|| = 1e-3 ||x(0)||)
+        tail = slice(min(int(0.9 * nsteps), last), last + 1)
+        norms = np.linalg.norm(Z[tail][:, idx], axis=1)
+        xf = float(np.max(norms)) if np.all(np.isfinite(norms)) else math.inf
+        if xf > stable_ratio * x0n:
             status = "unstable"
-            message = (f"||x(tf)|| = {xf:.3g} > {stable_ratio:g} * ||x(0)|| = {stable_ratio * x0n:.3g}: "
-                       "not regulated within the horizon")
+            message = (f"max ||x|| over the last tenth of the horizon = {xf:.3g} > {stable_ratio:g} * ||x(0)|| = "
+                       f"{stable_ratio * x0n:.3g}: not regulated within the horizon")
         else:
-            message = f"||x(tf)|| / ||x(0)|| = {xf / x0n:.3g}"
+            message = f"max ||x|| / ||x(0)|| over the last tenth of the horizon = {xf / x0n:.3g}"
     return SimResult(T, Z, U, Uraw, C, np.asarray(times), np.asarray(cpus), status, message,
                      list(idx), nsat / max(len(times), 1))
 
