@@ -117,3 +117,39 @@ def test_a_dynamics_mistake_leaves_the_constraints_and_objective_checked(tmp_pat
     assert model_message in msgs[0][1]
     assert msgs[1][0] == 8 and "strict" in msgs[1][1]
     assert msgs[2][0] == 9 and "unknown name 'gain'" in msgs[2][1]
+
+
+def _with_options(tmp_path, options: str):
+    from ocdsl.spec.compile import load
+
+    p = tmp_path / "o.yaml"
+    p.write_text(textwrap.dedent(f"""\
+        name: options
+        model: {{states: [x], controls: [u], dynamics: {{x: u}}}}
+        problem:
+          time: {{t0: 0, tf: 1}}
+          constraints: [x(t0) == 1]
+          objective: minimize integral(x**2 + u**2)
+        solver:
+          options: {options}
+        """))
+    return load(p)
+
+
+def test_ipopt_option_values_are_checked_and_yaml_spellings_taken(tmp_path):
+    """unseen12 F4: `tol: 1e-10` (a string to YAML), `max_iter: 500.0`, `print_timing_statistics:
+    no` (a boolean to YAML) passed `ocdsl check`, then Ipopt refused them after the build
+    (status error, a run folder); a misspelt value or one out of range likewise. Now the
+    spellings a user means are taken, and the rest refused at the line, all in one message."""
+    f = _with_options(tmp_path, "{tol: 1e-10, max_iter: 500.0, print_timing_statistics: no, "
+                                "mu_strategy: adaptive, linear_solver: mumps}")
+    assert f.spec.solver.options == {"tol": 1e-10, "max_iter": 500, "print_timing_statistics": "no",
+                                     "mu_strategy": "adaptive", "linear_solver": "mumps"}
+    assert isinstance(f.spec.solver.options["max_iter"], int)
+    with pytest.raises(SpecError) as e:
+        _with_options(tmp_path, "{tol: -1.0, max_iter: 2.5, mu_strategy: adaptve, print_level: 13, max_itr: 5}")
+    (issue,) = e.value.issues
+    assert issue.line == 8
+    for part in ("'tol' must be > 0", "'max_iter' takes an integer", "did you mean 'adaptive'",
+                 "'print_level' must be <= 12", "unknown Ipopt option 'max_itr'"):
+        assert part in issue.message, issue.message

@@ -6,6 +6,9 @@ with the safe parser of :mod:`ocdsl.spec.expr`. The JSON Schema printed by
 """
 from __future__ import annotations
 
+import json
+import math
+from functools import lru_cache
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator, model_validator
@@ -249,24 +252,79 @@ class SolverSpec(Strict):
                               "(mesh iterations, starts); past it the run ends `time_limit` with the last "
                               "iterate written. `ocdsl run --time-limit` overrides it")
 
-    @field_validator("options")
+    @field_validator("options", mode="before")
     @classmethod
-    def _known_options(cls, v):
-        # a misspelt option is an error now, not a warning at solve time
-        from ..hints import did_you_mean
+    def _valid_options(cls, v):
+        # a misspelt option, a value of the wrong type or out of its range is an error at
+        # `ocdsl check`, not an Ipopt failure at solve time (unseen12 F4: YAML reads
+        # `tol: 1e-10` as a string, and Ipopt refused it after the build)
+        if not isinstance(v, dict):
+            return v            # pydantic says what it expected
+        known = ipopt_options()
+        out, problems = {}, []
+        for name, value in v.items():
+            try:
+                out[name] = ipopt_option_value(str(name), value, known)
+            except ValueError as e:
+                problems.append(str(e))
+        if problems:
+            raise ValueError("; ".join(problems))
+        return out
 
-        known = ipopt_option_names()
-        for name in v:
-            if name not in known:
-                raise ValueError(f"unknown Ipopt option '{name}'{did_you_mean(name, known)}")
-        return v
 
-
-def ipopt_option_names() -> list[str]:
+@lru_cache(maxsize=1)
+def ipopt_options() -> dict[str, dict]:
+    """Every option of the bundled Ipopt: type, valid range, possible values
+    (ocdsl/solve/ipopt_options.json, made by scripts/ipopt_options.py)."""
     from importlib.resources import files
 
-    text = files("ocdsl.solve").joinpath("ipopt_options.txt").read_text()
-    return [line.strip() for line in text.splitlines() if line.strip() and not line.startswith("#")]
+    return json.loads(files("ocdsl.solve").joinpath("ipopt_options.json").read_text())
+
+
+def ipopt_option_value(name: str, value, known: dict[str, dict]):
+    """``value`` as Ipopt takes option ``name`` (a number written as text, `1e-10`, becomes
+    a number; `500.0` for an integer option an integer; YAML's yes/no booleans the words),
+    or ValueError saying what the option takes."""
+    from ..hints import did_you_mean
+
+    spec = known.get(name)
+    if spec is None:
+        raise ValueError(f"unknown Ipopt option '{name}'{did_you_mean(name, list(known))}")
+    kind = spec["type"]
+    if kind == "string":
+        values = spec.get("values")
+        if isinstance(value, bool) and values and {"yes", "no"} <= set(values):
+            return "yes" if value else "no"
+        if not isinstance(value, (str, int, float)) or isinstance(value, bool):
+            raise ValueError(f"Ipopt option '{name}' takes one of {', '.join(values or ['a text'])}, not {value!r}")
+        text = str(value)
+        if values and text not in values:
+            raise ValueError(f"Ipopt option '{name}' takes one of {', '.join(values)}, not '{text}'"
+                             + did_you_mean(text, values))
+        return text
+    number = None
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        number = value
+    elif isinstance(value, str):
+        try:
+            number = float(value.strip())
+        except ValueError:
+            pass
+    what = "an integer" if kind == "integer" else "a number"
+    if number is None or not math.isfinite(number) and kind == "integer":
+        raise ValueError(f"Ipopt option '{name}' takes {what}, not {value!r}")
+    if kind == "integer":
+        if float(number) != int(number):
+            raise ValueError(f"Ipopt option '{name}' takes an integer, not {value!r}")
+        number = int(number)
+    else:
+        number = float(number)
+    lo, hi = spec.get("lower"), spec.get("upper")
+    if lo is not None and (number < lo or (spec.get("lower_strict") and number == lo)):
+        raise ValueError(f"Ipopt option '{name}' must be {'>' if spec.get('lower_strict') else '>='} {lo:g}, not {value!r}")
+    if hi is not None and (number > hi or (spec.get("upper_strict") and number == hi)):
+        raise ValueError(f"Ipopt option '{name}' must be {'<' if spec.get('upper_strict') else '<='} {hi:g}, not {value!r}")
+    return number
 
 
 class ExpectItem(Strict):
