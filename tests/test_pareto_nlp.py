@@ -218,3 +218,31 @@ def test_unrestricted_front_study(tmp_path):
     for e, m in zip(eps, t_mot):
         best = min(q.objectives["t_mot"] for q in two.points if q.objectives["t_sum"] <= e)
         assert m <= best + 1e-6, (e, m, best)
+
+
+@pytest.mark.parametrize("block, message", [
+    ("method: weighted\n  weights: {values: [[1, 0.5], [1, 2]]}", "method weighted runs with solver: closed_form only"),
+    ("method: enumerate\n  window: {tf: {range: [0.5, 4], starts: 3}}", "needs every control fixed"),
+])
+def test_nlp_pareto_methods_it_cannot_run_are_refused_at_check(tmp_path, block, message):
+    """unseen12 F5: `weighted` with `solver: nlp`, and `enumerate` with a free control,
+    passed `ocdsl check` and ended `run` in a traceback. Refused at the method's line."""
+    from ocdsl.spec.errors import SpecError
+
+    f = tmp_path / "front.yaml"
+    f.write_text(f"""name: energy-time front
+model: {{states: [x, v], controls: [u], dynamics: {{x: v, v: u}}}}
+problem:
+  time: {{t0: 0, tf: free}}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= 10]
+  objective: minimize integral(u**2)
+method: {{transcription: LGR, segments: 4, degree: 6}}
+pareto:
+  {block}
+  objectives: {{energy: integral(u**2), T: tf}}
+  solver: nlp
+""")
+    with pytest.raises(SpecError) as e:
+        load_pareto(f)
+    (issue,) = e.value.issues
+    assert issue.line == 9 and message in issue.message, issue

@@ -361,5 +361,5 @@ def load_pareto(path: str | Path) -> tuple[ParetoSpec, dict[str, Any]]:
         raise ParetoSpecError("no pareto: block", str(path), 1, None)
     check_phase_durations(doc.get("phases"), str(path), source, root)
     spec = parse_pareto(doc["pareto"], str(path), source, root)
-    check_sections(path, located, spec.solver)
+    check_sections(path, located, spec.solver, spec.method)
     return spec, doc

@@ -22,12 +22,25 @@ _CLOSED_FORM_KEYS = {"name", "description", "definitions", "model", "parameters"
                      "alternatives", "pareto", "expect"}
 
 
-def check_sections(path: str | Path, located: Located, solver: str) -> None:
-    """Compile the model and problem sections of a Pareto file; a SpecError lists every issue."""
+def check_sections(path: str | Path, located: Located, solver: str, method: str | None = None) -> None:
+    """Compile the model and problem sections of a Pareto file; a SpecError lists every issue.
+    What the NLP solver cannot run is refused here too (unseen12 F5: both ended in a traceback
+    after `check` said ok)."""
     from .compile import _Compiler, validate
 
     if solver != "closed_form":
-        _Compiler(Path(path), located, validate(located), {}).compile()
+        if method == "weighted":
+            raise SpecError([located.issue(("pareto", "method"), "method weighted runs with solver: closed_form "
+                                           "only; with solver: nlp use method epsilon (the epsilon-constraint "
+                                           "method traces the same front, its non-convex parts included)")])
+        loaded = _Compiler(Path(path), located, validate(located), {}).compile()
+        if method == "enumerate":
+            free = [f"{ph.name}.{c}" if len(loaded.problem.phases) > 1 else str(c)
+                    for ph in loaded.problem.phases for c in ph.controls if len(set(ph.bounds_of(c)[:2])) != 1]
+            if free:
+                raise SpecError([located.issue(("pareto", "method"), f"method enumerate with solver: nlp needs every "
+                                               f"control fixed (e.g. `{free[0].split('.')[-1]} == 1`); free: "
+                                               f"{', '.join(free)}. For a free control use method epsilon")])
         return
     doc = located.data
     unknown = [k for k in doc if k not in _CLOSED_FORM_KEYS]
