@@ -77,6 +77,8 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
 
     _cache_off(no_cache)
     out = Path(out) if out else Path("runs") / Path(file).stem
+    if warm_start is not None:
+        _check_warm_start(Path(warm_start))
     if _has_block(file, "pareto"):
         sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet, force))
     with interruptible():      # Ctrl-C: the last iterate is written, status interrupted, exit 130
@@ -91,6 +93,22 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
     if not quiet:
         _summary(result, out)
     sys.exit(0 if result.ok else 1)
+
+
+def _check_warm_start(folder: Path) -> None:
+    """A warm start is a run folder with a trajectory; anything else is a usage error before
+    any work (unseen12 F7: a failed run folder was written, exit 1)."""
+    from .result import Result
+
+    if not (folder / "result.json").is_file():
+        raise _SpecFailure(f"--warm-start {folder}: not a run folder (no result.json)"
+                           + ("; a study's points are run folders of their own" if (folder / "points").is_dir() else ""))
+    try:
+        phases = Result.read(folder).phases
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise _SpecFailure(f"--warm-start {folder}: its result.json cannot be read ({e})") from None
+    if not phases:
+        raise _SpecFailure(f"--warm-start {folder}: that run has no trajectory to start from")
 
 
 def _cache_off(no_cache: bool) -> None:

@@ -222,3 +222,13 @@ def test_bench_refuses_an_out_file_it_did_not_write(tmp_path):
     r = _ocdsl("bench", PROBLEM, "--runs", "1", "--out", notes, cwd=tmp_path)
     assert r.returncode == 2 and "not a table ocdsl bench wrote" in r.stderr, r.stderr
     assert notes.read_text() == "mine\n"
+
+
+def test_a_warm_start_that_is_not_a_run_folder_is_a_usage_error(tmp_path):
+    """unseen12 F7: `--warm-start` of the user's folder wrote a failed run folder, exit 1."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "a.txt").write_text("x")
+    r = _ocdsl("run", PROBLEM, "--out", tmp_path / "r", "--warm-start", mine, cwd=tmp_path)
+    assert r.returncode == 2 and "not a run folder" in r.stderr, r.stderr
+    assert not (tmp_path / "r").exists()
