@@ -153,3 +153,57 @@ def test_ipopt_option_values_are_checked_and_yaml_spellings_taken(tmp_path):
     for part in ("'tol' must be > 0", "'max_iter' takes an integer", "did you mean 'adaptive'",
                  "'print_level' must be <= 12", "unknown Ipopt option 'max_itr'"):
         assert part in issue.message, issue.message
+
+
+def test_every_unknown_name_of_an_expression_in_one_message(tmp_path):
+    """unseen12 F6: `uu + q + zz` reported `uu`, then `q`, then `zz`, one run each."""
+    issues = _errors(tmp_path, """\
+        name: names
+        model: {states: [x, v], controls: [u], dynamics: {x: v, v: uu + q + zz}}
+        problem:
+          time: {t0: 0, tf: 1}
+          constraints: [x(t0) == 1, x(tf) == 0]
+          objective: minimize integral(u**2)
+        """)
+    (issue,) = issues
+    assert issue.line == 2 and issue.message.startswith("unknown names 'uu' (did you mean 'u'?), 'q', 'zz'"), issue
+
+
+def test_named_expressions_may_come_in_any_order_and_a_cycle_is_refused(tmp_path):
+    """unseen12 F6: `acc: u*k + drag` written above `drag: ...` was 'unknown name drag'."""
+    from ocdsl.spec.compile import load
+
+    p = tmp_path / "order.yaml"
+    p.write_text(textwrap.dedent("""\
+        name: order
+        model:
+          states: [x, v]
+          controls: [u]
+          parameters: {k: 2}
+          expressions:
+            acc: u*k + drag
+            drag: -0.1*v
+          dynamics: {x: v, v: acc}
+        problem:
+          time: {t0: 0, tf: 1}
+          constraints: [x(t0) == 1, v(t0) == 0]
+          objective: minimize integral(u**2) + x(tf)**2
+        """))
+    model = load(p).problem.phases[0].model
+    assert [str(s) for s in model.expressions] == ["drag", "acc"]
+    issues = _errors(tmp_path, """\
+        name: cycle
+        model:
+          states: [x]
+          controls: [u]
+          expressions: {c: a + 1, a: b + 1, b: a*2}
+          dynamics: {x: u + c}
+        problem:
+          time: {t0: 0, tf: 1}
+          constraints: [x(t0) == 1]
+          objective: minimize integral(u**2) + zz
+        """)
+    msgs = [(i.line, i.message) for i in issues]
+    assert [m for _, m in msgs][:2] == ["'a' is defined through itself (a cycle of named expressions: a, b)",
+                                        "'b' is defined through itself (a cycle of named expressions: a, b)"]
+    assert msgs[2][0] == 10 and "unknown name 'zz'" in msgs[2][1] and len(msgs) == 3   # nothing cascades

@@ -111,7 +111,11 @@ class ModelCompiler:
         # an expression that does not compile stands for a placeholder: its uses compile, and
         # whatever uses one is dropped without an error of its own (the root error is reported)
         failed: set[sp.Symbol] = set()
-        for name, text in m.expressions.items():
+        ordered, cyclic = self.expression_order(m.expressions, loc)
+        for name in cyclic:       # reported: their uses are dropped like those of a failed one
+            names[name] = placeholder = sp.Dummy(name)
+            failed.add(placeholder)
+        for name, text in ordered:
             if not NAME_RE.match(name) or name in names or name in RESERVED:
                 self.issue(loc + ("expressions", name), f"'{name}' cannot name an expression (reserved, declared or not an identifier)")
                 ok = False
@@ -173,6 +177,45 @@ class ModelCompiler:
                 dynamics.setdefault(names[s], sp.S.Zero)
         return Model(self.spec.name, tuple(names[s] for s in m.states), tuple(names[c] for c in m.controls),
                      dynamics, params, expressions, dict(m.units), "", tuple(m.positions), vectors)
+
+    def expression_order(self, expressions: dict, loc: tuple) -> tuple[list[tuple[str, object]], list[str]]:
+        """Named expressions in an order where each comes after those it uses: they may be
+        written in any order (unseen12 F6: `acc: u*k + drag` above `drag: ...` was 'unknown
+        name drag'). Expressions in a cycle are reported, each at its line, and left out."""
+        import ast
+
+        uses = {}
+        for name, text in expressions.items():
+            try:
+                tree = ast.parse(str(text).strip(), mode="eval")
+                uses[name] = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)} & set(expressions) - {name}
+            except (SyntaxError, ValueError, RecursionError, MemoryError):
+                uses[name] = set()      # its own error comes from parsing it
+        # depth first in the written order: a file in a valid order keeps it exactly
+        order: list[str] = []
+        state: dict[str, int] = {}          # 1 being visited, 2 placed
+        cyclic: list[str] = []
+
+        def visit(n: str, path: list[str]) -> None:
+            if state.get(n) == 2 or n in cyclic:
+                return
+            if state.get(n) == 1:
+                cyclic.extend(m for m in path[path.index(n):] if m not in cyclic)
+                return
+            state[n] = 1
+            for d in (d for d in expressions if d in uses[n]):
+                visit(d, path + [n])
+            state[n] = 2
+            if n not in cyclic:
+                order.append(n)
+
+        for n in expressions:
+            visit(n, [])
+        order = [n for n in order if n not in cyclic]       # their users meet placeholders
+        for n in cyclic:
+            self.issue(loc + ("expressions", n), f"'{n}' is defined through itself (a cycle of named "
+                       f"expressions: {', '.join(cyclic)})")
+        return [(n, expressions[n]) for n in order], cyclic
 
     def vector_groups(self, groups: dict[str, list[str]], names: dict, loc: tuple) -> dict[str, sp.ImmutableMatrix]:
         """``vectors: {r: [x, y, z]}``: each a column of declared names, added to ``names``."""
