@@ -207,3 +207,30 @@ def test_named_expressions_may_come_in_any_order_and_a_cycle_is_refused(tmp_path
     assert [m for _, m in msgs][:2] == ["'a' is defined through itself (a cycle of named expressions: a, b)",
                                         "'b' is defined through itself (a cycle of named expressions: a, b)"]
     assert msgs[2][0] == 10 and "unknown name 'zz'" in msgs[2][1] and len(msgs) == 3   # nothing cascades
+
+
+def test_parameters_may_be_constant_expressions_and_a_bad_one_does_not_cascade(tmp_path):
+    """unseen12 F8: `parameters: {c: 2*pi}` was 'unable to parse string as a number' (the
+    docs allow `tf: 2*pi`), and every refused parameter added a false 'unknown name c'."""
+    import math
+
+    from ocdsl.spec.compile import load
+
+    text = """\
+        name: constants
+        parameters: {{c: {c}, d: {{value: 9.81/2, free: true, bounds: [0, 10]}}}}
+        model: {{states: [x], controls: [u], dynamics: {{x: c*u + d}}}}
+        problem:
+          time: {{t0: 0, tf: 1}}
+          constraints: [x(t0) == 1]
+          objective: minimize integral(x**2 + u**2){extra}
+        """
+    p = tmp_path / "c.yaml"
+    p.write_text(textwrap.dedent(text.format(c="2*pi", extra="")))
+    f = load(p)
+    assert f.spec.parameters["c"] == 2 * math.pi and f.spec.parameters["d"].value == 9.81 / 2
+    for bad, why in (("1/0", "division by zero"), ("sqrt(-1)", "complex value"), ("2*g", "unknown name 'g'")):
+        issues = _errors(tmp_path, text.format(c=bad, extra=" + zz"))
+        msgs = [(i.line, i.message) for i in issues]
+        assert len(msgs) == 2 and msgs[0][0] == 2 and why in msgs[0][1], msgs
+        assert msgs[1] == (7, "unknown name 'zz'"), msgs

@@ -34,6 +34,20 @@ class ExprError(ValueError):
         super().__init__(f"{message}: {text}" if text else message)
 
 
+class UnknownNames(ExprError):
+    """Names an expression uses that nothing declares: (name, its phrase with a did-you-mean)."""
+
+    def __init__(self, unknown: list[tuple[str, str]], text: str = ""):
+        self.unknown = list(unknown)
+        phrases = [p for _, p in self.unknown]
+        super().__init__(("unknown name " if len(phrases) == 1 else "unknown names ") + ", ".join(phrases), text)
+
+    def without(self, names: set[str]) -> "UnknownNames | None":
+        """The same error without ``names`` (each reported where it was declared), or None."""
+        kept = [(n, p) for n, p in self.unknown if n not in names]
+        return UnknownNames(kept, self.text) if kept else None
+
+
 class FollowOnError(ExprError):
     """A use of something whose own error is already reported (a table or a named
     expression that did not compile): not reported again at each use."""

@@ -17,7 +17,7 @@ import sympy as sp
 
 from ..hints import did_you_mean
 from ..symbolic.numbers import exp_of
-from .errors import ExprError, FollowOnError
+from .errors import ExprError, FollowOnError, UnknownNames
 
 FUNCTIONS: dict[str, tuple[Callable, int]] = {
     "sin": (sp.sin, 1), "cos": (sp.cos, 1), "tan": (sp.tan, 1),
@@ -243,12 +243,10 @@ class _Builder:
         if node.id in FUNCTIONS or node.id in VECTOR_FUNCTIONS or node.id == "integral" \
                 or node.id in self.scope.functions:
             raise self.fail(f"'{node.id}' is a function and needs arguments")
-        unknown = self._unknown_names() or [node.id]
-        if len(unknown) == 1:
-            raise self.fail(f"unknown name '{unknown[0]}'{did_you_mean(unknown[0], self.scope.names)}")
         # every unknown name of the expression in one message (unseen12 F6: `uu + q + zz`
         # took three runs, one name each)
-        raise self.fail("unknown names " + ", ".join(f"'{n}'{did_you_mean(n, self.scope.names)}" for n in unknown))
+        unknown = [(n, f"'{n}'{did_you_mean(n, self.scope.names)}") for n in self._unknown_names() or [node.id]]
+        raise UnknownNames(unknown, self.text)
 
     def _unknown_names(self) -> list[str]:
         """The expression's plain names (not a called function, not a phase before a dot) that

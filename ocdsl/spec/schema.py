@@ -11,7 +11,7 @@ import math
 from functools import lru_cache
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, WithJsonSchema, field_validator, model_validator
 
 Expr = Union[str, int, float]
 Number = Union[int, float]
@@ -21,6 +21,38 @@ class Strict(BaseModel):
     # NaN and infinity mean nothing as a time, bound, guess or setting (a NaN t0 once ran
     # "optimal" with every time NaN); an open bound is written null
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def constant_value(text: str) -> float:
+    """The number a constant expression (`2*pi`, `9.81/2`) stands for; ValueError saying why
+    not (another name, 1/0, sqrt(-1))."""
+    from .expr import ExprError, Scope, parse_expression
+
+    try:
+        e = parse_expression(text, Scope({}))
+    except ExprError as err:
+        raise ValueError(f"`{text}` is not a number nor an expression of numbers and pi, e: {err.message}") from None
+    if e.free_symbols or not e.is_number:
+        raise ValueError(f"`{text}` is not a number nor an expression of numbers and pi, e")
+    value = complex(e.evalf())
+    if value.imag != 0 or not math.isfinite(value.real):
+        raise ValueError(f"`{text}` has no finite real value")
+    return value.real
+
+
+def _constant_values(values):
+    """``{c: 2*pi}`` and ``{c: {value: 2*pi}}`` as numbers (unseen12 F8: the docs allow
+    `tf: 2*pi`, and a parameter written so was 'unable to parse string as a number')."""
+    if not isinstance(values, dict):
+        return values
+    out = {}
+    for name, item in values.items():
+        if isinstance(item, str):
+            item = constant_value(item)
+        elif isinstance(item, dict) and isinstance(item.get("value"), str):
+            item = {**item, "value": constant_value(item["value"])}
+        out[name] = item
+    return out
 
 
 class ParameterSpec(Strict):
@@ -48,7 +80,8 @@ class ModelSpec(Strict):
     options: dict[str, Any] = Field(default_factory=dict, description="options of the registered model")
     states: list[str] = Field(default_factory=list)
     controls: list[str] = Field(default_factory=list)
-    parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict)
+    parameters: Annotated[dict[str, Union[float, ParameterSpec]], BeforeValidator(_constant_values)] = \
+        Field(default_factory=dict)
     expressions: dict[str, Expr] = Field(default_factory=dict, description="named intermediate quantities")
     dynamics: dict[str, Expr] = Field(default_factory=dict, description="state: right-hand side")
     vectors: dict[str, list[str]] = Field(default_factory=dict, description="named vectors of states, controls "
@@ -146,7 +179,8 @@ class GuessSpec(Strict):
 
 class PhaseSpec(Strict):
     model: ModelSpec | None = Field(None, description="defaults to the file's top-level model")
-    parameters: dict[str, float] = Field(default_factory=dict, description="this phase's values of constants "
+    parameters: Annotated[dict[str, float], BeforeValidator(_constant_values)] = Field(
+        default_factory=dict, description="this phase's values of constants "
                                          "of its model or of the file, e.g. {T: 4.5e6} (one model, several phases)")
     time: TimeSpec
     constraints: Relations = Field(default_factory=list)
@@ -412,7 +446,8 @@ class ProblemFile(Strict):
     phases: dict[str, PhaseSpec] | None = None
     links: Relations = Field(default_factory=list, description="relations between phases")
     objective: str | None = Field(None, description="objective of a multi-phase problem")
-    parameters: dict[str, Union[float, ParameterSpec]] = Field(default_factory=dict, description="problem-level parameters (free or constant)")
+    parameters: Annotated[dict[str, Union[float, ParameterSpec]], BeforeValidator(_constant_values)] = Field(
+        default_factory=dict, description="problem-level parameters (free or constant)")
     tables: dict[str, TableSpec] = Field(default_factory=dict, description="interpolation tables, "
                                          "called in expressions as NAME(arg) or NAME(arg1, arg2)")
     method: dict[str, Any] = Field(default_factory=lambda: {"transcription": "LGR"})

@@ -12,7 +12,7 @@ import sympy as sp
 from ...hints import did_you_mean
 from ...symbolic.model import TIME
 from ...symbolic.problem import INF, BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
-from ..errors import ExprError, FollowOnError, Issue, SpecError
+from ..errors import ExprError, FollowOnError, Issue, SpecError, UnknownNames
 from ..expr import RESERVED, parse_continuity
 from ..loader import Located
 from ..schema import ProblemFile
@@ -47,12 +47,31 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             text = _source_line(self.located, loc)
         self.issues.append(self.located.issue(loc, message, text))
 
+    def refused_parameters(self) -> set[str]:
+        """Parameters written in the file (top level or an inline model) that validation
+        refused, so that the spec lacks them."""
+        data = self.located.data if isinstance(self.located.data, dict) else {}
+        written, kept = set(), set(self.spec.parameters)
+        for block, spec_block in ((data, self.spec), (data.get("model"), self.spec.model)):
+            raw = block.get("parameters") if isinstance(block, dict) else None
+            if isinstance(raw, dict):
+                written |= {str(k) for k in raw}
+            if spec_block is not None:
+                kept |= set(getattr(spec_block, "parameters", None) or {})
+        return written - kept
+
     def guarded(self, loc: tuple, fn, *args):
         """Run fn; turn ExprError/ValueError into an issue at ``loc`` and return None."""
         try:
             return fn(*args)
         except FollowOnError:      # the root error is reported where it is
             pass
+        except UnknownNames as e:
+            # a parameter whose value validation refused is reported there, not at each use
+            # (`c: 1/0`, then 'unknown name c' wherever c is used)
+            rest = e.without(self.refused_parameters())
+            if rest is not None:
+                self.issue(loc, rest.message, rest.text or None)
         except ExprError as e:
             self.issue(loc, e.message, e.text or None)
         except (ValueError, KeyError) as e:
