@@ -156,7 +156,7 @@ def _summary(result, out: Path) -> None:
     from rich.table import Table
 
     from .progress import console
-    from .result_views import expect_comparison
+    from .result_views import best_completed_mesh, expect_comparison, numbers_note
 
     con = console()
     ok = "green" if result.status == "optimal" else "red"
@@ -184,7 +184,7 @@ def _summary(result, out: Path) -> None:
     elif result.objective is not None and result.status == "mesh_not_converged":
         # a solved mesh that missed the refinement's tolerance: a solution, not a last iterate
         t.add_row("objective", f"{result.objective:.10g} (on the reported mesh; refinement not converged)")
-    elif result.objective is not None and (kept := _best_completed_mesh(result)):
+    elif result.objective is not None and (kept := best_completed_mesh(result)):
         it, st = kept
         t.add_row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
                   "refinement cut short, so not a converged result)")
@@ -205,10 +205,13 @@ def _summary(result, out: Path) -> None:
     if free and result.status in ("optimal", "acceptable", "mesh_not_converged"):
         t.add_row("free parameters", ", ".join(f"{n} {result.parameters[n]:.10g}" for n in free
                                                if n in result.parameters))
+    # a run that ended without a solution holds its last iterate, or the guess when the
+    # solve never started (unseen12 F9: "final time 5.05" was the guess of a refused option)
+    qualifier = numbers_note(result)
     if isinstance(result.tf, dict):
-        t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()))
+        t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()) + qualifier)
     elif result.tf is not None:
-        t.add_row("final time", f"{result.tf:.10g}")
+        t.add_row("final time", f"{result.tf:.10g}{qualifier}")
     starts = _starts_line(result.extra.get("starts") or [], result.objective)
     if starts:
         t.add_row("starts", starts)
@@ -228,7 +231,7 @@ def _summary(result, out: Path) -> None:
     con.print(t)
     for c in result.expect:
         mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
-        con.print(f"  expect {expect_comparison(c)} {mark}")
+        con.print(f"  expect {expect_comparison(c, qualifier)} {mark}")
     verdict = certificate_verdict(result.certificate)
     if verdict is not None:
         from .report.status import certificate_reason
@@ -273,14 +276,6 @@ def _starts_line(records: list, best: float | None) -> str:
     if len(solved) < len(records):
         text += f", {len(records) - len(solved)} did not solve"
     return text
-
-
-def _best_completed_mesh(result) -> tuple[int, str] | None:
-    """(iteration, Ipopt status) of the mesh a cut-short refinement reports, when that solve completed."""
-    mesh = result.extra.get("mesh") or {}
-    if result.status in ("time_limit", "interrupted") and mesh.get("chosen_status") in ("optimal", "acceptable"):
-        return mesh.get("chosen_iteration"), mesh["chosen_status"]
-    return None
 
 
 @main.command()

@@ -142,6 +142,13 @@ class Result(ResultViews):
                 and certificate_verdict(self.certificate) != "failed")
 
     @property
+    def has_solution(self) -> bool:
+        """The objective and times are a solution's (possibly not converged on its mesh, the
+        best a search found, or a closed loop's), not a failed solve's last iterate or the
+        guess of a solve that never started."""
+        return self.status in ("optimal", "acceptable", "mesh_not_converged", "feasible", "stable", "unstable")
+
+    @property
     def verified(self) -> bool:
         """The verification ran and passed (ocdsl/verify)."""
         return (self.verification or {}).get("status") == "verified"

@@ -71,17 +71,18 @@ class ResultViews:
         if self.status not in ("optimal", "stable", "feasible") and self.message:
             lines.append(f"  {self.message.splitlines()[0]}")
         rows = []
+        note = numbers_note(self)
         if self.objective is not None:
-            rows.append(("objective", f"{self.objective:.10g}"))
+            rows.append(("objective", f"{self.objective:.10g}{note}"))
         t0 = getattr(self, "t0", None)
         if isinstance(t0, dict):
             rows.append(("initial times", ", ".join(f"{k} {v:.8g}" for k, v in t0.items())))
         elif t0 is not None:
             rows.append(("initial time", f"{t0:.10g}"))
         if isinstance(self.tf, dict):
-            rows.append(("final times", ", ".join(f"{k} {v:.8g}" for k, v in self.tf.items())))
+            rows.append(("final times", ", ".join(f"{k} {v:.8g}" for k, v in self.tf.items()) + note))
         elif self.tf is not None:
-            rows.append(("final time", f"{self.tf:.10g}"))
+            rows.append(("final time", f"{self.tf:.10g}{note}"))
         if self.nlp:
             rows.append(("NLP", f"{self.nlp.get('variables')} variables, {self.nlp.get('constraints')} constraints"))
         if self.iterations is not None:
@@ -90,7 +91,7 @@ class ResultViews:
             rows.append(("wall time", f"{self.wall_time_s['total']:.3f} s"))
         lines += [f"  {k:<12} {v}" for k, v in rows]
         for c in self.expect:
-            lines.append(f"  expect {expect_comparison(c)} {'pass' if c.get('passed') else 'FAIL'}")
+            lines.append(f"  expect {expect_comparison(c, note)} {'pass' if c.get('passed') else 'FAIL'}")
         return "\n".join(lines)
 
     # ---- values between the rows ---------------------------------------------------------
@@ -184,13 +185,33 @@ class ResultViews:
         return fig
 
 
-def expect_comparison(check: dict[str, Any]) -> str:
+def best_completed_mesh(result) -> tuple[int, str] | None:
+    """(iteration, Ipopt status) of the mesh a cut-short refinement reports, when that solve completed."""
+    mesh = result.extra.get("mesh") or {}
+    if result.status in ("time_limit", "interrupted") and mesh.get("chosen_status") in ("optimal", "acceptable"):
+        return mesh.get("chosen_iteration"), mesh["chosen_status"]
+    return None
+
+
+def numbers_note(result) -> str:
+    """What a run's objective and times are when they are not a solution's: the last iterate
+    of a failed solve, or the guess of one that never started (unseen12 F9: "final time
+    5.05" and "expect tf: 5.05 vs 2" for the guess of a solve Ipopt refused to start)."""
+    if result.has_solution:
+        return ""
+    if best_completed_mesh(result):
+        return " (best completed mesh; refinement cut short)"
+    return " (last iterate, not a solution)" if result.iterations else " (the guess: the solve did not start)"
+
+
+def expect_comparison(check: dict[str, Any], note: str = "") -> str:
     """``NAME: VALUE vs REFERENCE (error)``, without the verdict; a run that ended before it had
-    the value (interrupted before the first iterate) says so instead of printing nan."""
+    the value (interrupted before the first iterate) says so instead of printing nan; ``note``
+    (``numbers_note``) says what a value is that is not a solution's."""
     value = check.get("value")
     if value is None or not math.isfinite(value):
         return f"{check['name']}: no value vs {check['reference']:.10g} (the run ended before it had one)"
-    return f"{check['name']}: {value:.10g} vs {check['reference']:.10g} ({expect_error_text(check)})"
+    return f"{check['name']}: {value:.10g} vs {check['reference']:.10g} ({expect_error_text(check)}){note}"
 
 
 def expect_error_text(check: dict[str, Any]) -> str:

@@ -58,3 +58,24 @@ def test_an_expectation_without_a_value_says_so_not_nan(tmp_path, capsys):
     ok = {**check, "value": 2.8672611, "error": 1e-7, "relative_error": 3.5e-8, "passed": True}
     assert "expect objective: 2.8672611 vs 2.867261 (relative error 3.50e-08, rtol 1.0e-06) pass" in \
         Result("r", "optimal", expect=[ok]).summary()
+
+
+def test_a_failed_solves_numbers_are_not_shown_as_results(tmp_path, capsys):
+    """unseen12 F9: a run whose solve never started printed its guess as 'final time 5.05'
+    and 'expect tf: 5.05 vs 2 FAIL'; an infeasible run's report header said 'objective: 1'."""
+    check = {"name": "tf", "value": 5.05, "reference": 2.0, "rtol": 1e-6, "atol": None,
+             "error": 3.05, "relative_error": 1.525, "passed": False}
+    never = Result("r", "error", tf=5.05, iterations=0, expect=[check])
+    assert "final time   5.05 (the guess: the solve did not start)" in never.summary()
+    _summary(never, tmp_path)
+    out = capsys.readouterr().out
+    assert "5.05 (the guess: the solve did not start)" in out
+    assert "expect tf: 5.05 vs 2 (relative error 1.52e+00, rtol 1.0e-06) (the guess: the solve did not start) FAIL" in out
+    last = Result("r", "infeasible", objective=1.0, tf=1.0, iterations=22)
+    assert "objective    1 (last iterate, not a solution)" in last.summary()
+    from ocdsl.report.build.run import _build_run
+
+    html, _ = _build_run(last.write(tmp_path / "inf"))
+    assert "last iterate (not a solution)" in html
+    solved = Result("r", "optimal", objective=1.0, tf=1.0, iterations=5)
+    assert "final time   1\n" in solved.summary() + "\n" and "not a solution" not in solved.summary()

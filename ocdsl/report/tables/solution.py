@@ -23,7 +23,8 @@ def summary_table(res: Result) -> dict:
         if b.title:
             rows[-1][1] = {**rows[-1][1], "text": f"{b.text}: {b.title}"}
     sense = ((res.problem or {}).get("objective") or {}).get("sense")
-    rows.append([cell("objective" + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
+    label = "objective" if res.has_solution else "objective of the last iterate (not a solution)"
+    rows.append([cell(label + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
     for label, v in time_rows(res):
         rows.append([cell(label, "name"), cell(v, "num", 10)])
     rows.append([cell("iterations", "name"), cell(res.iterations)])
