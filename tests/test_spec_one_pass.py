@@ -234,3 +234,17 @@ def test_parameters_may_be_constant_expressions_and_a_bad_one_does_not_cascade(t
         msgs = [(i.line, i.message) for i in issues]
         assert len(msgs) == 2 and msgs[0][0] == 2 and why in msgs[0][1], msgs
         assert msgs[1] == (7, "unknown name 'zz'"), msgs
+
+
+def test_a_unit_written_in_a_bound_gets_a_hint(tmp_path):
+    """unseen12 F11: `-1 m/s**2 <= u` was a bare 'syntax error (invalid syntax)'."""
+    issues = _errors(tmp_path, """\
+        name: units
+        model: {states: [x], controls: [u], dynamics: {x: u}}
+        problem:
+          time: {t0: 0, tf: 1}
+          constraints: [x(t0) == 1, -1 m/s**2 <= u <= 1]
+          objective: minimize integral(x**2 + u**2)
+        """)
+    (issue,) = issues
+    assert issue.line == 5 and "units are not written in expressions" in issue.message, issue

@@ -178,6 +178,10 @@ def _parse(text: str | int | float) -> ast.expr:
         hint = ""
         if re.search(r"(?<![<>=!])=(?!=)", text):
             hint = "; an equality is written with ==, e.g. x(t0) == 1"
+        elif re.search(r"(?<![\w.])\d+(\.\d*)?([eE][+-]?\d+)?\s+[A-Za-z_]", text):
+            # `-1 m/s**2 <= u` (unseen12 F11): a number followed by a name
+            hint = ("; a number followed by a name: units are not written in expressions (numbers are "
+                    "in the model's units; `units:` labels them), and a product needs *")
         raise ExprError(f"syntax error ({e.msg}){hint}", text) from None
     except (RecursionError, MemoryError, ValueError) as e:   # Python's own parser limits
         raise ExprError(f"expression too long or nested too deeply for the parser ({type(e).__name__})",
