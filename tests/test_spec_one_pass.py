@@ -248,3 +248,23 @@ def test_a_unit_written_in_a_bound_gets_a_hint(tmp_path):
         """)
     (issue,) = issues
     assert issue.line == 5 and "units are not written in expressions" in issue.message, issue
+
+
+def test_a_bad_method_comes_with_the_schema_mistakes_that_stop_the_compile(tmp_path):
+    """unseen12 F6: with a required key missing (`objectiv:`), `transcription: LGX` was
+    reported only on the next run."""
+    issues = _errors(tmp_path, """\
+        name: typos
+        model:
+          states: [x, v]
+          controls: [u]
+          dynamic: {x: v, v: u}
+        problem:
+          time: {t0: 0, tf: free}
+          constraints: [-1 <= u <= 1, x(t0) == 1]
+          objectiv: minimize tf
+        method: {transcription: LGX, segments: 10, degree: 5}
+        """)
+    msgs = [(i.line, i.message) for i in issues]
+    assert msgs[-1][0] == 10 and "unknown transcription 'LGX'" in msgs[-1][1], msgs
+    assert any("unknown key 'dynamic'" in m for _, m in msgs) and any("'objectiv'" in m for _, m in msgs)

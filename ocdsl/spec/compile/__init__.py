@@ -16,7 +16,7 @@ from ..errors import Issue, SpecError
 from ..loader import Located, load_yaml
 from ..schema import ProblemFile
 from ..validate import validate, validate_all  # noqa: F401  (ocdsl.spec.compile.validate*)
-from .compiler import Compiler
+from .compiler import Compiler, validated_method
 from .loaded import LoadedFile
 
 _Compiler = Compiler       # the name its callers (api, study reuse, pareto check) use
@@ -36,6 +36,10 @@ def compile_spec(path: Path, located: Located, spec: ProblemFile | None, issues:
     """Compile a validated spec; raises one SpecError with the schema's ``issues`` and every
     issue the compiler finds (none twice)."""
     if spec is None:
+        data = located.data.get("method") if isinstance(located.data, dict) else None
+        if isinstance(data, dict):      # its own mistakes in the same pass as the schema's
+            found = validated_method(located, data)[1]
+            issues = sorted(list(issues) + [i for i in found if i not in issues], key=lambda i: i.line or 0)
         raise SpecError(issues)
     try:
         loaded = Compiler(path, located, spec, dict(parameters)).compile()
