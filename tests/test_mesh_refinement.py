@@ -699,3 +699,25 @@ def test_a_refinement_that_only_grows_the_nlp_stops_and_says_why(tmp_path):
     assert "the refinement is not converging" in res.message and "regularise" in res.message
     hist = res.extra["mesh_history"]
     assert len(hist) <= 5 and not res.verified
+
+
+def test_a_control_bounded_by_path_constraints_gets_the_rewrite_hint(tmp_path):
+    """unseen11 F2: `|u| <= 1 + x` as two path constraints: the refinement cannot locate the
+    switch between them and ended mesh_not_converged with only 'raise max_iterations'. The
+    message names the constraints and the box-bounded rewrite; a box-bounded file gets none."""
+    from ocdsl.solve.mesh.drive import _path_bound_hint
+
+    path = tmp_path / "sb.yaml"
+    path.write_text("""name: state-dependent bound
+model: {states: [x, v], controls: [u, w], dynamics: {x: v, v: u + w}}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-5 <= u <= 5, u - (1 + x) <= 0, u + (1 + x) >= 0, u*w <= 1, -1 <= w <= 1,
+                x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= 5]
+  objective: minimize tf
+""")
+    hint = _path_bound_hint(ocdsl.load(path).problem)
+    assert "(u - (1 + x) <= 0; u + (1 + x) >= 0)" in hint and "u*w" not in hint
+    from pathlib import Path
+
+    assert _path_bound_hint(ocdsl.load(Path(__file__).parents[1] / "configs" / "mesh_double_integrator.yaml").problem) == ""

@@ -42,6 +42,31 @@ GROWTH_FLOOR = 2000
 COARSEN_GAIN = 0.8
 
 
+def _path_bound_hint(problem) -> str:
+    """What to do when a control is bounded by path constraints (`u <= 1 + x`, `-p <= u <= p`):
+    the switch locators and the switch-time solves know box bounds only, so a control that
+    switches between two such constraints is refined around, never located (unseen11 F2:
+    12 meshes, tf 1.1e-3 off; written with a box-bounded control, converged to 1e-12)."""
+    import sympy as sp
+
+    texts = []
+    for ph in problem.phases:
+        controls = set(ph.controls)
+        for c in ph.path:
+            if c.is_equality:
+                continue
+            e = sp.sympify(ph.substitute(c.expr))
+            used = e.free_symbols & controls
+            if len(used) == 1 and not (sp.diff(e, next(iter(used))).free_symbols & used):
+                texts.append(c.text)
+    if not texts:
+        return ""
+    return (f" If a control switches between path constraints that bound it ({'; '.join(texts[:3])}), "
+            "the mesh cannot locate those switches (it locates switches between box bounds): write the "
+            "control as a box-bounded one scaled by the bound, e.g. u = (1 + x)*w with -1 <= w <= 1 "
+            "(docs/mesh.md).")
+
+
 def _objective_disagreement(converged: list, tolerance: float) -> str | None:
     """Meshes within the error tolerance must agree in J to it too: on Fuller's problem three
     of them (the second and third by coarsening) gave J 5e-4 apart, still falling, while every
@@ -548,7 +573,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                    f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
                    f"largest estimated error {max_err:.3e} {where}. "
                    + (f"Stopped early because {stalled}." if stalled else
-                      "Raise max_iterations or max_degree, or loosen the tolerance."))
+                      "Raise max_iterations or max_degree, or loosen the tolerance.")
+                   + _path_bound_hint(problem))
     if status == "optimal" and spec.move_switches and getattr(tr_c.model, "mesh_regularisation", None) is None \
             and problem.objective.sense == "minimize":
         with timer.measure("mesh"):
