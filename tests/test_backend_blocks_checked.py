@@ -66,3 +66,29 @@ def test_a_back_end_block_that_does_not_fit_the_model_is_refused_at_its_line(tmp
     with pytest.raises(SpecError) as e:
         compile_file(path)
     assert f"bad.yaml:{line}: " in str(e.value) and fragment in str(e.value), str(e.value)
+
+
+def test_a_controller_blocks_mistakes_come_in_one_pass(tmp_path):
+    """unseen12 F6: a controller block's mistakes came one `check` run at a time (terms, then
+    a, then A without sdc: given, then ...). The entries a mistake names are set aside and the
+    rest validated again, so the independent ones are reported together."""
+    path = tmp_path / "c.yaml"
+    path.write_text("""name: pendulum on a cart
+model:
+  states: [x, th, xd, thd]
+  controls: [F]
+  dynamics: {x: xd, th: thd, xd: F, thd: 9.81*sin(th) - F*cos(th)}
+controller:
+  type: theta-d
+  A: {"1,3": 1}
+  theta_d: {terms: 12, a: -1}
+  Q: [1, 10, 1, 1]
+  R: [0.1]
+  simulate: {x0: {th: 0.05}, horizon: 5, step: 0.01}
+""")
+    with pytest.raises(SpecError) as e:
+        compile_file(path)
+    msgs = [(i.line, i.message) for i in e.value.issues]
+    assert any("A/B are only read with sdc: given" in m for _, m in msgs), msgs
+    assert any(line == 9 and "terms" in m for line, m in msgs) and any("theta_d.a must be >= 0" in m for _, m in msgs)
+    assert not any("missing required key" in m for _, m in msgs)

@@ -16,7 +16,7 @@ from ..errors import ExprError, FollowOnError, Issue, SpecError, UnknownNames
 from ..expr import RESERVED, parse_continuity
 from ..loader import Located
 from ..schema import ProblemFile
-from ..validate import _issue_from_pydantic, _schema_issues, _source_line
+from ..validate import _document_loc, _issue_from_pydantic, _schema_issues, _set_aside, _source_line
 from .common import MAX_CONSTRAINTS, NAME_RE, _broken_table, _method_class, _num, _validate_method
 from .loaded import LoadedFile
 from .constraints import ConstraintCompiler
@@ -217,16 +217,36 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                     self.issue(("controller", key), str(e))
 
     def guarded_pydantic(self, loc: tuple, module: str, cls: str, data):
-        """Validate a block with a back end's pydantic class, errors at their file lines."""
+        """Validate a block with a back end's pydantic class, errors at their file lines. With
+        errors, what is left once the entries they name are set aside is validated again, and
+        that partial block returned, so that the checks that need a valid block (sizes against
+        the model, cross-field rules) report in the same pass (unseen12 F6: a controller file
+        took four `check` runs); the issues recorded refuse the file all the same."""
+        import copy
         import importlib
 
         klass = getattr(importlib.import_module(module), cls)
-        try:
-            return klass.model_validate(data)
-        except pydantic.ValidationError as e:
-            for err in e.errors():
-                err = dict(err, loc=loc + tuple(err["loc"]))
-                self.issues.append(_issue_from_pydantic(self.located, err))
+        seen: set = set()
+        aside: set = set()
+        for _ in range(4):
+            try:
+                return klass.model_validate(data)
+            except pydantic.ValidationError as e:
+                errors = e.errors()
+            # a required entry set aside is missing now: reported already, and nothing is left
+            if any(err["type"] == "missing" and _document_loc(tuple(err["loc"])) in aside for err in errors):
+                return None
+            new = [err for err in errors if (tuple(err["loc"]), err["msg"]) not in seen]
+            for err in new:
+                seen.add((tuple(err["loc"]), err["msg"]))
+                self.issues.append(_issue_from_pydantic(self.located, dict(err, loc=loc + tuple(err["loc"]))))
+            if not new or not isinstance(data, dict) or any(err["type"] == "missing" or not err["loc"]
+                                                            for err in errors):
+                return None
+            data = copy.deepcopy(data)
+            for err in errors:
+                aside.add(_document_loc(tuple(err["loc"])))
+                _set_aside(data, _document_loc(tuple(err["loc"])))
         return None
 
     def build_problem(self) -> Problem:
