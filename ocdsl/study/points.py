@@ -170,8 +170,27 @@ def _summary(run_dir: Path) -> dict[str, Any]:
             "objective": _num(data.get("objective")),
             "tf": data.get("tf"), "iterations": data.get("iterations"),
             "wall_time_s": _num(wall.get("total")) if isinstance(wall, dict) else None,
-            "message": (data.get("message") or "").strip().splitlines()[0][:300]
-            if data.get("message") else "", "sense": sense}
+            "message": (_why_not_ok(data) + (data.get("message") or "").strip().split("\n", 1)[0])[:300],
+            "sense": sense}
+
+
+def _why_not_ok(data: dict) -> str:
+    """Why a point whose solve converged is not ok, ahead of the solver's message (unseen12
+    F11: a point that failed only its expect said 'mesh converged: ...')."""
+    if data.get("ok") or data.get("status") not in ("optimal", "stable", "feasible"):
+        return ""
+    reasons = []
+    verification = data.get("verification") or {}
+    if verification.get("status") not in (None, "verified", "not_applicable") and verification.get("mode") != "warn":
+        reasons.append(f"verification {verification.get('status')}")
+    if data.get("certificate_verdict") == "failed":
+        reasons.append("certificate failed")
+    failed = [c for c in data.get("expect") or [] if not c.get("passed")]
+    for c in failed[:2]:
+        value = c.get("value")
+        shown = f"{value:.10g}" if isinstance(value, (int, float)) else "no value"
+        reasons.append(f"expect {c.get('name')}: {shown} vs {c.get('reference'):.10g} FAIL")
+    return "; ".join(reasons) + ". " if reasons else ""
 
 
 def _num(v: Any) -> float | None:
