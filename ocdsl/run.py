@@ -65,6 +65,14 @@ def previous_phases(file: LoadedFile, warm_start=None) -> dict:
     return previous
 
 
+def start_notes(file: LoadedFile, previous: dict) -> list[str]:
+    """What the run's start did not take as written: a warm start's mismatches, guesses
+    outside their bounds."""
+    from .transcribe.guess import guess_notes
+
+    return warm_start_notes(file, previous) + guess_notes(file.problem)
+
+
 def warm_start_notes(file: LoadedFile, previous: dict) -> list[str]:
     """What a warm start (``--warm-start`` or ``guess: {from:}``) did not match: a phase it has
     no trajectory for, states or controls it lacks (they keep the file's guess) or has that this
@@ -166,7 +174,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
-        notes = warm_start_notes(file, previous)
+        notes = start_notes(file, previous)
     notes += fixed_mesh_arcs(file, result, best_tr, meshes, timer, verbose=verbose, progress=progress)
     if notes:
         result.extra["notes"] = notes

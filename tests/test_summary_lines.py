@@ -79,3 +79,21 @@ def test_a_failed_solves_numbers_are_not_shown_as_results(tmp_path, capsys):
     assert "last iterate (not a solution)" in html
     solved = Result("r", "optimal", objective=1.0, tf=1.0, iterations=5)
     assert "final time   1\n" in solved.summary() + "\n" and "not a solution" not in solved.summary()
+
+
+def test_a_guess_outside_its_bounds_is_noted(tmp_path):
+    """unseen12 F11: `tf: 50` with tf <= 10 and `u: 7` with |u| <= 1 were taken silently."""
+    p = tmp_path / "g.yaml"
+    p.write_text("""name: guess outside bounds
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, 0.1 <= tf <= 10]
+  objective: minimize tf
+  guess: {tf: 50, u: 7}
+""")
+    res = run_file(p, None)
+    assert res.status == "optimal"
+    notes = res.extra["notes"]
+    assert "the guess tf = 50 is outside its bounds [0.1, 10]: the solve starts from 10" in notes
+    assert "the guess of u (7) is outside its bounds [-1, 1]: it is moved onto them" in notes

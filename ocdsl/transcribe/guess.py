@@ -235,6 +235,34 @@ def make_guess(problem: Problem, ph: Phase, previous=None, seed: int | None = No
                       float(t0), float(tf), rng, {c.name: ph.bounds_of(c) for c in ph.controls})
 
 
+def guess_notes(problem: Problem) -> list[str]:
+    """The file's guesses that lie outside their bounds (each starts at the bound instead, as
+    ``make_guess`` does): said, not silent (unseen12 F11: `tf: 50` with `tf <= 10`, `u: 7`
+    with |u| <= 1 were accepted without a word)."""
+    notes = []
+    for ph in problem.phases:
+        where = f"phase '{ph.name}': " if len(problem.phases) > 1 else ""
+        for key, free, (lo, hi) in (("t0", ph.t0 is None, ph.t0_bounds), ("tf", ph.tf is None, ph.tf_bounds)):
+            value = ph.guess.get(key)
+            if free and isinstance(value, (int, float)) and not lo <= float(value) <= hi:
+                notes.append(f"{where}the guess {key} = {float(value):g} is outside its bounds [{lo:g}, {hi:g}]: "
+                             f"the solve starts from {min(max(float(value), lo), hi):g}")
+        for var in ph.states + ph.controls:
+            given = ph.guess.get("values", {}).get(var.name)
+            if given is None:
+                continue
+            lo, hi = ph.bounds_of(var)
+            try:
+                values = _table(given, 0.0, 1.0)[1]
+            except (KeyError, TypeError, ValueError):
+                continue
+            out = values[(values < lo) | (values > hi)]
+            if out.size:
+                notes.append(f"{where}the guess of {var.name} ({float(out[0]):g}) is outside its bounds "
+                             f"[{lo:g}, {hi:g}]: it is moved onto them")
+    return notes
+
+
 def _table(value, t0: float, tf: float) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(value, (int, float)):
         return np.array([0.0, 1.0]), np.full(2, float(value))

@@ -168,11 +168,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     start_records: list = []
     meshes = initial_meshes(file)
     snapshot = None      # the previous mesh's solution, multipliers included (warm_start.py)
-    from ...run import previous_phases, warm_start_notes
+    from ...run import previous_phases, start_notes
 
     previous: dict[str, PhaseTrajectory] = previous_phases(file, warm_start)
     given = previous      # what the first mesh started from (a later mesh's retry starts there too)
-    notes = warm_start_notes(file, previous)
+    notes = start_notes(file, previous)
     options = dict(file.spec.solver.options)
     # the NLP must be solved well below the mesh tolerance, or solver noise (Ipopt's
     # relaxation of the bounds, its stopping tolerance) is what the estimate measures
