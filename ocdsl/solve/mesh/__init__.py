@@ -99,6 +99,14 @@ bound multiplier densities and by name (``solve/warm_start.py``), solved by cyip
 ``zu``); with ``primal`` only the states and controls, sampled from the polynomials and
 interpolated onto the new mesh (``transcribe.guess``).
 """
-from .drive import solve_adaptive
-
 __all__ = ["solve_adaptive"]
+
+
+def __getattr__(name: str):
+    # lazy: a single solve imports mesh.segments (solve/arcs.py) without the whole refinement
+    # (drive and its locators, estimate, verify: 20 ms of a small run's start-up)
+    if name == "solve_adaptive":
+        from .drive import solve_adaptive
+
+        return solve_adaptive
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
