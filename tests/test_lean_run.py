@@ -17,7 +17,7 @@ import pytest
 HEAVY = ("scipy", "numba", "matplotlib")
 #: ocdsl modules a run loads only for a file that needs them
 OPTIONAL = ("ocdsl.symbolic.tables", "ocdsl.spec.tables", "ocdsl.simulate", "ocdsl.report", "ocdsl.study",
-            "ocdsl.search", "rich")
+            "ocdsl.search", "rich", "ocdsl.solve.mesh.drive")
 
 _CODE = """
 import json, sys
