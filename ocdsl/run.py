@@ -209,7 +209,9 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
         result.status = "mesh_not_converged"
         result.message = arcs.mismatch_message(found, multi, check)
         return []
-    return [arcs.note(found, multi, check)]
+    flat = arcs.final_time_spread([(result.objective, arcs.free_final_times(tr))]
+                                  + [(lv.objective, lv.final_times) for lv in check.levels], file.spec.verify.tolerance)
+    return [arcs.note(found, multi, check)] + ([flat] if flat else [])
 
 
 def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=False, progress=False,
@@ -220,7 +222,7 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
     how the caller builds and solves its models (mesh refinement: junction controls, its Ipopt
     tolerance); by default a plain build and the file's solver options."""
     from .solve import ipopt
-    from .solve.arcs import Bisection, Level
+    from .solve.arcs import Bisection, Level, free_final_times
     from .transcribe.guess import solved_guesses
     from .transcribe.pseudospectral import build
 
@@ -243,7 +245,8 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
                            progress=ipopt.Progress(progress, "[bisected mesh]"), transcription=tr)
         good = info.status in ("optimal", "acceptable") and info.objective is not None
         level = Level(float(info.objective) if good else None, info.status,
-                      int((info.nlp or {}).get("variables", 0)), int(info.iterations or 0))
+                      int((info.nlp or {}).get("variables", 0)), int(info.iterations or 0),
+                      free_final_times(tr) if good else {})
         check = Bisection(check.objective, check.levels + (level,), check.tolerance, floor)
         if not good:
             break

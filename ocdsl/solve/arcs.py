@@ -15,7 +15,7 @@ and J must agree to a quarter of the verification's tolerance; else the run is `
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,6 +46,7 @@ class Level:
     status: str
     variables: int
     iterations: int
+    final_times: dict = field(default_factory=dict)   # the free final times of that solve
 
 
 @dataclass(frozen=True)
@@ -102,7 +103,7 @@ class Bisection:
         d = self.differences(judged=False)
         return {"objective": self.objective,
                 "levels": [{"objective": lv.objective, "status": lv.status, "variables": lv.variables,
-                            "iterations": lv.iterations} for lv in self.levels],
+                            "iterations": lv.iterations, "final_times": lv.final_times} for lv in self.levels],
                 "relative_differences": d, "estimated_error": self.error,
                 "tolerance": self.tolerance, "agrees": self.agrees}
 
@@ -180,6 +181,39 @@ def binding_arcs(tr) -> list[PhaseArcs]:
         if arcs:
             found.append(PhaseArcs(ph.name, arcs))
     return found
+
+
+def free_final_times(tr) -> dict[str, float]:
+    """Phase name -> the solved final time of each phase whose final time is free."""
+    import pyomo.core as pyo
+
+    return {pb.phase.name: float(pyo.value(pb.block.tf)) for pb in tr.phases if pb.phase.tf is None}
+
+
+def final_time_spread(solutions: list[tuple[float, dict]], tolerance: float) -> str | None:
+    """A note when solutions whose J agree within ``tolerance`` (the run's, on other meshes)
+    put a free final time far further apart than that: J is flat in t_f near the optimum, and
+    the reported t_f is known only to that spread (unseen10 F7: Hotelling's exhaustion time
+    2.3e-4 off with J right to 6e-12, verified, nothing said). ``solutions``: (J, final times)."""
+    good = [(j, t) for j, t in solutions if j is not None and math.isfinite(j) and t]
+    if len(good) < 2:
+        return None
+    js = [j for j, _ in good]
+    spread_j = (max(js) - min(js)) / max(max(abs(j) for j in js), 1e-300)
+    if spread_j > tolerance:
+        return None
+    parts = []
+    for name in good[0][1]:
+        ts = [t[name] for _, t in good if name in t]
+        spread = (max(ts) - min(ts)) / max(max(abs(x) for x in ts), 1e-300)
+        if len(ts) >= 2 and spread > max(100 * tolerance, 1e-6) and spread > 100 * spread_j:
+            parts.append(f"{'' if name == 'main' else f'phase {name!r}: '}t_f from {min(ts):.10g} to "
+                         f"{max(ts):.10g} (relative spread {spread:.1e})")
+    if not parts:
+        return None
+    return (f"the final time is weakly determined: solutions on other meshes whose J agree to {spread_j:.1e} "
+            f"give {'; '.join(parts)}: J is flat in t_f near the optimum, so t_f is less certain than J (its "
+            "error may well exceed that spread; J is not affected)")
 
 
 def describe(found: list[PhaseArcs], multi_phase: bool) -> str:

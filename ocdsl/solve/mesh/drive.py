@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from ...result import PhaseTrajectory, Result
+from ..arcs import final_time_spread, free_final_times
 from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, phase_end, segment_ends
 from .junction import limit_junction_controls
@@ -338,7 +339,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                "terminal_flown": term.flown,
                "where": ({"phase": worst.phase, "segment": worst.segment, "t": [worst.t_start, worst.t_end],
                           "state": worst.state} if worst else None),
-               "meshes": {k: m.describe() for k, m in meshes.items()}}
+               "meshes": {k: m.describe() for k, m in meshes.items()},
+               "final_times": free_final_times(tr) if info.status in GOOD else {}}
         if reg is not None:
             rec["regularisation"] = {"weight": reg_weight, "value": reg_value,
                                      "arcs": {k: [list(x) for x in v] for k, v in chatter.items()}}
@@ -634,6 +636,12 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        "max_iterations")
         elif confirm.agrees:
             notes.append(f"one mesh met the tolerance; J checked on it bisected: {confirm.describe()}")
+    if status == "optimal":
+        solutions = [(h["objective"], h.get("final_times") or {}) for h in history if h.get("converged")]
+        solutions += [(lv.objective, lv.final_times) for lv in (confirm.levels if confirm is not None else ())]
+        flat = final_time_spread(solutions, spec.tolerance)
+        if flat:
+            notes.append(flat)
         else:
             notes.append(f"one mesh met the tolerance, and J could not be checked on it bisected: "
                          f"{confirm.describe()}")
