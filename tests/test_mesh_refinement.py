@@ -721,3 +721,21 @@ problem:
     from pathlib import Path
 
     assert _path_bound_hint(ocdsl.load(Path(__file__).parents[1] / "configs" / "mesh_double_integrator.yaml").problem) == ""
+
+
+def test_a_weakly_determined_final_time_is_noted():
+    """unseen10 F7: Hotelling's exhaustion time, J flat in t_f (q(T) = 0): the mesh converged
+    with J right to 6e-12, verified, certificate pass, t_f 2.3e-4 off T* = 7.067605762 and
+    nothing said. The meshes within tolerance agree in J, not in t_f: noted, status kept."""
+    from pathlib import Path
+
+    from ocdsl.solve.arcs import final_time_spread
+
+    res = ocdsl.load(Path(__file__).parent / "data" / "hotelling_free_T_mesh.yaml").solve()
+    assert res.status == "optimal" and abs(res.objective - 1.2840314080786925) < 1e-8
+    assert abs(res.tf - 7.067605762248465) > 1e-5        # the case: t_f far less accurate than J
+    assert any("the final time is weakly determined" in n for n in res.extra.get("notes", [])), res.extra
+    # min time: J is t_f, never flat in it; and a J spread above the tolerance is no agreement
+    assert final_time_spread([(2.0, {"main": 2.0}), (2.0 + 1e-9, {"main": 2.0 + 1e-9})], 1e-6) is None
+    assert final_time_spread([(1.0, {"main": 7.0}), (1.01, {"main": 7.1})], 1e-6) is None
+    assert "t_f from 7 to 7.01" in final_time_spread([(1.0, {"main": 7.0}), (1.0, {"main": 7.01})], 1e-6)

@@ -636,15 +636,15 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        "max_iterations")
         elif confirm.agrees:
             notes.append(f"one mesh met the tolerance; J checked on it bisected: {confirm.describe()}")
+        else:
+            notes.append(f"one mesh met the tolerance, and J could not be checked on it bisected: "
+                         f"{confirm.describe()}")
     if status == "optimal":
         solutions = [(h["objective"], h.get("final_times") or {}) for h in history if h.get("converged")]
         solutions += [(lv.objective, lv.final_times) for lv in (confirm.levels if confirm is not None else ())]
         flat = final_time_spread(solutions, spec.tolerance)
         if flat:
             notes.append(flat)
-        else:
-            notes.append(f"one mesh met the tolerance, and J could not be checked on it bisected: "
-                         f"{confirm.describe()}")
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
     result.status = status
