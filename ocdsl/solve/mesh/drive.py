@@ -189,6 +189,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     last = None
     solved_before = None   # (meshes, largest error) of the previous iteration that missed the tolerance
     converged = []       # iterations within tolerance with every located switch on a breakpoint
+    moved_at = 0         # the first mesh after a fixed-time switch was moved (best-mesh choice)
     coarsening = False   # the current mesh came from coarsening a converged one
     tried: list = []     # the coarsened meshes tried so far (each is tried once)
     nudged: dict = {}    # per phase: the switches ``refine`` moved breakpoints onto last time, and their (b, f)
@@ -387,7 +388,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 message = (f"mesh iteration {it}: Ipopt ended with '{info.status}' ({info.message}); "
                            "mesh refinement stopped")
                 break
-            if best is None or max_err < best[0]:
+            best_before = best
+            # a mesh after a switch was moved supersedes the meshes that held it on the wrong
+            # breakpoint, whatever their estimated errors (which do not see it)
+            if best is None or max_err < best[0] or best[1] < moved_at:
                 best = last
             with timer.measure("mesh"):
                 features = {}
@@ -423,6 +427,45 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     except Exception as exc:  # an aid, as the locators
                         _say(progress, f"mesh {it}: moving switches failed: {exc}")
             off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
+            if max_err <= spec.tolerance and not any(off.values()) and spec.move_switches \
+                    and any(bang.get(pb.phase.name) for pb in tr.phases):
+                # a mesh within tolerance whose fixed-time phases hold a switch on a breakpoint:
+                # would J move with it (the envelope gradient)? Then the switch is solved for as
+                # for free times, and the mesh that puts it there is solved next, not this one
+                # called converged (unseen13 F1: x' = u x, maximise int (1 - u) x, the switch
+                # pinned at t = 1.978 for 2, J 2.3e-4 low, verified, certificate pass)
+                try:
+                    with timer.measure("mesh"):
+                        features, moved = solve_switch_times(tr, rebuild_here, solve_free, features, bang, spec,
+                                                             info.objective if info.objective is not None else 0.0,
+                                                             times="fixed")
+                except Exception as exc:  # an aid: the estimate and the locators stand
+                    _say(progress, f"mesh {it}: moving fixed-time switches failed: {exc}")
+                    moved = {}
+                shift = max((float(np.max(np.abs(np.asarray(m.breakpoints) - np.asarray(meshes[k].breakpoints))))
+                             for k, m in moved.items() if len(m.breakpoints) == len(meshes[k].breakpoints)),
+                            default=0.0)
+                if shift <= spec.corner_tolerance:
+                    moved = {}           # the switches are where the NLP puts them: nothing to move
+                if moved:
+                    # this mesh's J (and that of earlier meshes with the switch there) is known to
+                    # improve by moving its switch: the meshes from the moved one on are the candidates
+                    best, moved_at = best_before, it + 1
+                    pinned = {k: [float(b) for b in meshes[k].breakpoints
+                                  if min((abs(b - f) for f in features.get(k, [])), default=1.0) > spec.corner_tolerance
+                                  and b not in m.breakpoints] for k, m in moved.items()}
+                    rec["switches_moved"] = {k: [float(b) for b in m.breakpoints] for k, m in moved.items()}
+                    rec["switches_pinned"] = pinned
+                    off = {k: misplaced(moved.get(k, meshes[k]), f, spec) for k, f in features.items()}
+                    if it == spec.max_iterations:
+                        off = {k: features.get(k, []) for k in moved}      # not converged: where they go
+                    else:
+                        rec["features"] = features
+                        rec["features_off_breakpoints"] = off
+                        previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+                        snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
+                        meshes = {**meshes, **moved}
+                        continue
             located = features
             rec["features"] = features
             rec["features_off_breakpoints"] = off
