@@ -64,8 +64,8 @@ def _path_bound_hint(problem) -> str:
         return ""
     return (f" If a control switches between path constraints that bound it ({'; '.join(texts[:3])}), "
             "the mesh cannot locate those switches (it locates switches between box bounds): write the "
-            "control as a box-bounded one scaled by the bound, e.g. u = (1 + x)*w with -1 <= w <= 1 "
-            "(docs/mesh.md).")
+            "control as a box-bounded one scaled by the bound, e.g. for |u| <= b(x, t): u = b*w with "
+            "-1 <= w <= 1 (docs/mesh.md).")
 
 
 def _objective_disagreement(converged: list, tolerance: float) -> str | None:
