@@ -190,7 +190,12 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
     optimum, which the verification (a feasibility check) cannot judge; so the problem is
     solved once more with every segment bisected, from this solution (and bisected again where
     the first difference does not decide), and where J does not agree (``solve.arcs.Bisection``)
-    ``result`` becomes ``mesh_not_converged``. Returns the run's notes."""
+    ``result`` becomes ``mesh_not_converged``. A bang-bang switch held on a breakpoint where
+    J still moves with that breakpoint does the same (``pinned_switches``). Returns the run's
+    notes."""
+    if result.status not in ("optimal", "acceptable"):
+        return []
+    pinned_switches(file, result, tr, timer)
     if result.status not in ("optimal", "acceptable"):
         return []
     from .solve import arcs
@@ -212,6 +217,102 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
     flat = arcs.final_time_spread([(result.objective, arcs.free_final_times(tr))]
                                   + [(lv.objective, lv.final_times) for lv in check.levels], file.spec.verify.tolerance)
     return [arcs.note(found, multi, check)] + ([flat] if flat else [])
+
+
+def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
+    """A fixed mesh whose control switches from one bound to the other exactly on a breakpoint
+    holds the switch there whether or not it belongs there: J is then this mesh's optimum for a
+    switch at that breakpoint, which the bisection (same breakpoints) and the verification (the
+    trajectory flies) cannot judge (unseen14: x' = u x, max int (1 - u) x on [0, 3.15], LGR 3 x
+    5: the switch at t = 2.10 for 2.15, J 1.2e-3 low, optimal, verified, certificate pass).
+    Where the envelope gradient dJ*/ds of such a breakpoint (``breakpoint_gradient``) says a
+    move of a neighbouring segment's width could change J by more than the verification's
+    tolerance, the problem is solved once more with those breakpoints as unknowns and the bang
+    controls held (``with_free_switches``; the gradient alone cannot decide: with every control
+    node on a bound the multipliers are a family, and the double integrator's exact switch has
+    one); where that moves a switch and improves J by more than the tolerance, ``result`` is
+    ``mesh_not_converged``."""
+    import numpy as np
+    import pyomo.core as pyo
+
+    problem = file.problem
+    if not any(all(map(math.isfinite, ph.bounds_of(c)[:2])) for ph in problem.phases for c in ph.controls):
+        return                 # no control with two finite bounds: no bang-bang switch
+    from .solve import ipopt
+    from .solve.mesh.locate import locate_switches
+    from .solve.mesh.switches import breakpoint_gradient, with_free_switches
+    from .transcribe.guess import solved_guesses
+    from .transcribe.pseudospectral import build
+
+    def rebuild(ms, **kw):
+        built = build(problem, ms, solved_guesses(problem, tr), **kw)
+        _scale(file, built)
+        return built
+
+    tol = file.spec.verify.tolerance
+    J = float(result.objective or 0.0)
+    with timer.measure("post"):
+        params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
+        suspects: dict[str, list[int]] = {}
+        for pb in tr.phases:
+            bps = np.asarray(pb.layout.mesh.breakpoints, float)
+            try:
+                switches = locate_switches(tr, pb, params, 1e-6)
+            except Exception:  # noqa: BLE001  (an aid: the verification stands)
+                continue
+            t0, tf = float(pyo.value(pb.block.t0)), float(pyo.value(pb.block.tf))
+            crossings = _switching_crossings(result.certificate, pb.phase.name, len(tr.phases))
+            for f in switches:
+                q = int(np.argmin(np.abs(bps - f)))
+                if not (0 < q < len(bps) - 1) or abs(bps[q] - f) > 1e-12:
+                    continue
+                g = breakpoint_gradient(tr, rebuild, pb.phase.name, q)
+                # where PMP puts the switch: the switching function's nearest sign change (the
+                # certificate's), else anywhere in the neighbouring segments
+                t_b = t0 + (tf - t0) * bps[q]
+                near = [c for c in crossings if bps[q - 1] <= (c - t0) / (tf - t0) <= bps[q + 1]]
+                gap = (min(abs(c - t_b) for c in near) / (tf - t0) if near
+                       else min(bps[q] - bps[q - 1], bps[q + 1] - bps[q]))
+                # J*(s) ~ quadratic about the switch's place: moving there gains |g| gap / 2
+                if math.isfinite(g) and 0.5 * abs(g) * gap > tol * (1.0 + abs(J)):
+                    suspects.setdefault(pb.phase.name, []).append(q)
+    if not suspects:
+        return
+    with timer.measure("post"):
+        try:
+            freed = with_free_switches(tr, rebuild, lambda t: ipopt.solve(t.model, file.spec.solver.options,
+                                                                         transcription=t), suspects, 1e-6)
+        except Exception:  # noqa: BLE001  (an aid: the verification stands)
+            freed = None
+    if freed is None:
+        return
+    J_free, meshes = freed
+    better = (J - J_free) if problem.objective.sense == "minimize" else (J_free - J)
+    if better <= tol * (1.0 + abs(J)):
+        return
+    moves = []
+    for pb in tr.phases:
+        if pb.phase.name in meshes:
+            t0, tf = float(pyo.value(pb.block.t0)), float(pyo.value(pb.block.tf))
+            old, new = pb.layout.mesh.breakpoints, meshes[pb.phase.name].breakpoints
+            moves += [(pb.phase.name, t0 + (tf - t0) * float(old[q]), float(new[q])) for q in suspects[pb.phase.name]]
+    result.extra["pinned_switches"] = {"objective_with_switches_free": J_free,
+                                       "moves": [{"phase": p, "t": t, "s_free": s} for p, t, s in moves]}
+    where = ", ".join(f"t = {t:.6g}" for _, t, _ in moves[:3])
+    result.status = "mesh_not_converged"
+    result.message = (f"a control switches from one bound to the other exactly on a breakpoint of this fixed mesh "
+                      f"({where}), and with that breakpoint free J = {J_free:.10g} against {J:.10g} here (better by "
+                      f"{better / max(abs(J), 1e-300):.1e} relative): the mesh holds the switch in the wrong place, so "
+                      "J is this mesh's optimum, not the problem's. `mesh:` locates the switches (docs/mesh.md)")
+
+
+def _switching_crossings(certificate: dict | None, phase: str, phases: int) -> list[float]:
+    """The times where the certificate found a control's switching function change sign."""
+    cert = certificate or {}
+    if phases > 1:
+        cert = (cert.get("phases") or {}).get(phase) or {}
+    per = ((cert.get("bang_bang") or {}).get("per_control") or {})
+    return [float(t) for c in per.values() for t in (c.get("switch_times") or [])]
 
 
 def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=False, progress=False,

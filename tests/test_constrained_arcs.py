@@ -118,3 +118,21 @@ def test_bisected_mesh_halves_every_segment_and_keeps_its_polynomials():
     fine = mesh.bisected()
     assert np.allclose(fine.breakpoints, [0, 0.15, 0.3, 0.65, 1.0]) and fine.degrees == (3, 3, 5, 5)
     assert fine.scheme_name == "LGR" and scheme("LGR", 3).support.size == fine.scheme(0).support.size
+
+
+def test_a_switch_held_on_a_wrong_breakpoint_of_a_fixed_mesh_is_not_called_optimal(tmp_path):
+    """unseen14 (a false claim): the switch at t = 2.15 held on the breakpoint 2.10 of a fixed
+    LGR 3 x 5 mesh, J 1.2e-3 below e^2.15: optimal, verified, certificate pass, exit 0. The
+    breakpoint's envelope gradient and the switching function's sign change predict a gain
+    above the tolerance; with the breakpoint free the solve confirms it: mesh_not_converged.
+    The minimum-time double integrator's switch, exactly on its breakpoint, stays optimal."""
+    import math
+    from pathlib import Path
+
+    res = run_file(Path(__file__).parent / "data" / "invest_consume_fixed.yaml", None)
+    assert res.status == "mesh_not_converged" and not res.ok, res.message
+    pinned = res.extra["pinned_switches"]
+    assert abs(pinned["objective_with_switches_free"] - math.exp(2.15)) < 1e-6 * math.exp(2.15)
+    assert "exactly on a breakpoint" in res.message and "t = 2.1" in res.message
+    di = run_file(Path(__file__).parents[1] / "configs" / "double_integrator.yaml", None)
+    assert di.status == "optimal" and "pinned_switches" not in di.extra

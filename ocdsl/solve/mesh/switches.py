@@ -37,16 +37,17 @@ def _values(model):
     return vars_, cons
 
 
-def breakpoint_gradient(tr, rebuild, phase: str, q: int) -> float:
+def breakpoint_gradient(tr, rebuild, phase: str, q: int, step: float = DELTA) -> float:
     """dJ*/ds at breakpoint ``q`` of phase ``phase`` of the solved transcription ``tr``
-    (see the module doc); ``rebuild(meshes)`` builds the model on other meshes exactly as
-    ``tr`` was built. NaN when the two models do not match."""
+    (see the module doc), by a difference over ``step`` (negative: the one-sided derivative
+    from below); ``rebuild(meshes)`` builds the model on other meshes exactly as ``tr`` was
+    built. NaN when the two models do not match."""
     import pyomo.core as pyo
 
-    fast = _direct_difference(tr, phase, q)
+    fast = _direct_difference(tr, phase, q, step)
     if fast is not None:
-        return fast / DELTA
-    other = rebuild(_moved(tr, phase, q, DELTA))
+        return fast / step
+    other = rebuild(_moved(tr, phase, q, step))
     v0, c0 = _values(tr.model)
     v1, c1 = _values(other.model)
     if len(v0) != len(v1) or len(c0) != len(c1):
@@ -63,10 +64,10 @@ def breakpoint_gradient(tr, rebuild, phase: str, q: int) -> float:
     obj0 = next(tr.model.component_data_objects(pyo.Objective, active=True))
     obj1 = next(other.model.component_data_objects(pyo.Objective, active=True))
     total += pyo.value(obj1.expr) - pyo.value(obj0.expr)
-    return total / DELTA
+    return total / step
 
 
-def _direct_difference(tr, phase: str, q: int):
+def _direct_difference(tr, phase: str, q: int, step: float = DELTA):
     """L - L(tr) at tr's primal values and multipliers, L that of tr with breakpoint ``q`` of
     ``phase`` moved by DELTA, evaluated by tr's NumPy NLP and its copy on the moved mesh
     (``DirectNLP.with_breakpoints``: every row at once, nothing rebuilt; the Pyomo model
@@ -79,7 +80,7 @@ def _direct_difference(tr, phase: str, q: int):
     if n0 is None:
         return None
     index = next(i for i, p in enumerate(tr.phases) if p.phase.name == phase)
-    n1 = n0.with_breakpoints(index, _moved(tr, phase, q, DELTA)[phase])
+    n1 = n0.with_breakpoints(index, _moved(tr, phase, q, step)[phase])
     x = n0.x0                 # tr's values, in the variable order the copy shares
     dual = tr.model.dual
     y = np.array([dual.get(r) or 0.0 for r in n0.rows], float)
@@ -154,6 +155,20 @@ def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec,
             feats = [target if abs(x - f) <= tol or abs(x - bps[q]) <= tol else x for x in feats]
         out[name] = sorted(feats)
     return out, meshes
+
+
+def with_free_switches(tr, rebuild, solve, free: dict, tol: float):
+    """(objective, meshes) of ``tr``'s problem solved with the breakpoints ``free`` (phase ->
+    indices) as unknowns and the bang controls of their segments held (``_switch_model``), or
+    None when no control is held or the solve does not converge: where the switches go when
+    the mesh does not hold them (``run.pinned_switches``)."""
+    model, held = _switch_model(tr, rebuild, free, tol)
+    if not held:
+        return None
+    info = solve(model)
+    if info.status not in ("optimal", "acceptable") or info.objective is None:
+        return None
+    return float(info.objective), solved_meshes(model)
 
 
 def _switch_model(tr, rebuild, free: dict, tol: float):
