@@ -243,6 +243,11 @@ def _summary(result, out: Path) -> None:
         if why.startswith(f"{verdict}: "):      # "inconclusive (inconclusive: ...)" said once
             why = why[len(verdict) + 2:]
         con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
+        cert = result.certificate or {}
+        for c in ((cert.get("phases") or {}).values() if isinstance(cert.get("phases"), dict) else [cert]):
+            reason = ((c or {}).get("end_arcs") or {}).get("reason")
+            if reason:
+                con.print(f"    {reason}")
 
 
 def _robustness_line(table) -> str:

@@ -279,3 +279,22 @@ def test_a_time_dependent_h_on_too_few_nodes_is_inconclusive_not_failed():
     h = res.certificate["hamiltonian"]
     assert h["passed"] is None and "quadrature" in h["inconclusive"] and not res.certificate["failed"]
     assert h["quadrature_uncertainty"] >= h["max_deviation"] - 3e-2 * h["scale"]
+
+
+def test_a_bang_arc_at_the_start_that_holds_no_node_fails_the_certificate():
+    """unseen14 (a false claim): the arc u = 1 on [0, 0.02] lies before LGR's first collocated
+    control, the solve drops it (J = 1.02 for e^0.02), and every node check passes: optimal,
+    verified, certificate pass. At t0 the costates and states are known and the switching
+    function there calls for the other bound: the certificate fails ('end_arcs'), predicting
+    the gain (2e-4, the error). The same problem with its switch well inside has no such arc."""
+    import math
+
+    res = run_file(DATA / "invest_short_start.yaml", None)
+    assert abs(res.objective - 1.02) < 1e-6                      # the case: the arc is lost
+    cert = res.certificate
+    assert "end_arcs" in cert["failed"] and not res.ok
+    (arc,) = cert["end_arcs"]["arcs"]
+    assert arc["t"] == 0 and arc["bound_missing"] == "upper"
+    assert 0.5 < arc["predicted_gain"] / (math.exp(0.02) - 1.02) < 2
+    fixed = run_file(Path(__file__).parents[1] / "tests" / "data" / "invest_consume_fixed.yaml", None)
+    assert fixed.certificate.get("end_arcs", {}).get("passed", True)

@@ -16,7 +16,7 @@ import sympy as sp
 
 from ..result import Result
 from ..symbolic.problem import Problem
-from .certificate import certificate, hamiltonian_arrays
+from .certificate import certificate, end_arcs, hamiltonian_arrays
 
 
 def _at_bound(value, bounds) -> bool:
@@ -71,7 +71,9 @@ def _degenerate_rows(result: Result) -> dict | None:
                                       "remove the condition the others imply"}}
 
 
-def certify_result(problem: Problem, result: Result) -> dict:
+def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5) -> dict:
+    """The certificate per phase; ``tolerance``: the verification's, which a missing end arc's
+    predicted gain in J (relative to 1 + |J|) must stay under."""
     degenerate = _degenerate_rows(result)
     if degenerate is not None:
         return degenerate
@@ -128,7 +130,17 @@ def certify_result(problem: Problem, result: Result) -> dict:
         if ph.path and all(v is not None for v in mus.values()):
             kw["path_constraints"] = [(c.expr, c.lower, c.upper, c.text) for c in ph.path]
             kw["multipliers"] = {k: np.asarray(v, float) * nan for k, v in mus.items()}
-        per_phase[ph.name] = certificate(ph.model, params, arrays, bounds, L, kind, **kw)
+        per_phase[ph.name] = cert = certificate(ph.model, params, arrays, bounds, L, kind, **kw)
+        # the ends' rows with no collocated control (the arrays above hold the nodes only)
+        ends = end_arcs(ph.model, params, {"time": traj.time, "states": traj.states, "controls": traj.controls,
+                                           "costates": traj.costates}, bounds, L,
+                        tolerance * (1.0 + abs(float(result.objective or 0.0))))
+        if ends is not None:
+            cert["end_arcs"] = ends
+            if not ends["passed"]:
+                cert["failed"] = list(cert.get("failed", [])) + ["end_arcs"]
+                cert["passed"] = False
+                cert.pop("inconclusive", None)
         try:    # H and dH/du into the run folder: the report reads them, never recomputes them
             traj.extra.update(hamiltonian_arrays(ph.model, params, arrays, L))
         except Exception:  # noqa: BLE001  (a figure less, never a lost run)
