@@ -16,7 +16,8 @@ import sympy as sp
 
 from ..result import Result
 from ..symbolic.problem import Problem
-from .certificate import certificate, end_arcs, hamiltonian_arrays
+from .certificate import certificate, hamiltonian_arrays
+from .end_arcs import end_arcs
 
 
 def _at_bound(value, bounds) -> bool:
