@@ -298,3 +298,16 @@ def test_a_bang_arc_at_the_start_that_holds_no_node_fails_the_certificate():
     assert 0.5 < arc["predicted_gain"] / (math.exp(0.02) - 1.02) < 2
     fixed = run_file(Path(__file__).parents[1] / "tests" / "data" / "invest_consume_fixed.yaml", None)
     assert fixed.certificate.get("end_arcs", {}).get("passed", True)
+
+
+def test_an_lg_mesh_is_not_coarsened_to_a_phase_of_one_node(tmp_path):
+    """unseen14: the same problem on LG with `mesh:` was coarsened to one degree-1 segment (one
+    collocation node: the certificate skipped, the arc lost), J 2e-4 low, optimal, exit 0. No
+    coarsening leaves a phase fewer than two nodes, and the end-arc check then fails it."""
+    text = (DATA / "invest_short_start.yaml").read_text().replace(
+        "method: {transcription: LGR, segments: 3, degree: 3}",
+        "method: {transcription: LG, segments: 3, degree: 3, mesh: {tolerance: 1.0e-8}}")
+    (tmp_path / "lg.yaml").write_text(text)
+    res = run_file(tmp_path / "lg.yaml", None)
+    assert not res.ok and "end_arcs" in (res.certificate.get("failed") or [])
+    assert all(sum(1 for c in ph.extra.get("collocated", []) if c > 0) >= 2 for ph in res.phases)
