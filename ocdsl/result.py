@@ -155,9 +155,8 @@ class Result(ResultViews):
 
     @property
     def verification_ok(self) -> bool:
-        """What the verification lets through: verified, not applicable, or only a warning."""
-        v = self.verification or {}
-        return v.get("status") in ("verified", "not_applicable") or v.get("mode") == "warn"
+        """What the verification lets through (``verification_lets_through``)."""
+        return verification_lets_through(self.verification)
 
     def phase(self, name: str | None = None) -> PhaseTrajectory:
         if name is None:
@@ -246,6 +245,13 @@ def single_phase_result(name: str, status: str, phase: PhaseTrajectory, **fields
     what a warm-start run folder needs (``--warm-start`` reads the trajectory by name)."""
     problem = {"phases": {phase.name: {"states": list(phase.states), "controls": list(phase.controls)}}}
     return Result(name, status, phases=[phase], problem=problem, **fields)
+
+
+def verification_lets_through(verification: dict | None) -> bool:
+    """A verification record that does not fail a run: verified, not applicable, or only a
+    warning (``result.json`` ``verification``, as a Result or a study point reads it)."""
+    v = verification or {}
+    return v.get("status") in ("verified", "not_applicable") or v.get("mode") == "warn"
 
 
 def _trajectory_file(phase: str, n_phases: int) -> str:

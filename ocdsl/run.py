@@ -241,13 +241,9 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
     from .solve import ipopt
     from .solve.mesh.locate import locate_switches
     from .solve.mesh.switches import breakpoint_gradient, with_free_switches
-    from .transcribe.guess import solved_guesses
-    from .transcribe.pseudospectral import build
 
     def rebuild(ms, **kw):
-        built = build(problem, ms, solved_guesses(problem, tr), **kw)
-        _scale(file, built)
-        return built
+        return _rebuilt(file, tr, ms, **kw)
 
     tol = file.spec.verify.tolerance
     J = float(result.objective or 0.0)
@@ -306,6 +302,17 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
                       "J is this mesh's optimum, not the problem's. `mesh:` locates the switches (docs/mesh.md)")
 
 
+def _rebuilt(file: LoadedFile, tr, meshes, **kw):
+    """``file``'s problem built on ``meshes`` (``build``'s keywords ``kw``), started from the
+    solution in ``tr`` and scaled as the run's first build was."""
+    from .transcribe.guess import solved_guesses
+    from .transcribe.pseudospectral import build
+
+    built = build(file.problem, meshes, solved_guesses(file.problem, tr), **kw)
+    _scale(file, built)
+    return built
+
+
 def _switching_crossings(certificate: dict | None, phase: str, phases: int) -> list[float]:
     """The times where the certificate found a control's switching function change sign."""
     cert = certificate or {}
@@ -325,7 +332,6 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
     from .solve import ipopt
     from .solve.arcs import Bisection, Level, free_final_times
     from .transcribe.guess import solved_guesses
-    from .transcribe.pseudospectral import build
 
     problem = file.problem
     options = file.spec.solver.options if options is None else options
@@ -335,8 +341,7 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
     while not check.levels or check.needs_second:
         meshes = {name: mesh.bisected() for name, mesh in meshes.items()}
         if build_model is None:
-            tr = build(problem, meshes, solved_guesses(problem, tr))
-            _scale(file, tr)
+            tr = _rebuilt(file, tr, meshes)
         else:
             tr = build_model(meshes, solved_guesses(problem, tr))
         # from the primal point alone: the mesh refinement's multiplier warm start (warm_start.py)

@@ -252,9 +252,9 @@ class _Numeric:
         return np.asarray(self._fx(t, list(x), list(u)), float).reshape(self.n, self.n)
 
 
-def _arrays(model: Model, trajectory, return_mask: bool = False, multipliers=None):
-    """Node arrays (rows with a NaN left out). With ``multipliers`` ((N, p) array) their
-    rows count too and the filtered array is returned last."""
+def _columns(model: Model, trajectory):
+    """(t, X, U, Lam) of every row of ``trajectory`` (a mapping or a PhaseTrajectory), rows
+    with NaN included; Lam None without costates."""
     get = (lambda k: trajectory[k]) if isinstance(trajectory, Mapping) else (lambda k: getattr(trajectory, k))
     t = np.asarray(get("time"), float).ravel()
     states, controls = get("states"), get("controls")
@@ -273,6 +273,13 @@ def _arrays(model: Model, trajectory, return_mask: bool = False, multipliers=Non
         Lam = np.column_stack([np.asarray(costates[s.name], float) for s in model.states])
     if not (len(t) == len(X) == len(U)) or (Lam is not None and len(Lam) != len(t)):
         raise ValueError("certificate: time, states, controls and costates differ in length")
+    return t, X, U, Lam
+
+
+def _arrays(model: Model, trajectory, return_mask: bool = False, multipliers=None):
+    """Node arrays (rows with a NaN left out). With ``multipliers`` ((N, p) array) their
+    rows count too and the filtered array is returned last."""
+    t, X, U, Lam = _columns(model, trajectory)
     if multipliers is not None and len(multipliers) != len(t):
         raise ValueError("certificate: path multipliers and time differ in length")
     # keep the collocation nodes: rows where everything is defined (a back end may also
@@ -492,10 +499,11 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         # O(h^2) error on a fast-varying dH/dt (a data table's residual) was 9 % of H's term
         # scale and failed a correct fit; a global cubic spline rings across the jump a path
         # multiplier puts into dH/dt (a state constraint's junction), PCHIP does not
-        Hc = H + pchip.integral_to_end(t, Ht)
+        to_end = pchip.integral_to_end(t, Ht)
+        Hc = H + to_end
         # the trapezoid's integral beside it bounds that integral's own error on few nodes
         trap = np.concatenate([np.cumsum((0.5 * (Ht[1:] + Ht[:-1]) * np.diff(t))[::-1])[::-1], [0.0]])
-        quadrature = float(np.max(np.abs(pchip.integral_to_end(t, Ht) - trap)))
+        quadrature = float(np.max(np.abs(to_end - trap)))
     expected = EXPECTED_H[objective] if expected_hamiltonian is None else float(expected_hamiltonian)
     reference = expected if expected is not None else float(np.mean(Hc))
     term_scale = float(np.mean(H_terms))

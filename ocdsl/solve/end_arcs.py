@@ -14,7 +14,7 @@ import numpy as np
 
 from ocdsl.symbolic.model import Model
 
-from .certificate import Tolerances, _bounds, _hamiltonian_nodes, _Numeric, _side
+from .certificate import Tolerances, _bounds, _columns, _hamiltonian_nodes, _Numeric, _side
 
 
 def end_arcs(model: Model, parameter_values: Mapping | None, trajectory, control_bounds, lagrange,
@@ -28,15 +28,9 @@ def end_arcs(model: Model, parameter_values: Mapping | None, trajectory, control
     to its zero (linear to the node), over half the bound range, above ``gain_limit``. Returns
     the check's record (``passed`` False when such an arc is found), None when nothing applies."""
     tol = tolerances or Tolerances()
-    get = (lambda k: trajectory[k]) if isinstance(trajectory, Mapping) else (lambda k: getattr(trajectory, k))
-    t = np.asarray(get("time"), float).ravel()
-    X = np.column_stack([np.asarray(get("states")[x.name], float) for x in model.states])
-    U = np.column_stack([np.asarray(get("controls")[c.name], float) for c in model.controls]) \
-        if model.controls else np.zeros((len(t), 0))
-    costates = get("costates") or {}
-    if not model.controls or len(t) < 3 or any(x.name not in costates for x in model.states):
+    t, X, U, Lam = _columns(model, trajectory)
+    if not model.controls or len(t) < 3 or Lam is None:
         return None
-    Lam = np.column_stack([np.asarray(costates[x.name], float) for x in model.states])
     bounds = _bounds(model, control_bounds)
     collocated = np.isfinite(U).all(axis=1) & np.isfinite(Lam).all(axis=1) & np.isfinite(X).all(axis=1)
     if collocated.sum() < 2:

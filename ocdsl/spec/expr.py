@@ -60,7 +60,7 @@ def parse_expression(text: str | int | float, scope: Scope, vector: bool = False
     tree = _parse(text)
     if isinstance(tree, ast.Compare):
         raise ExprError("a relation is not allowed here, an expression is expected", str(text))
-    e = _real(_Builder(scope, str(text)).build(tree), text)
+    e = _real(_Builder(scope, str(text), tree).build(tree), text)
     if isinstance(e, sp.MatrixBase) and not vector:
         raise ExprError(f"this is a vector of {len(e)} components where a number is expected "
                         "(use norm(...), dot(...) or a component such as r[0])", str(text))
@@ -97,7 +97,7 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
     if not isinstance(tree, ast.Compare):
         raise ExprError("a constraint must be a relation using <=, >= or ==", str(text))
     ops = {ast.LtE: "<=", ast.GtE: ">=", ast.Eq: "=="}
-    builder = _Builder(scope, str(text))
+    builder = _Builder(scope, str(text), tree)
     terms = [_real(builder.build(t), text) for t in [tree.left, *tree.comparators]]
     sizes = {len(t) for t in terms if is_vector(t)}
     if len(sizes) > 1:
@@ -217,8 +217,8 @@ def _log10_abs(x: sp.Expr) -> float:
 
 
 class _Builder:
-    def __init__(self, scope: Scope, text: str):
-        self.scope, self.text = scope, text
+    def __init__(self, scope: Scope, text: str, tree: ast.AST):
+        self.scope, self.text, self.tree = scope, text, tree      # tree: the whole parsed text
 
     def fail(self, message: str) -> ExprError:
         return ExprError(message, self.text)
@@ -255,10 +255,7 @@ class _Builder:
     def _unknown_names(self) -> list[str]:
         """The expression's plain names (not a called function, not a phase before a dot) that
         are neither declared nor a constant or function, in the order written."""
-        try:
-            tree = ast.parse(self.text.strip(), mode="eval")
-        except SyntaxError:
-            return []
+        tree = self.tree
         skip = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
         skip |= {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
         out: list[str] = []

@@ -228,7 +228,8 @@ class MeshSpec(Strict):
         "'multipliers' = states, controls and all NLP multipliers mapped through the costates "
         "(ocdsl/solve/warm_start.py), 'primal' = states and controls only")
     move_switches: bool = Field(True, description="solve the breakpoints that hold bang-bang switches as NLP "
-                                "unknowns (free-time phases; docs/mesh.md, 'Switch times as NLP unknowns')")
+                                "unknowns (free-time phases at every mesh, fixed-time ones on a mesh within "
+                                "tolerance; docs/mesh.md, 'Switch times as NLP unknowns')")
     symbolic: bool = Field(True, description="the symbolic steps of refinement (the boundary control of a "
                            "bounded state, used to locate state-constrained arcs); false turns them off")
     symbolic_time: float = Field(10.0, gt=0, description="seconds each symbolic step may take; above it the "
@@ -345,7 +346,7 @@ def ipopt_option_value(name: str, value, known: dict[str, dict]):
         except ValueError:
             pass
     what = "an integer" if kind == "integer" else "a number"
-    if number is None or not math.isfinite(number) and kind == "integer":
+    if number is None or (kind == "integer" and not math.isfinite(number)):
         raise ValueError(f"Ipopt option '{name}' takes {what}, not {value!r}")
     if kind == "integer":
         if float(number) != int(number):

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ocdsl import run_folder
-from ocdsl.result import Result
+from ocdsl.result import Result, verification_lets_through
 
 from .executor import worker_cache, worker_info
 from .spec import Point, StudyError
@@ -181,8 +181,8 @@ def _why_not_ok(data: dict) -> str:
         return ""
     reasons = []
     verification = data.get("verification") or {}
-    if verification.get("status") not in (None, "verified", "not_applicable") and verification.get("mode") != "warn":
-        reasons.append(f"verification {verification.get('status')}")
+    if not verification_lets_through(verification):
+        reasons.append(f"verification {verification.get('status') or 'not run'}")
     if data.get("certificate_verdict") == "failed":
         reasons.append("certificate failed")
     failed = [c for c in data.get("expect") or [] if not c.get("passed")]

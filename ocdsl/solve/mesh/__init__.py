@@ -86,9 +86,10 @@ Refinement rule
       the control chattered (``chattering_segments``, ``regularise``); the reported objective
       leaves the term out. It changes the problem (measured bias in docs/mesh-refinement.md).
 
-Switches on or near breakpoints (``switches.solve_switch_times``, free-time phases): the
-breakpoints are NLP unknowns in one more solve, the bang controls of their segments held;
-the converged mesh is solved that way once more for PMP's costates (``with_switch_costates``).
+Switches on or near breakpoints (``switches.solve_switch_times``): the breakpoints are NLP
+unknowns in one more solve, the bang controls of their segments held, at every mesh in
+free-time phases and on a mesh within tolerance in fixed-time ones; the converged mesh is
+solved that way once more for PMP's costates (``with_switch_costates``).
 Symbolic steps (``budget.bounded``): in a forked child with a time and memory bound, skipped
 with a note past it; ``symbolic: false`` turns them off.
 

@@ -153,9 +153,8 @@ def _boundary_arc(pb, a: float, b: float, pts, xscale, threshold: float, budget=
         # a boundary arc holds its state on the bound at every node: a bound the arc's nodes
         # are off is not followed (its boundary control may drive the flight anywhere: the
         # hang glider's never-active x >= 0 and vx >= 0 took 2 s of its first converged mesh)
-        near = [b for b in ph.bounds_of(ph.states[j])[:2] if math.isfinite(b)
-                and np.all(np.abs(X[inside, j] - b) <= threshold * scale[j])]
-        if not near:
+        if not any(math.isfinite(b) and np.all(np.abs(X[inside, j] - b) <= threshold * scale[j])
+                   for b in ph.bounds_of(ph.states[j])[:2]):
             continue
         lo, hi = ph.bounds_of(ph.controls[i])
 

@@ -155,6 +155,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
 
     from ...run import _result
     from ...transcribe.guess import make_guess, solved_guesses, start_guesses
+    from ...transcribe.mesh import Layout
     from ...transcribe.pseudospectral import build
     from .. import ipopt
     from .. import warm_start as ws
@@ -487,8 +488,6 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     # need two) and hides what a node would show (unseen14: x' = u x on [0, 1.02],
                     # LG coarsened to one degree-1 node, the arc u = 1 on [0, 0.02] lost, J 2e-4
                     # low, optimal with the certificate skipped)
-                    from ...transcribe.mesh import Layout
-
                     if all(Layout.of(cand[k]).n_colloc >= 2 for k in cand) \
                             and size(cand) <= COARSEN_GAIN * size(meshes) and not any(
                             all(_close_mesh(cand[k], r[k], spec.corner_tolerance) for k in cand) for r in tried):
