@@ -245,9 +245,10 @@ def _summary(result, out: Path) -> None:
         con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
         cert = result.certificate or {}
         for c in ((cert.get("phases") or {}).values() if isinstance(cert.get("phases"), dict) else [cert]):
-            reason = ((c or {}).get("end_arcs") or {}).get("reason")
-            if reason:
-                con.print(f"    {reason}")
+            for check in ("end_arcs", "flown_control"):
+                reason = ((c or {}).get(check) or {}).get("reason")
+                if reason:
+                    con.print(f"    {reason}")
 
 
 def _robustness_line(table) -> str:

@@ -311,3 +311,50 @@ def test_an_lg_mesh_is_not_coarsened_to_a_phase_of_one_node(tmp_path):
     res = run_file(tmp_path / "lg.yaml", None)
     assert not res.ok and "end_arcs" in (res.certificate.get("failed") or [])
     assert all(sum(1 for c in ph.extra.get("collocated", []) if c > 0) >= 2 for ph in res.phases)
+
+
+def test_a_corner_inside_a_segment_fails_by_the_control_the_minimum_principle_flies(tmp_path):
+    """unseen14 F2 (a false claim): u = clip(t - 1) enters its bound at t = 2, inside the LGR
+    segment [1.667, 2.083] of a uniform 6 x 3 mesh. Every node is stationary and x' = u is
+    integrated exactly, so the verification and the node checks pass with J 6.4e-5 above
+    the optimum -17/24: optimal, verified, certificate pass. The control that minimises H along
+    the solution's states and costates, flown from x(0), gives J* itself: feasible and
+    better than the claim, it refutes it ('flown_control'). With a breakpoint on the corner
+    (5 segments) J is right and the flown control finds nothing better."""
+    res = run_file(DATA / "lq_entry_corner.yaml", None)
+    assert res.objective - (-17 / 24) > 5e-5 and res.verified            # the case: J off, verified
+    flown = res.certificate["flown_control"]
+    assert "flown_control" in res.certificate["failed"] and not res.ok
+    assert flown["feasible"] and abs(flown["flown"] - (-17 / 24)) < 1e-7
+    assert flown["gain"] == pytest.approx(res.objective + 17 / 24, rel=1e-3)
+    text = (DATA / "lq_entry_corner.yaml").read_text().replace("segments: 6", "segments: 5")
+    (tmp_path / "five.yaml").write_text(text)
+    right = run_file(tmp_path / "five.yaml", None)
+    assert right.objective == pytest.approx(-17 / 24, abs=1e-8) and right.ok
+    assert right.certificate["flown_control"]["passed"] and right.certificate["flown_control"]["predicted_gain"] < 1e-7
+
+
+def test_the_flown_control_of_a_maximisation_counts_a_larger_objective_as_better(tmp_path):
+    """The same problem as 'maximize' of -J: the gain has the objective's sense."""
+    text = (DATA / "lq_entry_corner.yaml").read_text().replace(
+        "minimize integral(u**2/2 + x) - 1.5*x(tf)", "maximize 1.5*x(tf) - integral(u**2/2 + x)")
+    (tmp_path / "max.yaml").write_text(text)
+    res = run_file(tmp_path / "max.yaml", None)
+    assert res.objective == pytest.approx(17 / 24 - 6.4e-5, abs=2e-6)
+    flown = res.certificate["flown_control"]
+    assert not flown["passed"] and flown["flown"] == pytest.approx(17 / 24, abs=1e-7)
+
+
+def test_a_mesh_refinement_the_flown_control_refutes_is_refined_again_on_its_corners(tmp_path):
+    """The same with `mesh:` (tolerance 1e-8): the estimate is 1e-16 (the polynomials integrate
+    x' = u exactly), two meshes agree on the wrong J, and the corner locator does not see the
+    corner. The flown control refutes that answer and puts its corner (t = 2, 0.8 of the
+    phase) into a new start mesh as a kept breakpoint: the second refinement ends at J*."""
+    text = (DATA / "lq_entry_corner.yaml").read_text().replace(
+        "degree: 3}", "degree: 3, mesh: {tolerance: 1.0e-8}}")
+    (tmp_path / "mesh.yaml").write_text(text)
+    res = run_file(tmp_path / "mesh.yaml", None)
+    first = res.extra["first_refinement"]
+    assert first["objective"] - (-17 / 24) > 5e-5 and first["corners"]["main"] == [pytest.approx(0.8, abs=1e-6)]
+    assert res.ok and res.objective == pytest.approx(-17 / 24, abs=1e-8)
+    assert res.certificate["flown_control"]["passed"]

@@ -53,3 +53,17 @@ def integral_to_end(t, y) -> np.ndarray:
         d = slopes(t, y)
         seg = 0.5 * h * (y[:-1] + y[1:]) + h * h * (d[:-1] - d[1:]) / 12.0
     return np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
+
+
+def interpolate(t, Y, tt) -> np.ndarray:
+    """The PCHIP interpolant through the rows ``(t, Y)`` (Y (N, k)) at ``tt`` (P,) -> (P, k),
+    held at the end values outside [t[0], t[-1]]."""
+    t, Y, tt = np.asarray(t, float), np.asarray(Y, float), np.clip(np.asarray(tt, float), t[0], t[-1])
+    if len(t) < 2:
+        return np.repeat(Y[:1], len(tt), axis=0)
+    D = np.column_stack([slopes(t, Y[:, j]) for j in range(Y.shape[1])])
+    k = np.clip(np.searchsorted(t, tt, side="right") - 1, 0, len(t) - 2)
+    h = (t[k + 1] - t[k])[:, None]
+    s = (tt - t[k])[:, None] / h
+    return ((2 * s**3 - 3 * s**2 + 1) * Y[k] + (s**3 - 2 * s**2 + s) * h * D[k]
+            + (-2 * s**3 + 3 * s**2) * Y[k + 1] + (s**3 - s**2) * h * D[k + 1])

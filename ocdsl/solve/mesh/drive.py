@@ -14,6 +14,7 @@ from ..arcs import final_time_spread, free_final_times
 from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, phase_end, segment_ends
 from .junction import limit_junction_controls
+from .flown import refuted_corners, with_breakpoints
 from .locate import locate_features, locate_switches, misplaced
 from .refine import MeshStalled, refine, same_mesh
 from .switches import solve_switch_times, with_switch_costates
@@ -149,8 +150,12 @@ def _say(progress: bool, text: str) -> None:
         print(text, file=sys.stderr, flush=True)
 
 
-def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False) -> Result:
-    """Solve with adaptive mesh refinement; returns a Result with the mesh history."""
+def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False,
+                   pinned: dict | None = None, first: dict | None = None, start: dict | None = None) -> Result:
+    """Solve with adaptive mesh refinement; returns a Result with the mesh history. ``pinned``
+    (phase -> normalised times every mesh keeps as features), ``first`` (start meshes) and
+    ``start`` (start trajectories): the refinement once more after the flown control refuted
+    the first answer (flown.py)."""
     import pyomo.core as pyo
 
     from ...run import _result
@@ -168,11 +173,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     n_starts = file.method.starts
     base_seed = file.method.seed if seed is None else seed
     start_records: list = []
-    meshes = initial_meshes(file)
+    meshes = first or initial_meshes(file)
     snapshot = None      # the previous mesh's solution, multipliers included (warm_start.py)
     from ...run import previous_phases, start_notes
 
-    previous: dict[str, PhaseTrajectory] = previous_phases(file, warm_start)
+    previous: dict[str, PhaseTrajectory] = start if start is not None else previous_phases(file, warm_start)
     given = previous      # what the first mesh started from (a later mesh's retry starts there too)
     notes = start_notes(file, previous)
     options = dict(file.spec.solver.options)
@@ -405,6 +410,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     except Exception as exc:  # locating is an aid; the estimate still decides
                         _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
                         features[pb.phase.name] = []
+                for name, times in (pinned or {}).items():
+                    features[name] = sorted(set(features.get(name, [])) | set(times))
                 # the bound-to-bound switches on their own (``refine`` moves a breakpoint near one onto it)
                 bang = {}
                 for pb in tr.phases:
@@ -696,6 +703,23 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             notes.append(flat)
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
+    corners = refuted_corners(result) if pinned is None and status == "optimal" else {}
+    if corners:
+        shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
+        _say(progress, f"mesh: the control the minimum principle flies beats J = {info_c.objective:.10g}; "
+                       f"refining again with breakpoints kept at {shown} (normalised time)")
+        again = solve_adaptive(file, timer, seed=seed, verbose=verbose, progress=progress, pinned=corners,
+                               first={k: with_breakpoints(m, corners.get(k, []), spec.corner_tolerance)
+                                      for k, m in meshes_c.items()},
+                               start={ph.name: ph for ph in result.phases})
+        flown = result.certificate["flown_control"]
+        again.extra.setdefault("notes", []).append(
+            f"the first refinement ended at J = {flown['claimed']:.10g} (mesh iteration {it_c}), which the "
+            f"control the minimum principle flies beat (J = {flown['flown']:.10g}); refined again with "
+            f"breakpoints kept where that control reaches or leaves a bound ({shown}, normalised time)")
+        again.extra["first_refinement"] = {"objective": flown["claimed"], "flown": flown["flown"],
+                                           "iterations": len(history), "corners": corners}
+        return again
     result.status = status
     # one starting mesh in the record (both pairs were echoed, the unused one as defaults: unseen6)
     for key in ("segments", "degree"):

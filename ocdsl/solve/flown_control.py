@@ -1,0 +1,229 @@
+"""The control the minimum principle gives, flown (certificate check ``flown_control``).
+
+The node checks and the verification can all pass on a solution whose control polynomials
+cannot follow the optimum between the nodes: an LQ control that enters its bound inside an LGR
+segment leaves every node stationary and the trajectory consistent, with J 9e-5 off (unseen14
+F2). At every time the solution's own states and costates say which admissible control
+minimises H; flown from x(t0), that control gives a trajectory whose objective, when it is
+feasible, bounds the optimum. Better than the claim by more than the tolerance, it refutes the
+claim; worse or infeasible, it proves nothing (costates off near a singular arc, terminal
+conditions missed), so the check then passes. Applies to one phase with box-bounded controls
+that enter H at most quadratically, no path constraints and no boundary condition at the final
+time (a terminal cost is fine).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..result import Result
+from ..symbolic.numbers import substitute_numbers
+from ..symbolic.problem import Problem
+from . import pchip
+from .certificate import _Numeric, _param_subs, _hamiltonian_nodes
+
+# points between consecutive rows at which the minimising control is tabulated (linear in
+# between): the control's own interpolation error then costs J far below the tolerance
+PER_INTERVAL = 7
+# a flown trajectory is feasible when it misses no boundary condition or state bound by more
+# than this share of the verification tolerance: missing a condition by d can gain about
+# nu d in J, which must stay well below what the check calls a gain
+FEASIBLE_SHARE = 1e-3
+# the control is flown only when H's minimiser predicts a gain of at least this share of the
+# limit (the prediction is first order; for a convex problem it bounds the real gain above)
+PREDICTED_SHARE = 0.1
+
+
+def _quadratic_in_controls(model, params, lagrange) -> bool:
+    """Whether f and L are polynomials of degree at most 2 in the controls (H's minimiser over
+    a box is then found exactly, coordinate by coordinate)."""
+    subs = _param_subs(model, params)
+    controls = set(model.controls)
+    exprs = list(substitute_numbers(model.rhs(), subs)) + [substitute_numbers(model.expand(sp.sympify(lagrange)), subs)]
+    for e in exprs:
+        for u in model.controls:
+            d = sp.diff(e, u)
+            if d.free_symbols & controls and any(sp.diff(d, v).free_symbols & controls for v in model.controls):
+                return False
+    return True
+
+
+def _final_conditions(problem: Problem) -> bool:
+    """Whether a boundary condition involves the final state, an integral or the final time:
+    the flown control, built from approximate costates, would have to meet it to 1e-3 of the
+    tolerance to be compared, and it misses such conditions by more (Goddard: 0.24)."""
+    late = {s for s, bv in problem.boundary_values.items() if bv.which == "tf"} | set(problem.integrals)
+    late |= {ph.tf_symbol for ph in problem.phases}
+    return any(c.expr.free_symbols & late for c in problem.boundary)
+
+
+def _minimising_controls(num: _Numeric, t, X, Lam, bounds):
+    """argmin over the box of H(t, x, lambda, u) at every point, with dH/du there; None when H
+    has no minimiser on it (unbounded control, H not convex in it). H is quadratic in u: its
+    gradient at a base point and its (constant) Hessian, by one unit step per control, give
+    it exactly; coordinate descent then finds the box minimiser."""
+    m = len(bounds)
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    U0 = np.clip(np.zeros((len(t), m)), lo, hi)
+    _, G0, _, _ = _hamiltonian_nodes(num, t, X, U0, Lam)
+    R = np.empty((len(t), m, m))
+    for j in range(m):
+        U1 = U0.copy()
+        U1[:, j] += 1.0
+        R[:, :, j] = _hamiltonian_nodes(num, t, X, U1, Lam)[1] - G0
+    U = U0.copy()
+    G = G0.copy()
+    for _ in range(1 if m == 1 else 10 * m):
+        for j in range(m):
+            G = G0 + np.einsum("pjk,pk->pj", R, U - U0)
+            g, r, u = G[:, j], R[:, j, j], U[:, j]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                newton = u - g / r
+                d_lo, d_hi = lo[j] - u, hi[j] - u
+                # not convex in u_j: the better bound (a linear H: the sign of dH/du)
+                h_lo, h_hi = g * d_lo + 0.5 * r * d_lo**2, g * d_hi + 0.5 * r * d_hi**2
+                ends = np.where(h_lo < h_hi, lo[j], np.where(h_hi < h_lo, hi[j], u))
+            U[:, j] = np.clip(np.where(r > 1e-12 * (np.abs(g) + 1.0), newton, ends), lo[j], hi[j])
+    if not np.all(np.isfinite(U)):
+        return None
+    return U, G0 + np.einsum("pjk,pk->pj", R, U - U0), _corners(t, U, G0, R, U0, lo, hi)
+
+
+def _corners(t, U, G0, R, U0, lo, hi) -> list[tuple[float, int, float]]:
+    """(time, control, bound) where a control reaches or leaves a bound between grid points: the zero of dH/du
+    evaluated at that bound (it pushes against the bound on the arc that holds it and pulls
+    away on the interior arc), linear between the two points."""
+    out = []
+    for j in range(U.shape[1]):
+        for bound in (lo[j], hi[j]):
+            if not math.isfinite(bound):
+                continue
+            on = np.isclose(U[:, j], bound, rtol=0, atol=1e-12 * max(1.0, abs(bound)))
+            # a jump from one bound to the other is a switch (``_tabulate``), not a corner
+            jump = np.abs(np.diff(U[:, j])) > 0.5 * (hi[j] - lo[j])
+            for i in np.flatnonzero((on[1:] != on[:-1]) & ~jump):
+                Ub = U[i:i + 2].copy()
+                Ub[:, j] = bound
+                g = (G0[i:i + 2] + np.einsum("pjk,pk->pj", R[i:i + 2], Ub - U0[i:i + 2]))[:, j]
+                w = g[0] / (g[0] - g[1]) if g[0] != g[1] and g[0] * g[1] <= 0 else 0.5
+                if 0 < i < len(t) - 2:      # a bound held up to an end is no corner
+                    out.append((float(t[i] + w * (t[i + 1] - t[i])), j, float(bound)))
+    return sorted(out)
+
+
+def _tabulate(t, U, G, bounds, corners):
+    """The minimising control as a table for linear interpolation, with each jump from one
+    bound to the other (a bang switch) placed where the switching function's linear
+    interpolant vanishes, as two entries a hair apart, and an entry on the bound at each corner;
+    and the jumps' times (cuts)."""
+    apart = 1e-8 * (t[-1] - t[0])
+    corners = [c for c in corners if np.min(np.abs(t - c[0])) > apart]     # not on a grid point
+    if corners:
+        at = np.array([c for c, _, _ in corners])
+        extra_U = np.column_stack([np.interp(at, t, U[:, j]) for j in range(U.shape[1])])
+        extra_G = np.column_stack([np.interp(at, t, G[:, j]) for j in range(G.shape[1])])
+        for k, (_, j, bound) in enumerate(corners):
+            extra_U[k, j] = bound
+        order = np.argsort(np.concatenate([t, at]), kind="stable")
+        t, U, G = np.concatenate([t, at])[order], np.vstack([U, extra_U])[order], np.vstack([G, extra_G])[order]
+    jumps = []
+    for j, (lo, hi) in enumerate(bounds):
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            continue
+        for i in np.flatnonzero(np.abs(np.diff(U[:, j])) > 0.5 * (hi - lo)):
+            g0, g1 = G[i, j], G[i + 1, j]
+            w = g0 / (g0 - g1) if g0 != g1 and g0 * g1 < 0 else 0.5
+            jumps.append((i, j, float(t[i] + w * (t[i + 1] - t[i]))))
+    if not jumps:
+        return t, U, np.zeros(0)
+    eps = 1e-9 * (t[-1] - t[0])
+    times, rows = list(t), list(U)
+    for i, j, s in jumps:
+        s = min(max(s, t[i] + eps), t[i + 1] - 2 * eps)
+        w = (s - t[i]) / (t[i + 1] - t[i])
+        for when, side in ((s, i), (s + eps, i + 1)):
+            row = U[i] + w * (U[i + 1] - U[i])
+            row[j] = U[side, j]
+            times.append(when)
+            rows.append(row)
+    order = np.argsort(times, kind="stable")
+    return np.asarray(times)[order], np.asarray(rows)[order], np.array(sorted(s for *_, s in jumps))
+
+
+def flown_control(problem: Problem, result: Result, lagrange, tolerance: float) -> dict[str, Any] | None:
+    """The check's record: the claimed and the flown objective, the gain, the flown
+    trajectory's worst violation; ``passed`` False when it is feasible and better than the
+    claim by more than ``tolerance`` x (1 + |J|). None where the check does not apply."""
+    if len(problem.phases) != 1 or result.objective is None or not math.isfinite(float(result.objective)):
+        return None
+    ph, traj = problem.phases[0], result.phases[0]
+    if not ph.controls or ph.path or not traj.costates:
+        return None
+    params = {str(k): float(v) for k, v in ph.constants.items()}
+    params.update({s.name: float(result.parameters[s.name]) for s in problem.free_parameters
+                   if s.name in result.parameters})
+    model = ph.model
+    if _final_conditions(problem) or not _quadratic_in_controls(model, params, lagrange):
+        return None
+    t = np.asarray(traj.time, float)
+    X = np.column_stack([np.asarray(traj.states[s.name], float) for s in model.states])
+    Lam = np.column_stack([np.asarray(traj.costates.get(s.name, np.full(len(t), np.nan)), float)
+                           for s in model.states])
+    rows = np.isfinite(t) & np.isfinite(X).all(axis=1) & np.isfinite(Lam).all(axis=1)
+    if rows.sum() < 2:
+        return None
+    bounds = [tuple(float(b) for b in ph.control_bounds.get(c, (-math.inf, math.inf))) for c in ph.controls]
+    frac = np.arange(PER_INTERVAL + 1) / (PER_INTERVAL + 1)
+    t_rows = np.unique(t[np.isfinite(t)])
+    tt = np.append((t_rows[:-1, None] + np.diff(t_rows)[:, None] * frac[None, :]).ravel(), t_rows[-1])
+    Xi = pchip.interpolate(t[rows], X[rows], tt)
+    Li = pchip.interpolate(t[rows], Lam[rows], tt)
+    num = _Numeric(model, params, lagrange)
+    found = _minimising_controls(num, tt, Xi, Li, bounds)
+    if found is None:
+        return None
+    U_min, G_min, corners = found
+    corner_times = [c for c, _, _ in corners]
+    claimed = float(result.objective)
+    limit = tolerance * (1.0 + abs(claimed))
+    # what H's minimiser gains over the solution's own control, to first order (for a convex
+    # problem an upper bound of J - J*): far below the limit, the flight cannot refute the claim
+    from ..verify.interpolate import control_interpolant, declared_interpolation
+
+    own = control_interpolant(traj, [c.name for c in ph.controls], bounds, declared_interpolation(traj, result.method))
+    gap = _hamiltonian_nodes(num, tt, Xi, own.at(tt), Li)[0] - _hamiltonian_nodes(num, tt, Xi, U_min, Li)[0]
+    predicted = float(np.sum(0.5 * (gap[1:] + gap[:-1]) * np.diff(tt)))
+    if predicted < PREDICTED_SHARE * limit:
+        return {"claimed": claimed, "predicted_gain": predicted, "limit": limit, "corners": corner_times, "passed": True,
+                "note": f"H's minimiser gains {predicted:.1e} over the solution's control to first order, far "
+                        f"below {limit:.1e}: not flown"}
+    t_tab, U_tab, cuts = _tabulate(tt, U_min, G_min, bounds, corners)
+    from ..verify.fly import fly_control
+
+    # J to 1e-3 of the tolerance is all the comparison needs (the verification's own flight
+    # integrates at 1e-10)
+    flight = fly_control(problem, result, t_tab, U_tab, cuts, rtol=min(1e-9, 1e-4 * tolerance))
+    gain = (claimed - flight.objective) * (1.0 if problem.objective.sense == "minimize" else -1.0)
+    feasible = flight.violation <= FEASIBLE_SHARE * tolerance
+    out = {"claimed": claimed, "flown": flight.objective, "gain": gain, "predicted_gain": predicted, "limit": limit,
+           "violation": flight.violation, "feasible": bool(feasible), "corners": corner_times,
+           "passed": not (feasible and gain > limit)}
+    if not feasible:
+        out["note"] = (f"the flown control misses {flight.where} by {flight.violation:.1e} (relative): "
+                       "its objective bounds nothing")
+    elif not out["passed"]:
+        t0, tf = float(tt[0]), float(tt[-1])
+        shown = ", ".join(f"{c:.6g}" for c in corner_times[:6])
+        scaled = ", ".join(f"{(c - t0) / (tf - t0):.6g}" for c in corner_times[:6])
+        out["reason"] = (f"the control that minimises H along the solution's own states and costates, flown "
+                         f"from x(t0), gives J = {flight.objective:.10g}, better than the claimed {claimed:.10g} "
+                         f"by {gain:.1e} (the tolerance allows {limit:.1e}): the solution is not optimal; its "
+                         "control cannot follow the optimum between nodes"
+                         + (f". That control reaches or leaves a bound at t = {shown} (phase time {scaled} "
+                            "of [0, 1]): breakpoints there (`segments: [0, ..., 1]`) let the mesh follow it"
+                            if corner_times else ": more segments, or `mesh:`"))
+    return out

@@ -1,0 +1,45 @@
+"""A refinement whose answer the certificate's flown control refuted (``flown_control``) is
+refined once more with breakpoints pinned where that control reaches or leaves a bound.
+
+The error estimate cannot see such a corner when the segment's polynomials integrate the
+dynamics exactly (x' = u with u = clip(t - 1): estimate 1e-16, J 6.4e-5 off, unseen14 F2), and
+the corner locator reads the solution's own control polynomials, which smooth it away. The
+minimum principle's control, built from the states and costates, has the corner sharp: its
+times become breakpoints of the next start mesh and features every later mesh keeps.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def refuted_corners(result) -> dict[str, list[float]]:
+    """Phase name -> normalised times of the flown control's corners, when the certificate's
+    ``flown_control`` failed (single-phase problems only); empty otherwise."""
+    check = (result.certificate or {}).get("flown_control") or {}
+    if check.get("passed", True) or not check.get("corners") or len(result.phases) != 1:
+        return {}
+    traj = result.phases[0]
+    t = np.asarray(traj.time, float)
+    t = t[np.isfinite(t)]
+    t0, tf = float(t[0]), float(t[-1])
+    if not tf > t0:
+        return {}
+    points = [(c - t0) / (tf - t0) for c in check["corners"]]
+    return {traj.name: [p for p in points if math.isfinite(p) and 0.0 < p < 1.0]}
+
+
+def with_breakpoints(mesh, points, tolerance: float):
+    """``mesh`` with a breakpoint at each of ``points`` (normalised) farther than ``tolerance``
+    from every breakpoint it has; a split segment's halves keep its degree."""
+    from ...transcribe.mesh import Mesh
+
+    bps, degrees = list(map(float, mesh.breakpoints)), list(mesh.degrees)
+    for p in sorted(points):
+        if min(abs(b - p) for b in bps) <= tolerance:
+            continue
+        k = int(np.searchsorted(bps, p)) - 1
+        bps.insert(k + 1, p)
+        degrees.insert(k, degrees[k])
+    return Mesh(mesh.scheme_name, np.asarray(bps), tuple(degrees))
