@@ -358,3 +358,18 @@ def test_a_mesh_refinement_the_flown_control_refutes_is_refined_again_on_its_cor
     assert first["objective"] - (-17 / 24) > 5e-5 and first["corners"]["main"] == [pytest.approx(0.8, abs=1e-6)]
     assert res.ok and res.objective == pytest.approx(-17 / 24, abs=1e-8)
     assert res.certificate["flown_control"]["passed"]
+
+
+def test_a_mesh_answer_the_flown_control_beats_by_more_than_the_mesh_tolerance_is_refined_again(tmp_path):
+    """unseen14 (lqentry, LGR 5 x 4, tolerance 1e-8): the refinement converged 1.2e-5 above the
+    optimum -0.627 (corner at 1.8), within the verification's limit 1.6e-5, so the certificate
+    passes; but the run asked for 1e-8 and the flown control found the better J. The
+    refinement starts again with the corner kept, and ends at J*."""
+    text = (DATA / "lq_entry_corner.yaml").read_text().replace("tf: 2.5", "tf: 2.3").replace(
+        "segments: 6, degree: 3}", "segments: 5, degree: 4, mesh: {tolerance: 1.0e-8}}")
+    (tmp_path / "entry.yaml").write_text(text)
+    res = run_file(tmp_path / "entry.yaml", None)
+    first = res.extra["first_refinement"]
+    assert 1e-6 < first["objective"] - (-0.627) < 1.6e-5
+    assert first["corners"]["main"] == [pytest.approx(1.8 / 2.3, abs=1e-6)]
+    assert res.ok and res.objective == pytest.approx(-0.627, abs=1e-8)

@@ -703,7 +703,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             notes.append(flat)
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c)
-    corners = refuted_corners(result) if pinned is None and status == "optimal" else {}
+    corners = refuted_corners(result, spec.tolerance) if pinned is None and status == "optimal" else {}
     if corners:
         shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
         _say(progress, f"mesh: the control the minimum principle flies beats J = {info_c.objective:.10g}; "
