@@ -181,7 +181,7 @@ def test_a_state_constrained_arc_makes_the_hamiltonian_inconclusive_not_failed()
     assert cert["hamiltonian"]["passed"] is None and "v <= 0.5" in cert["inconclusive"], cert.get("inconclusive")
     assert not cert["failed"] and res.ok
     # without the state bound's arc (the same H against the certificate alone) it would fail
-    from ocdsl.solve.certificate import _state_arcs
+    from ocdsl.solve.certificate.path import _state_arcs
 
     problem = compile_file(DATA / "cert_speed_limited.yaml").problem
     model, t = problem.phases[0].model, np.array([0.0, 0.5, 1.0, 1.5])

@@ -17,8 +17,8 @@ import sympy as sp
 from ..result import Result
 from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
-from .end_arcs import end_arcs
-from .flown_control import flown_control
+from .certificate.end_arcs import end_arcs
+from .certificate.flown_control import flown_control
 
 
 def _at_bound(value, bounds) -> bool:

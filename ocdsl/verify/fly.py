@@ -2,7 +2,7 @@
 trajectory it gives, measured as the verification measures the solution's own.
 
 The certificate uses it to put a claimed optimum to the test with a control built from the
-solution's costates (ocdsl/solve/flown_control.py): any feasible trajectory's objective bounds
+solution's costates (ocdsl/solve/certificate/flown_control.py): any feasible trajectory's objective bounds
 the optimum, so one that does better than the claim by more than the tolerance refutes it.
 """
 from __future__ import annotations
@@ -75,7 +75,6 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
     traj = result.phases[0]
     params = _numbers(result.parameters)
     names_x = [s.name for s in ph.states]
-    names_u = [c.name for c in ph.controls]
     t_rows = np.asarray(traj.time, float)
     X_rows = np.column_stack([np.asarray(traj.states[n], float) for n in names_x])
     keep = np.isfinite(t_rows) & np.isfinite(X_rows).all(axis=1)

@@ -14,7 +14,9 @@ import numpy as np
 
 from ocdsl.symbolic.model import Model
 
-from .certificate import Tolerances, _bounds, _columns, _hamiltonian_nodes, _Numeric, _side
+from .nodes import _columns, _hamiltonian_nodes, _Numeric
+from .sides import _bounds, _side
+from .tolerances import Tolerances
 
 
 def end_arcs(model: Model, parameter_values: Mapping | None, trajectory, control_bounds, lagrange,

@@ -19,11 +19,12 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..result import Result
-from ..symbolic.numbers import substitute_numbers
-from ..symbolic.problem import Problem
-from . import pchip
-from .certificate import _Numeric, _param_subs, _hamiltonian_nodes
+from ...result import Result
+from ...symbolic.numbers import substitute_numbers
+from ...symbolic.problem import Problem
+from .. import pchip
+from .conditions import _param_subs
+from .nodes import _hamiltonian_nodes, _Numeric
 
 # points between consecutive rows at which the minimising control is tabulated (linear in
 # between): the control's own interpolation error then costs J far below the tolerance
@@ -192,7 +193,7 @@ def flown_control(problem: Problem, result: Result, lagrange, tolerance: float) 
     limit = tolerance * (1.0 + abs(claimed))
     # what H's minimiser gains over the solution's own control, to first order (for a convex
     # problem an upper bound of J - J*): far below the limit, the flight cannot refute the claim
-    from ..verify.interpolate import control_interpolant, declared_interpolation
+    from ...verify.interpolate import control_interpolant, declared_interpolation
 
     own = control_interpolant(traj, [c.name for c in ph.controls], bounds, declared_interpolation(traj, result.method))
     gap = _hamiltonian_nodes(num, tt, Xi, own.at(tt), Li)[0] - _hamiltonian_nodes(num, tt, Xi, U_min, Li)[0]
@@ -202,7 +203,7 @@ def flown_control(problem: Problem, result: Result, lagrange, tolerance: float) 
                 "note": f"H's minimiser gains {predicted:.1e} over the solution's control to first order, far "
                         f"below {limit:.1e}: not flown"}
     t_tab, U_tab, cuts = _tabulate(tt, U_min, G_min, bounds, corners)
-    from ..verify.fly import fly_control
+    from ...verify.fly import fly_control
 
     # J to 1e-3 of the tolerance is all the comparison needs (the verification's own flight
     # integrates at 1e-10)

@@ -1,0 +1,70 @@
+"""Which bound a control sits on at each node, and where it switches."""
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+
+from ocdsl.symbolic.model import Model
+
+def _f(x) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _bounds(model: Model, control_bounds: Mapping | None) -> list[tuple[float, float]]:
+    out = []
+    for c in model.controls:
+        lo, hi = (control_bounds or {}).get(c.name, (None, None))
+        lo = -np.inf if lo is None else float(lo)
+        hi = np.inf if hi is None else float(hi)
+        if lo > hi:
+            raise ValueError(f"certificate: bounds of {c.name} are reversed: {lo} > {hi}")
+        out.append((lo, hi))
+    return out
+
+
+def _band(lo: float, hi: float, frac: float) -> float:
+    if math.isfinite(lo) and math.isfinite(hi):
+        return frac * (hi - lo)
+    b = hi if math.isfinite(hi) else lo
+    return frac * max(abs(b), 1.0) if math.isfinite(b) else 0.0
+
+
+def _side(U, bounds, frac):
+    """Per node and control: +1 at the upper bound, -1 at the lower, 0 off the bounds."""
+    side = np.zeros(U.shape, int)
+    for j, (lo, hi) in enumerate(bounds):
+        band = _band(lo, hi, frac)
+        if math.isfinite(hi):
+            side[U[:, j] >= hi - band, j] = 1
+        if math.isfinite(lo):
+            side[(U[:, j] <= lo + band) & (side[:, j] == 0), j] = -1
+    return side
+
+
+def _switches(t, side_j, S_j):
+    """Switches between consecutive saturated nodes on opposite bounds."""
+    idx = np.flatnonzero(side_j != 0)
+    times, seq = [], []
+    for k in idx:
+        s = "+" if side_j[k] > 0 else "-"
+        if not seq or seq[-1] != s:
+            seq.append(s)
+    for a, b in zip(idx[:-1], idx[1:]):
+        if side_j[a] == side_j[b]:
+            continue
+        tz = None
+        for k in range(a, b):   # first zero crossing of the switching function
+            s0, s1 = S_j[k], S_j[k + 1]
+            if s0 == 0:
+                tz = t[k]
+                break
+            if s0 * s1 < 0:
+                tz = t[k] + (t[k + 1] - t[k]) * s0 / (s0 - s1)
+                break
+        times.append(float(tz if tz is not None else 0.5 * (t[a] + t[b])))
+    return times, seq
