@@ -532,7 +532,9 @@ def _certify(file: LoadedFile, result: Result) -> None:
     from .solve.certify import certify_result
 
     try:
-        result.certificate = certify_result(file.problem, result, file.spec.verify.tolerance)
+        mesh = getattr(file.method, "mesh", None)
+        result.certificate = certify_result(file.problem, result, file.spec.verify.tolerance,
+                                            mesh.tolerance if mesh is not None else None)
     except Exception as e:  # the certificate must never lose a solved run
         result.certificate = {"error": f"{type(e).__name__}: {e}", "passed": False}
 

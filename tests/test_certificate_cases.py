@@ -373,3 +373,16 @@ def test_a_mesh_answer_the_flown_control_beats_by_more_than_the_mesh_tolerance_i
     assert 1e-6 < first["objective"] - (-0.627) < 1.6e-5
     assert first["corners"]["main"] == [pytest.approx(1.8 / 2.3, abs=1e-6)]
     assert res.ok and res.objective == pytest.approx(-0.627, abs=1e-8)
+
+
+def test_a_mesh_run_flies_the_control_for_gains_near_its_own_tolerance(tmp_path):
+    """unseen14 (LGR 6 x 4, tolerance 1e-8): converged 3e-7 above the optimum, a gain H's
+    minimiser predicts at 1.2e-6, a tenth of the verification's limit: a fixed-mesh run would
+    not fly it, a `mesh:` run (which asked for 1e-8) does, and refines again on the corner."""
+    text = (DATA / "lq_entry_corner.yaml").read_text().replace(
+        "segments: 6, degree: 3}", "segments: 6, degree: 4, mesh: {tolerance: 1.0e-8}}")
+    (tmp_path / "entry.yaml").write_text(text)
+    res = run_file(tmp_path / "entry.yaml", None)
+    first = res.extra["first_refinement"]
+    assert 1e-7 < first["objective"] - (-17 / 24) < 1e-6
+    assert res.ok and res.objective == pytest.approx(-17 / 24, abs=1e-8)

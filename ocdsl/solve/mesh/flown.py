@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
+from ..certificate.flown_control import FLIGHT_RESOLUTION
 
-# the flight integrates at rtol 1e-9: a gain below this share of 1 + |J| may be its own error
-FLIGHT_RESOLUTION = 1e-7
+
 
 
 def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
