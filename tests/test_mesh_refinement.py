@@ -762,3 +762,28 @@ def test_a_fixed_time_switch_pinned_on_a_wrong_breakpoint_is_not_converged():
     assert abs(res.objective - math.exp(2)) < 1e-8 * math.exp(2), res.objective
     assert res.status == "optimal" or (res.status == "mesh_not_converged" and not res.ok)
     assert any(h.get("switches_moved") for h in res.extra["mesh_history"])
+
+
+def test_maximize_minus_tf_gets_the_switch_costates_that_minimize_tf_gets(tmp_path):
+    """unseen14 F6: the same minimum-time problem written `maximize -tf` failed the certificate
+    (H from -1.31 to -0.84 against -1, J right to 2e-10, exit 1) where `minimize tf` passed:
+    the switch breakpoints were solved as unknowns (the PMP costates) for minimisation only."""
+    text = """
+name: min time as maximize -tf
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x(t0) == 0, v(t0) == 0.5, x(tf) == 1, v(tf) == 0, 0.3 <= tf <= 10]
+  objective: maximize -tf
+method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-6}}
+"""
+    (tmp_path / "max.yaml").write_text(text)
+    (tmp_path / "min.yaml").write_text(text.replace("maximize -tf", "minimize tf"))
+    exact = -0.5 + 2 * math.sqrt(1.125)       # switch where v^2/2 + x meet: tf = -v0 + 2 sqrt(x1 + v0^2/4)
+    for name in ("max", "min"):
+        res = run_file(tmp_path / f"{name}.yaml", None)
+        assert res.ok and res.certificate["passed"], (name, res.certificate.get("failed"))
+        assert res.tf == pytest.approx(exact, abs=1e-8)

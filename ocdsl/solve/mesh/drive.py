@@ -633,8 +633,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                    + (f"Stopped early because {stalled}." if stalled else
                       "Raise max_iterations or max_degree, or loosen the tolerance.")
                    + _path_bound_hint(problem))
-    if status == "optimal" and spec.move_switches and getattr(tr_c.model, "mesh_regularisation", None) is None \
-            and problem.objective.sense == "minimize":
+    if status == "optimal" and spec.move_switches and getattr(tr_c.model, "mesh_regularisation", None) is None:
         with timer.measure("mesh"):
             try:
                 params_c = {s: float(pyo.value(tr_c.scalars[s])) for s in problem.free_parameters}
