@@ -455,7 +455,7 @@ def _scale(file: LoadedFile, tr) -> dict | None:
     return apply(tr, spec)
 
 
-def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
+def _result(file: LoadedFile, tr, info, timer, meshes, *, always_fly: bool = False) -> Result:
     import pyomo.core as pyo
 
     from .solve.costates import costates, path_multipliers
@@ -489,7 +489,7 @@ def _result(file: LoadedFile, tr, info, timer, meshes) -> Result:
     if info.status in ("optimal", "acceptable"):
         result.extra["boundary_multipliers"] = boundary_multipliers(tr)
     result.expect = check_expectations(file, values, info.objective)
-    _certify(file, result)
+    _certify(file, result, always_fly)
     return result
 
 
@@ -525,8 +525,9 @@ def boundary_multipliers(tr) -> list[dict]:
     return out
 
 
-def _certify(file: LoadedFile, result: Result) -> None:
-    """Attach the optimality certificate when the module is available and the solve converged."""
+def _certify(file: LoadedFile, result: Result, always_fly: bool = False) -> None:
+    """Attach the optimality certificate when the module is available and the solve converged
+    (``always_fly``: the flown control's J wanted whatever gain it predicts, mesh/drive.py)."""
     if result.status not in ("optimal", "acceptable"):
         return
     from .solve.certify import certify_result
@@ -534,7 +535,7 @@ def _certify(file: LoadedFile, result: Result) -> None:
     try:
         mesh = getattr(file.method, "mesh", None)
         result.certificate = certify_result(file.problem, result, file.spec.verify.tolerance,
-                                            mesh.tolerance if mesh is not None else None)
+                                            mesh.tolerance if mesh is not None else None, always_fly)
     except Exception as e:  # the certificate must never lose a solved run
         result.certificate = {"error": f"{type(e).__name__}: {e}", "passed": False}
 

@@ -386,3 +386,18 @@ def test_a_mesh_run_flies_the_control_for_gains_near_its_own_tolerance(tmp_path)
     first = res.extra["first_refinement"]
     assert 1e-7 < first["objective"] - (-17 / 24) < 1e-6
     assert res.ok and res.objective == pytest.approx(-17 / 24, abs=1e-8)
+
+
+def test_a_mesh_the_flown_control_beats_leaves_the_agreement_of_meshes(tmp_path):
+    """unseen14 F8: the first mesh (LGR 4 x 3) is blind to the corner at 1.8 (estimate 4e-12, J
+    1.1e-4 off), counts as within tolerance, and every later mesh's agreement with it failed:
+    mesh_not_converged with J right. The control flown along the last mesh's solution beats
+    that first J, so it is no optimum and leaves the agreement; the others agree."""
+    text = (DATA / "lq_entry_corner.yaml").read_text().replace("tf: 2.5", "tf: 2.3").replace(
+        "segments: 6, degree: 3}", "segments: 4, degree: 3, mesh: {tolerance: 1.0e-6}}")
+    (tmp_path / "entry.yaml").write_text(text)
+    res = run_file(tmp_path / "entry.yaml", None)
+    assert res.ok and res.objective == pytest.approx(-0.627, rel=1e-6)
+    first = res.extra["mesh_history"][0]
+    assert first["converged"] and first["objective"] - (-0.627) > 5e-5
+    assert "are no optimum" in res.message and "[1]" in res.message

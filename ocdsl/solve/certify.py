@@ -74,10 +74,10 @@ def _degenerate_rows(result: Result) -> dict | None:
 
 
 def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
-                   mesh_tolerance: float | None = None) -> dict:
+                   mesh_tolerance: float | None = None, always_fly: bool = False) -> dict:
     """The certificate per phase; ``tolerance``: the verification's, which a missing end arc's
     predicted gain in J (relative to 1 + |J|) must stay under; ``mesh_tolerance``: a ``mesh:``
-    run's (``flown_control``)."""
+    run's, and ``always_fly`` (``flown_control``)."""
     degenerate = _degenerate_rows(result)
     if degenerate is not None:
         return degenerate
@@ -140,7 +140,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
                                            "costates": traj.costates}, bounds, L,
                         tolerance * (1.0 + abs(float(result.objective or 0.0))))
         # a feasible trajectory better than the claim, from the minimum principle's control
-        flown = flown_control(problem, result, L, tolerance, mesh_tolerance) if len(problem.phases) == 1 else None
+        flown = flown_control(problem, result, L, tolerance, mesh_tolerance, always_fly) if len(problem.phases) == 1 else None
         for name, check in (("end_arcs", ends), ("flown_control", flown)):
             if check is None:
                 continue

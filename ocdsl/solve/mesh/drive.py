@@ -14,7 +14,7 @@ from ..arcs import final_time_spread, free_final_times
 from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, phase_end, segment_ends
 from .junction import limit_junction_controls
-from .flown import refuted_corners, with_breakpoints
+from .flown import beaten_meshes, refuted_corners, with_breakpoints
 from .locate import locate_features, locate_switches, misplaced
 from .refine import MeshStalled, refine, same_mesh
 from .switches import solve_switch_times, with_switch_costates
@@ -701,7 +701,16 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         if flat:
             notes.append(flat)
     with timer.measure("post"):
-        result = _result(file, tr_c, info_c, timer, meshes_c)
+        result = _result(file, tr_c, info_c, timer, meshes_c, always_fly=bool(disagree))
+    if status == "mesh_not_converged" and disagree:
+        beaten = beaten_meshes(result, converged, problem.objective.sense, spec.tolerance)
+        kept = [c for c in converged if c[1] not in beaten]
+        if beaten and len(kept) >= 2 and kept[-1] is chosen and _objective_disagreement(kept, spec.tolerance) is None:
+            status = "optimal"
+            message = (f"mesh converged: iterations {[c[1] for c in kept]} are within tolerance {spec.tolerance:.1e} "
+                       f"and agree in J; iteration(s) {beaten}, also within it, are no optimum: the control the "
+                       f"minimum principle flies along iteration {it_c}'s solution beats their J (J = "
+                       f"{result.certificate['flown_control']['flown']:.10g}; their estimates missed a corner or a switch)")
     corners = refuted_corners(result, spec.tolerance) if pinned is None and status == "optimal" else {}
     if corners:
         shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)

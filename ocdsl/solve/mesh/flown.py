@@ -39,6 +39,21 @@ def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
     return {traj.name: [p for p in points if math.isfinite(p) and 0.0 < p < 1.0]}
 
 
+def beaten_meshes(result, converged: list, sense: str, tolerance: float) -> list[int]:
+    """Iterations among ``converged`` (drive.py's records) whose J the certificate's flown
+    control of ``result`` (feasible) beats by more than the mesh ``tolerance`` x (1 + |J|) (at
+    least the flight's resolution): whatever their estimates say, they are no optimum (unseen14
+    F8: a first mesh blind to a corner, J 1.1e-4 off with estimate 4e-12, kept every later
+    agreement failing). Empty without such a flight."""
+    check = (result.certificate or {}).get("flown_control") or {}
+    if not check.get("feasible") or check.get("flown") is None:
+        return []
+    flown = float(check["flown"])
+    margin = max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(flown))
+    sign = 1.0 if sense == "minimize" else -1.0
+    return [c[1] for c in converged if c[3].objective is not None and sign * (c[3].objective - flown) > margin]
+
+
 def with_breakpoints(mesh, points, tolerance: float):
     """``mesh`` with a breakpoint at each of ``points`` (normalised) farther than ``tolerance``
     from every breakpoint it has; a split segment's halves keep its degree."""
