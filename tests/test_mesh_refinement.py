@@ -787,3 +787,29 @@ method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-6}}
         res = run_file(tmp_path / f"{name}.yaml", None)
         assert res.ok and res.certificate["passed"], (name, res.certificate.get("failed"))
         assert res.tf == pytest.approx(exact, abs=1e-8)
+
+
+def test_meshes_that_all_hold_a_binding_segment_unchanged_are_bisected_before_they_agree(tmp_path):
+    """unseen16 (a false claim): LGL on Bryson-Denham, x <= 0.15 (an arc on [0.45, 0.55]): every
+    mesh kept [0.4, 0.6] at degree 3, whose polynomial touches x = l at one node instead of
+    following the arc; self-consistent (estimate 8e-11), feasible (verified), the same J on
+    every mesh (they agree), certificate pass, J 1.6e-3 above 80/27: optimal, exit 0. When every
+    mesh within tolerance holds a segment where an inequality binds unchanged, their agreement
+    says nothing of it: the chosen mesh is bisected, J moves, and the run is not converged."""
+    text = """
+name: Bryson-Denham l = 0.15
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x <= 0.15, x(t0) == 0, v(t0) == 1, x(tf) == 0, v(tf) == -1]
+  objective: minimize integral(u**2/2)
+method: {transcription: LGL, segments: 5, degree: 3, mesh: {tolerance: 1.0e-7}}
+"""
+    (tmp_path / "bd.yaml").write_text(text)
+    res = run_file(tmp_path / "bd.yaml", None)
+    assert res.objective - 80 / 27 > 1e-3                     # the case: the arc not followed
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert "unchanged" in res.message and res.extra["bisection"]

@@ -131,21 +131,17 @@ class Bisection:
         return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the tolerance {self.tolerance:g}"
 
 
-def binding_arcs(tr) -> list[PhaseArcs]:
-    """The phases of a solved pseudospectral transcription ``tr`` whose state bounds or
-    inequality path constraints bind at a node inside the phase (not only at its ends,
-    where boundary conditions hold states at bounds; a touch point counts: the 3-segment
-    speed limit touched at one node): which, and over what times."""
+def _binding_rows(tr):
+    """Per phase of a solved transcription ``tr``: (phase block, [(constraint text, normalised
+    times of the nodes inside the phase where it binds)]), see :func:`binding_arcs`."""
     import pyomo.core as pyo
 
-    from ..transcribe.solution import node_values, phase_times
+    from ..transcribe.solution import node_values
     from .mesh.segments import activity
 
-    found = []
     for pb in tr.phases:
         ph, lay = pb.phase, pb.layout
         X, _ = node_values(pb)
-        t0, tf = phase_times(pb)
         rows = []         # (constraint text, values at nodes, their normalised times, lo, hi)
         for j, s in enumerate(ph.states):
             lo, hi = ph.bounds_of(s)
@@ -159,7 +155,7 @@ def binding_arcs(tr) -> list[PhaseArcs]:
             for q, c in enumerate(ph.path):
                 if not c.is_equality:
                     rows.append((c.text or str(c.expr), G[:, q], lay.s_colloc, c.lower, c.upper))
-        arcs = []
+        out = []
         for text, values, s_nodes, lo, hi in rows:
             s_nodes = np.asarray(s_nodes, float)
             inner = (s_nodes > 1e-12) & (s_nodes < 1 - 1e-12)
@@ -171,16 +167,56 @@ def binding_arcs(tr) -> list[PhaseArcs]:
                 if len(on) > 2 and on[end] and on[nxt] and not on[nxt + (nxt - end)]:
                     on[nxt] = False
             on &= inner
-            n_on = int(np.count_nonzero(on))
-            if n_on == 1:
-                arcs.append(f"`{text}` (at its bound at one node, t = {t0 + (tf - t0) * s_nodes[on][0]:.6g})")
-            elif n_on:
-                a, b = s_nodes[on].min(), s_nodes[on].max()
-                arcs.append(f"`{text}` (at its bound at {n_on} nodes in t in "
+            if on.any():
+                out.append((text, s_nodes[on]))
+        yield pb, out
+
+
+def binding_arcs(tr) -> list[PhaseArcs]:
+    """The phases of a solved pseudospectral transcription ``tr`` whose state bounds or
+    inequality path constraints bind at a node inside the phase (not only at its ends,
+    where boundary conditions hold states at bounds; a touch point counts: the 3-segment
+    speed limit touched at one node): which, and over what times."""
+    from ..transcribe.solution import phase_times
+
+    found = []
+    for pb, rows in _binding_rows(tr):
+        t0, tf = phase_times(pb)
+        arcs = []
+        for text, s_on in rows:
+            if len(s_on) == 1:
+                arcs.append(f"`{text}` (at its bound at one node, t = {t0 + (tf - t0) * s_on[0]:.6g})")
+            else:
+                a, b = s_on.min(), s_on.max()
+                arcs.append(f"`{text}` (at its bound at {len(s_on)} nodes in t in "
                             f"[{t0 + (tf - t0) * a:.6g}, {t0 + (tf - t0) * b:.6g}])")
         if arcs:
-            found.append(PhaseArcs(ph.name, arcs))
+            found.append(PhaseArcs(pb.phase.name, arcs))
     return found
+
+
+def unchanged_binding_segments(tr, meshes_of: list[dict]) -> list[str]:
+    """The constraints of ``tr`` that bind inside a segment every mesh of ``meshes_of``
+    (phase -> Mesh each) holds unchanged, same ends and degree: those meshes agreeing in J
+    says nothing of that segment (unseen16: LGL kept Bryson-Denham's [0.4, 0.6] at degree 3
+    through every mesh, its polynomial unable to follow the arc x = l, J 1.6e-3 high on all)."""
+    out = []
+    for pb, rows in _binding_rows(tr):
+        meshes = [m.get(pb.phase.name) for m in meshes_of]
+        if len(meshes) < 2 or any(m is None for m in meshes):
+            continue
+        for text, s_on in rows:
+            for s in s_on:
+                segs = set()
+                for m in meshes:
+                    bps = np.asarray(m.breakpoints, float)
+                    k = int(np.clip(np.searchsorted(bps, s, side="right") - 1, 0, len(bps) - 2))
+                    segs.add((round(float(bps[k]), 12), round(float(bps[k + 1]), 12), m.degrees[k]))
+                if len(segs) == 1:
+                    a, b, _ = segs.pop()
+                    out.append(f"`{text}` in [{a:.6g}, {b:.6g}] (normalised time)")
+                    break
+    return out
 
 
 def free_final_times(tr) -> dict[str, float]:

@@ -673,27 +673,43 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         else:
             notes.append(unreg.describe())
     confirm = None
+    unchanged = []
+    if status == "optimal" and unreg is None and file.spec.verify.bisection_check \
+            and sum(c[3].objective is not None for c in converged) >= 2:
+        from ..arcs import unchanged_binding_segments
+
+        with timer.measure("mesh"):
+            unchanged = unchanged_binding_segments(tr_c, [c[4] for c in converged])
     if (status == "optimal" and unreg is None and file.spec.verify.bisection_check
-            and sum(c[3].objective is not None for c in converged) < 2):
+            and (sum(c[3].objective is not None for c in converged) < 2 or unchanged)):
         # one mesh met the tolerance: no second mesh for J to agree with (the rule above), and
         # the estimate does not see every error of J (Fuller's chattering problem, LG: converged
         # on one mesh 2.2e-4 above the optimum, verified; unseen8). Its bisection is the second.
+        # So too when every such mesh holds a segment where an inequality binds unchanged
+        # (``unchanged_binding_segments``): their agreement says nothing of it.
         from ...run import bisection_check
 
         with timer.measure("mesh"):
             confirm = bisection_check(file, tr_c, info_c.objective, meshes_c, verbose=verbose, progress=progress,
                                       build_model=lambda ms, g: rebuild(ms, guesses=g), options=options)
-        if confirm.agrees is False:
+        if confirm.agrees is False and unchanged:
+            status = "mesh_not_converged"
+            message = (f"the meshes within tolerance agree in J ({message}), but every one of them holds "
+                       f"{unchanged[0]} unchanged, where it binds; J = {confirm.objective:.10g} there and "
+                       f"{confirm.describe()}: the error estimate does not see what moves J (an arc or a "
+                       "touch point the segment's polynomial cannot follow). Tighten the tolerance, raise "
+                       "max_iterations, or use LGR")
+        elif confirm.agrees is False:
             status = "mesh_not_converged"
             message = (f"the mesh refinement met its tolerance on one mesh only ({message}), but J = "
                        f"{confirm.objective:.10g} there and {confirm.describe()}: the error estimate does not "
                        "see what moves J (a chattering control, docs/mesh.md). Tighten the tolerance, or raise "
                        "max_iterations")
-        elif confirm.agrees:
-            notes.append(f"one mesh met the tolerance; J checked on it bisected: {confirm.describe()}")
         else:
-            notes.append(f"one mesh met the tolerance, and J could not be checked on it bisected: "
-                         f"{confirm.describe()}")
+            why = (f"every mesh within tolerance holds {unchanged[0]} unchanged, where it binds" if unchanged
+                   else "one mesh met the tolerance")
+            notes.append(f"{why}; J checked on it bisected: {confirm.describe()}" if confirm.agrees else
+                         f"{why}, and J could not be checked on it bisected: {confirm.describe()}")
     if status == "optimal":
         solutions = [(h["objective"], h.get("final_times") or {}) for h in history if h.get("converged")]
         solutions += [(lv.objective, lv.final_times) for lv in (confirm.levels if confirm is not None else ())]
