@@ -401,3 +401,29 @@ def test_a_mesh_the_flown_control_beats_leaves_the_agreement_of_meshes(tmp_path)
     first = res.extra["mesh_history"][0]
     assert first["converged"] and first["objective"] - (-0.627) > 5e-5
     assert "are no optimum" in res.message and "[1]" in res.message
+
+
+def test_a_touch_point_of_a_time_dependent_state_constraint_makes_h_inconclusive(tmp_path):
+    """unseen16 F1 (61 false alarms): x'' = u over the obstacle x + 4 (t - 1/2)^2 >= 0.8, J right
+    to 2e-8 (50.96522626, a SciPy direct discretisation), but H jumps at the touch point by
+    the multiplier's impulse times dc/dt and the costates jump there too: certificate failed
+    (hamiltonian), exit 1. A state constraint at its bound inside the phase makes H
+    inconclusive; the other checks stand."""
+    text = """
+name: Double integrator over a parabolic obstacle
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x + 4*(t - 0.5)**2 >= 0.8, x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
+  objective: minimize integral(u**2/2)
+method: {transcription: LGR, segments: 5, degree: 3, mesh: {tolerance: 1.0e-7}}
+"""
+    (tmp_path / "obstacle.yaml").write_text(text)
+    res = run_file(tmp_path / "obstacle.yaml", None)
+    assert res.objective == pytest.approx(50.96522626, rel=1e-6)
+    h = res.certificate["hamiltonian"]
+    assert h["passed"] is None and "state constraint is at its bound" in h["inconclusive"]
+    assert not res.certificate["failed"] and res.ok

@@ -13,7 +13,7 @@ from ocdsl.symbolic.model import Model
 
 from .conditions import symbolic_conditions
 from .nodes import _arrays, _hamiltonian_nodes, _Numeric
-from .path import _held_fraction, _path_active, _path_check, _path_item, _state_arcs
+from .path import _held_fraction, _path_active, _path_check, _path_item, _state_arcs, _state_touches
 from .sides import _bounds, _f, _side, _switches
 from .tolerances import EXPECTED_H, OBJECTIVE_KINDS, Tolerances
 
@@ -249,6 +249,14 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                              "costates are not unique, H is not judged")
         h["passed"] = None
     held = _state_arcs(model, t, X, state_bounds)
+    touched = [] if held or h["passed"] is not False else _state_touches(
+        model, t, X, state_bounds, path, num.g_nodes(t, X, U) if path else None,
+        num.gu_nodes(t, X, U) if path else None)
+    if not h["passed"] and touched and h.get("inconclusive") is None:
+        h["inconclusive"] = (f"a state constraint is at its bound inside the phase ({'; '.join(touched[:3])}): "
+                             "the costates jump there by its multiplier, which the NLP's node costates "
+                             "do not resolve, so H is not judged")
+        h["passed"] = None
     if not h["passed"] and held and h.get("inconclusive") is None:
         # on a state-constrained arc the bound's multipliers at consecutive nodes and the
         # collocation duals are not independent (the speed-limited double integrator: H =

@@ -35,6 +35,33 @@ def _state_arcs(model: Model, t, X, state_bounds, run: int = 2) -> list[str]:
     return held
 
 
+def _state_touches(model: Model, t, X, state_bounds, path, G, gu) -> list[str]:
+    """State bounds, and path constraints free of the controls (dg/du = 0 at every node), at
+    their bound at some node inside the phase (the ends hold boundary conditions): where such a
+    constraint touches, the costates jump by its multiplier's impulse, and H too when the
+    constraint depends on time (unseen16: x + 4 (t - 1/2)^2 >= 0.8, J right to 7e-10, H 2.4 off
+    at the touch point)."""
+    out = []
+    inner = slice(1, len(t) - 1)
+    for j, st in enumerate(model.states):
+        lo, hi = ((state_bounds or {}).get(st.name) or (None, None))[:2]
+        for b, op in ((hi, "<="), (lo, ">=")):
+            if b is not None and math.isfinite(b):
+                at = np.flatnonzero(np.abs(X[inner, j] - b) <= 1e-6 * max(1.0, abs(b)))
+                if len(at):
+                    out.append(f"{st.name} {op} {b:g} at t = {t[1 + at[0]]:.6g}")
+    for k, (_g, lo, hi, text) in enumerate(path or ()):
+        if gu is not None and np.any(np.abs(gu[:, k, :]) > 0):
+            continue
+        gk = G[inner, k]
+        for b in (lo, hi):
+            if math.isfinite(b):
+                at = np.flatnonzero(np.abs(gk - b) <= 1e-6 * max(1.0, abs(b)))
+                if len(at):
+                    out.append(f"`{text}` at t = {t[1 + at[0]]:.6g}")
+    return out
+
+
 def _path_item(c) -> tuple:
     g, lo, hi, *rest = c
     lo = -math.inf if lo is None else float(lo)

@@ -408,7 +408,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                                                   memory=junction_memory.setdefault(pb.phase.name, {}),
                                                                   budget=budget)
                     except Exception as exc:  # locating is an aid; the estimate still decides
-                        _say(progress, f"mesh {it}: switch location failed in phase {pb.phase.name}: {exc}")
+                        # said as what it means for the run, the locator's own words in brackets
+                        # (unseen16: a bare "f(a) and f(b) must have different signs" read as a failure)
+                        _say(progress, f"mesh {it}: no switch or corner located in phase {pb.phase.name} on this "
+                                       f"mesh (the locator stopped: {exc}); the error estimate alone decides "
+                                       "where to refine")
                         features[pb.phase.name] = []
                 for name, times in (pinned or {}).items():
                     features[name] = sorted(set(features.get(name, [])) | set(times))
