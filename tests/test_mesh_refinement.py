@@ -813,3 +813,27 @@ method: {transcription: LGL, segments: 5, degree: 3, mesh: {tolerance: 1.0e-7}}
     assert res.objective - 80 / 27 > 1e-3                     # the case: the arc not followed
     assert res.status == "mesh_not_converged" and not res.ok
     assert "unchanged" in res.message and res.extra["bisection"]
+
+
+def test_an_infeasible_first_mesh_is_bisected_before_the_problem_is_called_infeasible(tmp_path):
+    """unseen16: rest to rest with v <= 1.1 in t = 1 is feasible (J = 4 vmax^2 / (3 tau), tau =
+    1.5 (1 - 1/vmax)), but on LG 3 x 3 the polynomials cannot meet it: 'infeasible', the message
+    blaming x(t0) == 0, and the refinement stopped. The first mesh is bisected (twice at most)
+    before the problem is called infeasible."""
+    text = """
+name: Speed-limited rest-to-rest vmax = 1.1
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [v <= 1.1, x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
+  objective: minimize integral(u**2/2)
+method: {transcription: LG, segments: 3, degree: 3, mesh: {tolerance: 1.0e-7}}
+"""
+    (tmp_path / "sl.yaml").write_text(text)
+    res = run_file(tmp_path / "sl.yaml", None)
+    tau = 1.5 * (1 - 1 / 1.1)
+    assert res.ok and res.objective == pytest.approx(4 * 1.1**2 / (3 * tau), rel=1e-6)
+    assert any("was infeasible, the problem is not" in n for n in res.extra["notes"])

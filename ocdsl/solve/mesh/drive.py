@@ -292,6 +292,28 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 tr, info = recovered.tr, recovered.info
                 rebuild = functools.partial(rebuild, guesses=recovered.guesses)
                 reg = getattr(tr.model, "mesh_regularisation", None)
+            # the first mesh's polynomials may be what cannot meet the conditions, not the problem
+            # (unseen16: v <= 1.1 rest to rest on LG 3 x 3, 'infeasible' blaming x(t0) == 0):
+            # bisected, twice at most, before the problem is called infeasible
+            first_size = (f"{next(iter(meshes.values())).segments} segments" if len(meshes) == 1 else
+                          ", ".join(f"{k}: {m.segments} segments" for k, m in meshes.items()))
+            for bisections in (1, 2):
+                if info.status != "infeasible":
+                    break
+                finer = {k: m.bisected() for k, m in meshes.items()}
+                t_fine = rebuild(finer, collect=True)
+                ws.prepare(t_fine.model)
+                retry = ipopt.solve(t_fine.model, options, verbose=verbose, transcription=t_fine,
+                                    progress=ipopt.Progress(progress, f"[mesh 1 bisected {bisections}x]"))
+                retry.iterations += info.iterations
+                if retry.status in GOOD:
+                    notes.append(f"the first mesh ({first_size}) was infeasible, the "
+                                 f"problem is not: bisected {bisections} time(s), it solved (a finer start mesh "
+                                 "avoids the detour)")
+                    tr, info, meshes = t_fine, retry, finer
+                    reg = getattr(tr.model, "mesh_regularisation", None)
+                elif bisections == 2:
+                    info.message += f"; infeasible on the first mesh bisected twice too ({first_size}, times 4)"
         reg_value = None
         if reg is not None and info.objective is not None:
             # the objective of the problem itself: the regularisation term taken out
