@@ -174,6 +174,10 @@ def test_irregular_controls_spikes_and_zigzags_but_not_bangs_or_noise():
     # unseen10 F3: a file on LG is not told to try LG
     on_lg = irregular_controls(t, U, ["smooth", "spike", "zigzag", "bang", "noise"], "LG")
     assert len(on_lg) == 2 and all("transcription: LG" not in n for n in on_lg)
+    # unseen17: a run that refines its mesh already is not told to add `mesh:`
+    assert "`mesh:`" in notes[0]
+    with_mesh = irregular_controls(t, U, ["smooth", "spike", "zigzag", "bang", "noise"], "LGL", mesh=True)
+    assert len(with_mesh) == 2 and all("`mesh:`" not in n for n in with_mesh)
 
 
 @pytest.mark.ipopt

@@ -214,7 +214,8 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
         if names_u and settings.open_loop:     # collocation advice; a feedback law may chatter
             tr, Ur = control_rows(traj, names_u)
             notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n
-                      for n in irregular_controls(tr, Ur, names_u, (result.method or {}).get("transcription"))]
+                      for n in irregular_controls(tr, Ur, names_u, (result.method or {}).get("transcription"),
+                                                  mesh=(result.method or {}).get("mesh") is not None)]
     _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
     return checks, notes
 

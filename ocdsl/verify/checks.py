@@ -77,17 +77,19 @@ def worst(err: np.ndarray, names: list[str], t: np.ndarray) -> tuple[float, str]
     return float(e[i, j]), f"{names[j]} at t = {t[i]:.6g}"
 
 
-def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcription: str | None = None) -> list[str]:
+def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcription: str | None = None,
+                       mesh: bool = False) -> list[str]:
     """Notes on controls that an NLP shapes node by node instead of resolving: an isolated
     spike (one node far from both neighbours, on the same side) or a zigzag (the differences
     alternating in sign over most rows). Either means the collocation scheme is exploited,
     and refining alone may not help, so the summary says what else to change (LG only to a
-    file that does not use it already: unseen10 F3)."""
+    file that does not use it already: unseen10 F3; `mesh:` only to a run without it: unseen17)."""
     notes = []
     other = "" if transcription == "LG" else "`transcription: LG`, "
     advice = ("the NLP exploits the collocation scheme instead of resolving the solution (typical "
               "of an integral constraint or a singular arc); refining alone may not help: "
-              f"try {other}a small penalty on the control, or `mesh:` (it locates switches)")
+              f"try {other}a small penalty on the control"
+              + ("" if mesh else ", or `mesh:` (it locates switches)"))
     for j, name in enumerate(names):
         keep = np.isfinite(U[:, j])
         u, tt = U[keep, j], t[keep]
