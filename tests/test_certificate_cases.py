@@ -409,18 +409,7 @@ def test_a_touch_point_of_a_time_dependent_state_constraint_makes_h_inconclusive
     the multiplier's impulse times dc/dt and the costates jump there too: certificate failed
     (hamiltonian), exit 1. A state constraint at its bound inside the phase makes H
     inconclusive; the other checks stand."""
-    text = """
-name: Double integrator over a parabolic obstacle
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [x + 4*(t - 0.5)**2 >= 0.8, x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
-  objective: minimize integral(u**2/2)
-method: {transcription: LGR, segments: 5, degree: 3, mesh: {tolerance: 1.0e-7}}
-"""
+    text = (DATA / "obstacle_touch_mesh.yaml").read_text()
     (tmp_path / "obstacle.yaml").write_text(text)
     res = run_file(tmp_path / "obstacle.yaml", None)
     assert res.objective == pytest.approx(50.96522626, rel=1e-6)

@@ -1,5 +1,6 @@
 """Adaptive mesh refinement (issue 12): ocdsl/solve/mesh/ on configs/mesh_*.yaml."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -7,6 +8,8 @@ import pytest
 import ocdsl
 from ocdsl.api import compile_file, run_file
 from ocdsl.result import Result
+
+DATA = Path(__file__).parent / "data"
 
 pytestmark = pytest.mark.ipopt
 
@@ -768,18 +771,7 @@ def test_maximize_minus_tf_gets_the_switch_costates_that_minimize_tf_gets(tmp_pa
     """unseen14 F6: the same minimum-time problem written `maximize -tf` failed the certificate
     (H from -1.31 to -0.84 against -1, J right to 2e-10, exit 1) where `minimize tf` passed:
     the switch breakpoints were solved as unknowns (the PMP costates) for minimisation only."""
-    text = """
-name: min time as maximize -tf
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: free}
-  constraints: [-1 <= u <= 1, x(t0) == 0, v(t0) == 0.5, x(tf) == 1, v(tf) == 0, 0.3 <= tf <= 10]
-  objective: maximize -tf
-method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-6}}
-"""
+    text = (DATA / "min_time_as_maximize.yaml").read_text()
     (tmp_path / "max.yaml").write_text(text)
     (tmp_path / "min.yaml").write_text(text.replace("maximize -tf", "minimize tf"))
     exact = -0.5 + 2 * math.sqrt(1.125)       # switch where v^2/2 + x meet: tf = -v0 + 2 sqrt(x1 + v0^2/4)
@@ -796,18 +788,7 @@ def test_meshes_that_all_hold_a_binding_segment_unchanged_are_bisected_before_th
     every mesh (they agree), certificate pass, J 1.6e-3 above 80/27: optimal, exit 0. When every
     mesh within tolerance holds a segment where an inequality binds unchanged, their agreement
     says nothing of it: the chosen mesh is bisected, J moves, and the run is not converged."""
-    text = """
-name: Bryson-Denham l = 0.15
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [x <= 0.15, x(t0) == 0, v(t0) == 1, x(tf) == 0, v(tf) == -1]
-  objective: minimize integral(u**2/2)
-method: {transcription: LGL, segments: 5, degree: 3, mesh: {tolerance: 1.0e-7}}
-"""
+    text = (DATA / "bryson_denham_015_lgl_mesh.yaml").read_text()
     (tmp_path / "bd.yaml").write_text(text)
     res = run_file(tmp_path / "bd.yaml", None)
     assert res.objective - 80 / 27 > 1e-3                     # the case: the arc not followed
@@ -820,18 +801,7 @@ def test_an_infeasible_first_mesh_is_bisected_before_the_problem_is_called_infea
     1.5 (1 - 1/vmax)), but on LG 3 x 3 the polynomials cannot meet it: 'infeasible', the message
     blaming x(t0) == 0, and the refinement stopped. The first mesh is bisected (twice at most)
     before the problem is called infeasible."""
-    text = """
-name: Speed-limited rest-to-rest vmax = 1.1
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [v <= 1.1, x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
-  objective: minimize integral(u**2/2)
-method: {transcription: LG, segments: 3, degree: 3, mesh: {tolerance: 1.0e-7}}
-"""
+    text = (DATA / "speed_limit_11_lg_mesh.yaml").read_text()
     (tmp_path / "sl.yaml").write_text(text)
     res = run_file(tmp_path / "sl.yaml", None)
     tau = 1.5 * (1 - 1 / 1.1)
