@@ -465,7 +465,7 @@ def test_the_harmonic_oscillator_converges(tmp_path):
 def test_objective_agreement_rule():
     from types import SimpleNamespace
 
-    from ocdsl.solve.mesh.drive import _objective_disagreement
+    from ocdsl.solve.mesh.outcome import _objective_disagreement
 
     def entry(it, J):
         return (1e-8, it, None, SimpleNamespace(objective=J), {}, {})
@@ -480,7 +480,7 @@ def test_objective_agreement_rule():
 def test_features_off_the_breakpoints_are_shown_as_normalised_times_per_phase():
     """The mesh_not_converged message printed the raw dict {'main': [0.793...]} of normalised
     times without saying what they were (unseen3); a phase with none located is left out."""
-    from ocdsl.solve.mesh.drive import _features_shown
+    from ocdsl.solve.mesh.outcome import _features_shown
 
     text = _features_shown({"main": [0.79312345678, 0.05], "coast": []})
     assert text == "phase 'main' at 0.793123, 0.05 (normalised time: 0 at t0, 1 at tf)"
@@ -715,7 +715,7 @@ def test_a_control_bounded_by_path_constraints_gets_the_rewrite_hint(tmp_path):
     """unseen11 F2: `|u| <= 1 + x` as two path constraints: the refinement cannot locate the
     switch between them and ended mesh_not_converged with only 'raise max_iterations'. The
     message names the constraints and the box-bounded rewrite; a box-bounded file gets none."""
-    from ocdsl.solve.mesh.drive import _path_bound_hint
+    from ocdsl.solve.mesh.outcome import _path_bound_hint
 
     path = tmp_path / "sb.yaml"
     path.write_text("""name: state-dependent bound

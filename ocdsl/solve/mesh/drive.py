@@ -16,6 +16,7 @@ from .estimate import estimate_errors, flight_amplification, phase_end, segment_
 from .junction import limit_junction_controls
 from .flown import beaten_meshes, refuted_corners, with_breakpoints
 from .locate import locate_features, locate_switches, misplaced
+from .outcome import GOOD, _objective_disagreement, outcome
 from .refine import MeshStalled, refine, same_mesh
 from .switches import solve_switch_times, with_switch_costates
 from .regularise import check_unregularised, chattering_segments, merge_intervals, regularise
@@ -23,7 +24,6 @@ from .segments import control_polys, seg_polys, solution_arrays
 from .terminal import TerminalError, terminal_error
 from .budget import Budget
 
-GOOD = ("optimal", "acceptable")
 # above this amplification of the open-loop flight (``flight_amplification``) the terminal
 # conditions are judged piece by piece (``segment_ends``): the segment errors (1e-6 and more)
 # times 1e6 would be all the flight from x(t0) sees
@@ -42,48 +42,6 @@ GROWTH_FLOOR = 2000
 # (COPS hang glider: 1,173 -> 583 missed, 588 converged, then 518 missed, 533 converged, 508
 # missed: three of its twelve meshes for 10 % of a small NLP)
 COARSEN_GAIN = 0.8
-
-
-def _path_bound_hint(problem) -> str:
-    """What to do when a control is bounded by path constraints (`u <= 1 + x`, `-p <= u <= p`):
-    the switch locators and the switch-time solves know box bounds only, so a control that
-    switches between two such constraints is refined around, never located (unseen11 F2:
-    12 meshes, tf 1.1e-3 off; written with a box-bounded control, converged to 1e-12)."""
-    import sympy as sp
-
-    texts = []
-    for ph in problem.phases:
-        controls = set(ph.controls)
-        for c in ph.path:
-            if c.is_equality:
-                continue
-            e = sp.sympify(ph.substitute(c.expr))
-            used = e.free_symbols & controls
-            if len(used) == 1 and not (sp.diff(e, next(iter(used))).free_symbols & used):
-                texts.append(c.text)
-    if not texts:
-        return ""
-    return (f" If a control switches between path constraints that bound it ({'; '.join(texts[:3])}), "
-            "the mesh cannot locate those switches (it locates switches between box bounds): write the "
-            "control as a box-bounded one scaled by the bound, e.g. for |u| <= b(x, t): u = b*w with "
-            "-1 <= w <= 1 (docs/mesh.md).")
-
-
-def _objective_disagreement(converged: list, tolerance: float) -> str | None:
-    """Meshes within the error tolerance must agree in J to it too: on Fuller's problem three
-    of them (the second and third by coarsening) gave J 5e-4 apart, still falling, while every
-    segment's state error was 2e-8; the estimate does not see an unresolved chattering control,
-    and the smallest of them was called converged 1.1e-3 above the optimum. A relative spread
-    (with a floor of 1e-8 for objectives near zero) above the tolerance is no convergence."""
-    values = [c[3].objective for c in converged if c[3].objective is not None]
-    if len(values) < 2:
-        return None
-    spread = (max(values) - min(values)) / max(max(abs(v) for v in values), 1e-8)
-    if spread <= tolerance:
-        return None
-    iterations = [c[1] for c in converged]
-    return (f"the meshes within tolerance {tolerance:.1e} (iterations {iterations}) disagree in the "
-            f"objective by {spread:.2e} (relative): the error estimate does not see what moves J")
 
 
 def _dense_trajectory(pb, samples: int = 4) -> PhaseTrajectory:
@@ -600,65 +558,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 _say(progress, f"mesh {it}: {note}")
             rec["symbolic_notes"] = budget.notes[noted:]
             noted = len(budget.notes)
-    disagree = _objective_disagreement(converged, spec.tolerance)
-    if status is None and disagree:
-        # the last mesh within the error tolerance, as the message says (not the last mesh
-        # solved: harmonic oscillator, iteration 25 with error 2.3e-6 was reported as it)
-        status = "mesh_not_converged"
-        chosen = converged[-1]
-    elif status is None:
-        if converged:
-            chosen = min(converged, key=lambda c: (c[3].nlp.get("variables", 0), c[0]))
-            status = "optimal" if chosen[3].status == "optimal" else chosen[3].status
-            message = (f"mesh converged: iteration {chosen[1]} of {len(history)} is the smallest mesh within "
-                       f"tolerance {spec.tolerance:.1e} (largest estimated error {chosen[0]:.3e}, "
-                       f"{chosen[3].nlp.get('variables', 0)} NLP variables)")
-            rejected = [h["iteration"] for h in history if h.get("coarsening_rejected")]
-            if rejected:
-                message += f"; coarsened meshes that missed it: iteration(s) {rejected}"
-        else:
-            status = "mesh_not_converged"
-            chosen = best
-    elif status not in GOOD and best is not None:
-        # the last solve was cut short or failed, earlier meshes solved: the best of those is
-        # the result (its trajectory and objective), not the failed iterate; a later mesh ending
-        # 'infeasible' from its warm start says nothing of the problem (unseen8: a pendulum whose
-        # third mesh ended infeasible after two solved was reported infeasible, exit 1)
-        chosen = best
-        if status in ("time_limit", "interrupted"):
-            message += (f"; the result is mesh iteration {best[1]}'s solution, the best completed mesh "
-                        f"(Ipopt {best[3].status}, J = {best[3].objective:.10g}, largest estimated error "
-                        f"{best[0]:.3e} against the tolerance {spec.tolerance:.1e})")
-        else:
-            stalled = (f"mesh iteration {last[1]}'s solve, started from the mesh before, ended '{status}' "
-                       f"({last[3].message}); the result is the best completed mesh")
-            status = "mesh_not_converged"
-    else:
-        chosen = last
+    status, chosen, message, disagree, stalled = outcome(converged, best, last, history, status, message,
+                                                         stalled, spec, problem)
     max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
-    if status == "mesh_not_converged" and disagree:
-        message = (f"mesh refinement did not converge: {disagree}. The last of them (iteration {it_c}) "
-                   "is reported; tighten the tolerance, or see docs/mesh.md (chattering controls, "
-                   "singular arcs).")
-    elif status == "mesh_not_converged":
-        above = [e for es in errors_c.values() for e in es if e.error > spec.tolerance]
-        worst = max(above, key=lambda e: e.error) if above else None
-        off_c = history[it_c - 1].get("features_off_breakpoints", {})
-        term_c = history[it_c - 1].get("terminal_error", 0.0)
-        where = (f"in phase '{worst.phase}' segment {worst.segment} (t in [{worst.t_start:.6g}, "
-                 f"{worst.t_end:.6g}], state {worst.state}); {len(above)} segment(s) above tolerance"
-                 if worst else
-                 f"at the terminal condition {history[it_c - 1].get('terminal_where')} "
-                 f"({history[it_c - 1].get('terminal_flown')}) "
-                 f"({term_c:.3e})" if term_c > spec.tolerance else
-                 "within tolerance, but located switches/corners lie off the breakpoints by more than "
-                 f"corner_tolerance {spec.corner_tolerance:g}: {_features_shown(off_c)}")
-        message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
-                   f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
-                   f"largest estimated error {max_err:.3e} {where}. "
-                   + (f"Stopped early because {stalled}." if stalled else
-                      "Raise max_iterations or max_degree, or loosen the tolerance.")
-                   + _path_bound_hint(problem))
     if status == "optimal" and spec.move_switches and getattr(tr_c.model, "mesh_regularisation", None) is None:
         with timer.measure("mesh"):
             try:
@@ -809,9 +711,3 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.wall_time_s = timer.breakdown()
     stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result
-
-
-def _features_shown(off: dict) -> str:
-    """Features per phase as a user reads them: normalised time is 0 at t0 and 1 at tf."""
-    parts = [f"phase '{k}' at " + ", ".join(f"{v:.6g}" for v in vs) for k, vs in off.items() if vs]
-    return "; ".join(parts) + " (normalised time: 0 at t0, 1 at tf)"
