@@ -157,11 +157,11 @@ def _tabulate(t, U, G, bounds, corners):
     return np.asarray(times)[order], np.asarray(rows)[order], np.array(sorted(s for *_, s in jumps))
 
 
-def flown_control(problem: Problem, result: Result, lagrange, tolerance: float,
+def flown_control(problem: Problem, result: Result, lagrange, params: dict, tolerance: float,
                   mesh_tolerance: float | None = None, always_fly: bool = False) -> dict[str, Any] | None:
-    """The check's record: the claimed and the flown objective, the gain, the flown
-    trajectory's worst violation; ``passed`` False when it is feasible and better than the
-    claim by more than ``tolerance`` x (1 + |J|). None where the check does not apply. With a
+    """The check's record (``params``: the phase's parameter values, as the certificate's): the
+    claimed and the flown objective, the gain, the flown trajectory's worst violation; ``passed``
+    False when it is feasible and better than the claim by more than ``tolerance`` x (1 + |J|). None where the check does not apply. With a
     ``mesh_tolerance`` (a ``mesh:`` run, which refines again on a gain above it, mesh/flown.py)
     the control is also flown for predicted gains near that tolerance; ``always_fly``: whatever
     gain it predicts (the flown J then bounds what other meshes' J can be, mesh/flown.py)."""
@@ -170,9 +170,6 @@ def flown_control(problem: Problem, result: Result, lagrange, tolerance: float,
     ph, traj = problem.phases[0], result.phases[0]
     if not ph.controls or ph.path or not traj.costates:
         return None
-    params = {str(k): float(v) for k, v in ph.constants.items()}
-    params.update({s.name: float(result.parameters[s.name]) for s in problem.free_parameters
-                   if s.name in result.parameters})
     model = ph.model
     if _final_conditions(problem) or not _quadratic_in_controls(model, params, lagrange):
         return None
