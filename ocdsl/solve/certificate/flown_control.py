@@ -63,6 +63,16 @@ def _final_conditions(problem: Problem) -> bool:
     return any(c.expr.free_symbols & late for c in problem.boundary)
 
 
+def _gradient(G0, R, U, U0):
+    """dH/du at controls ``U`` from its value ``G0`` at ``U0`` and H's (constant) Hessian ``R``."""
+    return G0 + np.einsum("pjk,pk->pj", R, U - U0)
+
+
+def _jumps(U, j: int, lo: float, hi: float) -> np.ndarray:
+    """Between which grid points control ``j`` goes from one bound to the other (a bang switch)."""
+    return np.abs(np.diff(U[:, j])) > 0.5 * (hi - lo)
+
+
 def _minimising_controls(num: _Numeric, t, X, Lam, bounds):
     """argmin over the box of H(t, x, lambda, u) at every point, with dH/du there; None when H
     has no minimiser on it (unbounded control, H not convex in it). H is quadratic in u: its
@@ -79,10 +89,9 @@ def _minimising_controls(num: _Numeric, t, X, Lam, bounds):
         U1[:, j] += 1.0
         R[:, :, j] = _hamiltonian_nodes(num, t, X, U1, Lam)[1] - G0
     U = U0.copy()
-    G = G0.copy()
     for _ in range(1 if m == 1 else 10 * m):
         for j in range(m):
-            G = G0 + np.einsum("pjk,pk->pj", R, U - U0)
+            G = _gradient(G0, R, U, U0)
             g, r, u = G[:, j], R[:, j, j], U[:, j]
             with np.errstate(divide="ignore", invalid="ignore"):
                 newton = u - g / r
@@ -93,7 +102,7 @@ def _minimising_controls(num: _Numeric, t, X, Lam, bounds):
             U[:, j] = np.clip(np.where(r > 1e-12 * (np.abs(g) + 1.0), newton, ends), lo[j], hi[j])
     if not np.all(np.isfinite(U)):
         return None
-    return U, G0 + np.einsum("pjk,pk->pj", R, U - U0), _corners(t, U, G0, R, U0, lo, hi)
+    return U, _gradient(G0, R, U, U0), _corners(t, U, G0, R, U0, lo, hi)
 
 
 def _corners(t, U, G0, R, U0, lo, hi) -> list[tuple[float, int, float]]:
@@ -107,11 +116,10 @@ def _corners(t, U, G0, R, U0, lo, hi) -> list[tuple[float, int, float]]:
                 continue
             on = np.isclose(U[:, j], bound, rtol=0, atol=1e-12 * max(1.0, abs(bound)))
             # a jump from one bound to the other is a switch (``_tabulate``), not a corner
-            jump = np.abs(np.diff(U[:, j])) > 0.5 * (hi[j] - lo[j])
-            for i in np.flatnonzero((on[1:] != on[:-1]) & ~jump):
+            for i in np.flatnonzero((on[1:] != on[:-1]) & ~_jumps(U, j, lo[j], hi[j])):
                 Ub = U[i:i + 2].copy()
                 Ub[:, j] = bound
-                g = (G0[i:i + 2] + np.einsum("pjk,pk->pj", R[i:i + 2], Ub - U0[i:i + 2]))[:, j]
+                g = _gradient(G0[i:i + 2], R[i:i + 2], Ub, U0[i:i + 2])[:, j]
                 w = g[0] / (g[0] - g[1]) if g[0] != g[1] and g[0] * g[1] <= 0 else 0.5
                 if 0 < i < len(t) - 2:      # a bound held up to an end is no corner
                     out.append((float(t[i] + w * (t[i + 1] - t[i])), j, float(bound)))
@@ -137,7 +145,7 @@ def _tabulate(t, U, G, bounds, corners):
     for j, (lo, hi) in enumerate(bounds):
         if not (math.isfinite(lo) and math.isfinite(hi)):
             continue
-        for i in np.flatnonzero(np.abs(np.diff(U[:, j])) > 0.5 * (hi - lo)):
+        for i in np.flatnonzero(_jumps(U, j, lo, hi)):
             g0, g1 = G[i, j], G[i + 1, j]
             w = g0 / (g0 - g1) if g0 != g1 and g0 * g1 < 0 else 0.5
             jumps.append((i, j, float(t[i] + w * (t[i + 1] - t[i]))))
