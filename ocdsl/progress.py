@@ -102,6 +102,12 @@ class Stage:
         self.stream.flush()
 
 
+def say(enabled: bool, text: str) -> None:
+    """One line on stderr, where progress is shown (a note beside a stage's own line)."""
+    if enabled:
+        print(text, file=sys.stderr, flush=True)
+
+
 def console():
     """The rich console of ocdsl's summaries and tables. Off a terminal (a pipe, a log, CI)
     lines are never hard-wrapped: rich's default 80 columns would break a headline such as

@@ -4,23 +4,24 @@ from __future__ import annotations
 
 import functools
 import math
-import sys
 import time
 
 import numpy as np
 
+from ...progress import say
 from ...result import PhaseTrajectory, Result
-from ..arcs import final_time_spread, free_final_times
+from ..arcs import free_final_times
 from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, phase_end, segment_ends
 from .junction import limit_junction_controls
 from .flown import beaten_meshes, refuted_corners, with_breakpoints
 from .locate import locate_features, locate_switches, misplaced
+from .confirm import confirm
 from .outcome import GOOD, _objective_disagreement, outcome
 from .refine import MeshStalled, refine, same_mesh
-from .switches import solve_switch_times, with_switch_costates
-from .regularise import check_unregularised, chattering_segments, merge_intervals, regularise
-from .segments import control_polys, seg_polys, solution_arrays
+from .switches import solve_switch_times
+from .regularise import chattering_segments, merge_intervals, regularise
+from .segments import close_mesh, control_polys, dense_trajectory
 from .terminal import TerminalError, terminal_error
 from .budget import Budget
 
@@ -44,42 +45,6 @@ GROWTH_FLOOR = 2000
 COARSEN_GAIN = 0.8
 
 
-def _dense_trajectory(pb, samples: int = 4) -> PhaseTrajectory:
-    """States and controls sampled from each segment's polynomials (a warm start)."""
-    ph, lay = pb.phase, pb.layout
-    X, U, t0, tf = solution_arrays(pb)
-    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
-    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
-    xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
-    xhi = np.array([ph.bounds_of(s)[1] for s in ph.states])
-    ts, xs_all, us_all = [], [], []
-    for k in range(lay.mesh.segments):
-        a, b = lay.mesh.breakpoints[k], lay.mesh.breakpoints[k + 1]
-        xs, us = seg_polys(lay, k, X, U)
-        n = lay.mesh.degrees[k] + samples
-        # open interval inside the segment keeps np.interp's abscissae increasing
-        tau = np.linspace(-1, 1, n + 2)[1:-1] if k < lay.mesh.segments - 1 or True else None
-        if k == 0:
-            tau = np.concatenate([[-1.0], tau])
-        if k == lay.mesh.segments - 1:
-            tau = np.concatenate([tau, [1.0]])
-        s = a + (tau + 1.0) * (b - a) / 2.0
-        ts.append(t0 + (tf - t0) * s)
-        xs_all.append(np.clip(xs(tau), xlo, xhi))
-        us_all.append(np.clip(us(tau), ulo, uhi))
-    t = np.concatenate(ts)
-    Xd, Ud = np.vstack(xs_all), np.vstack(us_all)
-    return PhaseTrajectory(ph.name, t, {s.name: Xd[:, j] for j, s in enumerate(ph.states)},
-                           {c.name: Ud[:, j] for j, c in enumerate(ph.controls)})
-
-
-def _close_mesh(a, b, tol: float) -> bool:
-    """Same scheme and degrees, breakpoints within ``tol`` (normalised time)."""
-    return (a.scheme_name == b.scheme_name and tuple(a.degrees) == tuple(b.degrees)
-            and len(a.breakpoints) == len(b.breakpoints)
-            and bool(np.all(np.abs(np.asarray(a.breakpoints) - np.asarray(b.breakpoints)) <= tol)))
-
-
 def starting_mesh(method) -> dict:
     """``segments`` and ``degree`` of the first mesh: the method's where the file gives them,
     else the mesh block's."""
@@ -101,11 +66,6 @@ def _scale(file, tr) -> None:
     from ...run import _scale as scale
 
     scale(file, tr)
-
-
-def _say(progress: bool, text: str) -> None:
-    if progress:
-        print(text, file=sys.stderr, flush=True)
 
 
 def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, progress=False,
@@ -390,7 +350,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     except Exception as exc:  # locating is an aid; the estimate still decides
                         # said as what it means for the run, the locator's own words in brackets
                         # (unseen16: a bare "f(a) and f(b) must have different signs" read as a failure)
-                        _say(progress, f"mesh {it}: no switch or corner located in phase {pb.phase.name} on this "
+                        say(progress, f"mesh {it}: no switch or corner located in phase {pb.phase.name} on this "
                                        f"mesh (the locator stopped: {exc}); the error estimate alone decides "
                                        "where to refine")
                         features[pb.phase.name] = []
@@ -417,7 +377,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                                              info.objective if info.objective is not None else 0.0)
                         meshes.update(moved)
                     except Exception as exc:  # an aid, as the locators
-                        _say(progress, f"mesh {it}: moving switches failed: {exc}")
+                        say(progress, f"mesh {it}: moving switches failed: {exc}")
             off = {k: misplaced(meshes[k], f, spec) for k, f in features.items()}
             if max_err <= spec.tolerance and not any(off.values()) and spec.move_switches \
                     and any(bang.get(pb.phase.name) for pb in tr.phases):
@@ -432,7 +392,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                                              info.objective if info.objective is not None else 0.0,
                                                              times="fixed")
                 except Exception as exc:  # an aid: the estimate and the locators stand
-                    _say(progress, f"mesh {it}: moving fixed-time switches failed: {exc}")
+                    say(progress, f"mesh {it}: moving fixed-time switches failed: {exc}")
                     moved = {}
                 shift = max((float(np.max(np.abs(np.asarray(m.breakpoints) - np.asarray(meshes[k].breakpoints))))
                              for k, m in moved.items() if len(m.breakpoints) == len(meshes[k].breakpoints)),
@@ -454,7 +414,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     else:
                         rec["features"] = features
                         rec["features_off_breakpoints"] = off
-                        previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+                        previous = {pb.phase.name: dense_trajectory(pb) for pb in tr.phases}
                         snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
                         meshes = {**meshes, **moved}
                         continue
@@ -481,13 +441,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                     # low, optimal with the certificate skipped)
                     if all(Layout.of(cand[k]).n_colloc >= 2 for k in cand) \
                             and size(cand) <= COARSEN_GAIN * size(meshes) and not any(
-                            all(_close_mesh(cand[k], r[k], spec.corner_tolerance) for k in cand) for r in tried):
+                            all(close_mesh(cand[k], r[k], spec.corner_tolerance) for k in cand) for r in tried):
                         smaller = cand
                         tried.append(cand)
                 if smaller is None:
                     break
                 coarsening = True
-                previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+                previous = {pb.phase.name: dense_trajectory(pb) for pb in tr.phases}
                 snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
                 meshes = smaller
                 continue
@@ -496,7 +456,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # smallest converged mesh so far is kept for the end)
                 rec["coarsening_rejected"] = True
                 coarsening = False
-            elif solved_before is not None and all(_close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
+            elif solved_before is not None and all(close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
                                                    for k in meshes) and max_err >= 0.9 * solved_before[1]:
                 # the mesh solved again (breakpoints nudged by less than corner_tolerance) and
                 # its error fell by less than a tenth: refining on would repeat it (a rejected coarse mesh
@@ -522,7 +482,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 break
             if it == spec.max_iterations:
                 break
-            previous = {pb.phase.name: _dense_trajectory(pb) for pb in tr.phases}
+            previous = {pb.phase.name: dense_trajectory(pb) for pb in tr.phases}
             snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
             try:
                 # terminal conditions missed while every segment meets the tolerance: the segment
@@ -555,95 +515,17 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 tables["time_s"][r] = elapsed
             stage.update(it, f"{line}, {elapsed:.2f} s")
             for note in budget.notes[noted:]:
-                _say(progress, f"mesh {it}: {note}")
+                say(progress, f"mesh {it}: {note}")
             rec["symbolic_notes"] = budget.notes[noted:]
             noted = len(budget.notes)
     status, chosen, message, disagree, stalled = outcome(converged, best, last, history, status, message,
                                                          stalled, spec, problem)
     max_err, it_c, tr_c, info_c, meshes_c, errors_c = chosen
-    if status == "optimal" and spec.move_switches and getattr(tr_c.model, "mesh_regularisation", None) is None:
-        with timer.measure("mesh"):
-            try:
-                params_c = {s: float(pyo.value(tr_c.scalars[s])) for s in problem.free_parameters}
-                bang = {pb.phase.name: locate_switches(tr_c, pb, params_c, max(1e-6, 0.1 * spec.tolerance))
-                        for pb in tr_c.phases}
-
-                def build_free(ms, free_breakpoints, tr_c=tr_c):
-                    t = build(problem, ms, solved_guesses(problem, tr_c), free_breakpoints=free_breakpoints)
-                    _scale(file, t)
-                    ws.prepare(t.model)
-                    return t
-
-                swapped = with_switch_costates(
-                    tr_c, build_free, lambda t: ipopt.solve(t.model, options, verbose=verbose, transcription=t,
-                                                           progress=ipopt.Progress(progress, "[switch times]")),
-                    bang, spec, float(info_c.objective))
-            except Exception as exc:  # an aid: the converged mesh stands as it is
-                _say(progress, f"switch costates: {exc}")
-                swapped = None
-        if swapped is not None:
-            tr_c, info_c = swapped
-            meshes_c = {pb.phase.name: pb.layout.mesh for pb in tr_c.phases}
-            message += "; its switch times solved as NLP unknowns (the costates are then the PMP ones)"
-    unreg = None
-    if status == "optimal" and getattr(tr_c.model, "mesh_regularisation", None) is not None:
-        with timer.measure("mesh"):
-            unreg = check_unregularised(
-                tr_c, info_c.objective, reg_weight, lambda g: rebuild(meshes_c, guesses=g, built_with=({}, {})),
-                lambda t: ipopt.solve(t.model, options, verbose=verbose, transcription=t,
-                                      progress=ipopt.Progress(progress, "[without regularisation]")),
-                file.spec.verify.tolerance)
-        if unreg.agrees is False:
-            status = "mesh_not_converged"
-            message = (f"the mesh refinement met its tolerance ({message}), but {unreg.describe()}: "
-                       "the regularisation moves the optimum, and J is the regularised problem's. Lower "
-                       "`regularise` (or 0)")
-        else:
-            notes.append(unreg.describe())
-    confirm = None
-    unchanged = []
-    if status == "optimal" and unreg is None and file.spec.verify.bisection_check \
-            and sum(c[3].objective is not None for c in converged) >= 2:
-        from ..arcs import unchanged_binding_segments
-
-        with timer.measure("mesh"):
-            unchanged = unchanged_binding_segments(tr_c, [c[4] for c in converged])
-    if (status == "optimal" and unreg is None and file.spec.verify.bisection_check
-            and (sum(c[3].objective is not None for c in converged) < 2 or unchanged)):
-        # one mesh met the tolerance: no second mesh for J to agree with (the rule above), and
-        # the estimate does not see every error of J (Fuller's chattering problem, LG: converged
-        # on one mesh 2.2e-4 above the optimum, verified; unseen8). Its bisection is the second.
-        # So too when every such mesh holds a segment where an inequality binds unchanged
-        # (``unchanged_binding_segments``): their agreement says nothing of it.
-        from ...run import bisection_check
-
-        with timer.measure("mesh"):
-            confirm = bisection_check(file, tr_c, info_c.objective, meshes_c, verbose=verbose, progress=progress,
-                                      build_model=lambda ms, g: rebuild(ms, guesses=g), options=options)
-        if confirm.agrees is False and unchanged:
-            status = "mesh_not_converged"
-            message = (f"the meshes within tolerance agree in J ({message}), but every one of them holds "
-                       f"{unchanged[0]} unchanged, where it binds; J = {confirm.objective:.10g} there and "
-                       f"{confirm.describe()}: the error estimate does not see what moves J (an arc or a "
-                       "touch point the segment's polynomial cannot follow). Tighten the tolerance, raise "
-                       "max_iterations, or use LGR")
-        elif confirm.agrees is False:
-            status = "mesh_not_converged"
-            message = (f"the mesh refinement met its tolerance on one mesh only ({message}), but J = "
-                       f"{confirm.objective:.10g} there and {confirm.describe()}: the error estimate does not "
-                       "see what moves J (a chattering control, docs/mesh.md). Tighten the tolerance, or raise "
-                       "max_iterations")
-        else:
-            why = (f"every mesh within tolerance holds {unchanged[0]} unchanged, where it binds" if unchanged
-                   else "one mesh met the tolerance")
-            notes.append(f"{why}; J checked on it bisected: {confirm.describe()}" if confirm.agrees else
-                         f"{why}, and J could not be checked on it bisected: {confirm.describe()}")
-    if status == "optimal":
-        solutions = [(h["objective"], h.get("final_times") or {}) for h in history if h.get("converged")]
-        solutions += [(lv.objective, lv.final_times) for lv in (confirm.levels if confirm is not None else ())]
-        flat = final_time_spread(solutions, spec.tolerance)
-        if flat:
-            notes.append(flat)
+    confirmed = confirm(file, chosen, status, message, converged=converged, history=history, timer=timer,
+                        options=options, rebuild=rebuild, verbose=verbose, progress=progress)
+    status, message, tr_c, info_c, meshes_c = (confirmed.status, confirmed.message, confirmed.tr,
+                                               confirmed.info, confirmed.meshes)
+    notes += confirmed.notes
     with timer.measure("post"):
         result = _result(file, tr_c, info_c, timer, meshes_c, always_fly=bool(disagree))
     if status == "mesh_not_converged" and disagree:
@@ -658,7 +540,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     corners = refuted_corners(result, spec.tolerance) if pinned is None and status == "optimal" else {}
     if corners:
         shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
-        _say(progress, f"mesh: the control the minimum principle flies beats J = {info_c.objective:.10g}; "
+        say(progress, f"mesh: the control the minimum principle flies beats J = {info_c.objective:.10g}; "
                        f"refining again with breakpoints kept at {shown} (normalised time)")
         again = solve_adaptive(file, timer, seed=seed, verbose=verbose, progress=progress, pinned=corners,
                                first={k: with_breakpoints(m, corners.get(k, []), spec.corner_tolerance)
@@ -691,10 +573,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 v = getattr(e, key)
                 err_tab[key].append(names.index(v) if key == "phase" else float(v))
     result.extra["mesh_history"] = history
-    if unreg is not None:
-        result.extra["unregularised"] = unreg.record()
-    if confirm is not None:
-        result.extra["bisection"] = confirm.record()
+    if confirmed.unregularised is not None:
+        result.extra["unregularised"] = confirmed.unregularised.record()
+    if confirmed.bisection is not None:
+        result.extra["bisection"] = confirmed.bisection.record()
     if notes:
         result.extra["notes"] = notes
     if start_records:

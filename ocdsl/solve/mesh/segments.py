@@ -7,6 +7,8 @@ import math
 import numpy as np
 import sympy as sp
 
+from ...result import PhaseTrajectory
+
 
 _FUNCTIONS: dict = {}     # id(phase) -> (phase, free symbols, functions): lambdified once per run
 
@@ -174,3 +176,39 @@ def control_polys(pb):
         _, us = seg_polys(lay, k, X, U)
         out.append(lambda s, us=us, a=a, b=b: us(2.0 * (np.asarray(s) - a) / (b - a) - 1.0))
     return out
+
+
+def dense_trajectory(pb, samples: int = 4) -> PhaseTrajectory:
+    """States and controls sampled from each segment's polynomials (a warm start)."""
+    ph, lay = pb.phase, pb.layout
+    X, U, t0, tf = solution_arrays(pb)
+    ulo = np.array([ph.bounds_of(c)[0] for c in ph.controls])
+    uhi = np.array([ph.bounds_of(c)[1] for c in ph.controls])
+    xlo = np.array([ph.bounds_of(s)[0] for s in ph.states])
+    xhi = np.array([ph.bounds_of(s)[1] for s in ph.states])
+    ts, xs_all, us_all = [], [], []
+    for k in range(lay.mesh.segments):
+        a, b = lay.mesh.breakpoints[k], lay.mesh.breakpoints[k + 1]
+        xs, us = seg_polys(lay, k, X, U)
+        n = lay.mesh.degrees[k] + samples
+        # open interval inside the segment keeps np.interp's abscissae increasing
+        tau = np.linspace(-1, 1, n + 2)[1:-1]
+        if k == 0:
+            tau = np.concatenate([[-1.0], tau])
+        if k == lay.mesh.segments - 1:
+            tau = np.concatenate([tau, [1.0]])
+        s = a + (tau + 1.0) * (b - a) / 2.0
+        ts.append(t0 + (tf - t0) * s)
+        xs_all.append(np.clip(xs(tau), xlo, xhi))
+        us_all.append(np.clip(us(tau), ulo, uhi))
+    t = np.concatenate(ts)
+    Xd, Ud = np.vstack(xs_all), np.vstack(us_all)
+    return PhaseTrajectory(ph.name, t, {s.name: Xd[:, j] for j, s in enumerate(ph.states)},
+                           {c.name: Ud[:, j] for j, c in enumerate(ph.controls)})
+
+
+def close_mesh(a, b, tol: float) -> bool:
+    """Same scheme and degrees, breakpoints within ``tol`` (normalised time)."""
+    return (a.scheme_name == b.scheme_name and tuple(a.degrees) == tuple(b.degrees)
+            and len(a.breakpoints) == len(b.breakpoints)
+            and bool(np.all(np.abs(np.asarray(a.breakpoints) - np.asarray(b.breakpoints)) <= tol)))
