@@ -70,6 +70,31 @@ def test_ecrf_angles_invert_the_papers_direction():
     np.testing.assert_allclose(p, phi, atol=1e-10)
 
 
+def test_optimal_run_without_a_control_at_its_start_is_fitted(tmp_path):
+    """An LGR run folder has no control at the phase start (exported NaN): the angles and the
+    series fit use the nodes that have one (a NaN there made every coefficient NaN and the
+    class-mode homotopy's first step file unreadable)."""
+    from ocdsl.result import PhaseTrajectory, single_phase_result
+
+    mu, T, n = 0.0121506683, 2.0, 300
+    t = np.linspace(0.0, T, n)
+    theta = 0.3 + 2.0 * t
+    r, z = 0.5 + 0.0 * t, 0.0 * t
+    x, y, _, _, _, _ = frames.ecrf_to_synodic(r, theta, z, 0 * r, 0 * r, 0 * r, mu, lib=np)
+    delta = 2.0 + 1.5 * np.sin(2.0 * np.pi * t / T)     # crosses pi: needs unwrapping
+    phi = 1.2 + 0.0 * t
+    ux, uy, uz = frames.polar_direction_to_cartesian(delta, phi, theta, lib=np)
+    for a in (ux, uy, uz):
+        a[0] = np.nan
+    states = {"x": x, "y": y, "z": z, "vx": 0 * t, "vy": 0 * t, "vz": 0 * t, "m": 1 + 0 * t, "time": t}
+    res = single_phase_result("lgr run", "optimal",
+                              PhaseTrajectory("main", t, states, {"ux": ux, "uy": uy, "uz": uz}), tf=T)
+    d, p = cc.ecrf_angles(x, y, ux, uy, uz, mu)
+    assert np.isnan(d[0]) and np.allclose(d[1:], delta[1:])
+    values, rms = cc.warm_folder(res, mu, {"delta": 3, "phi": 3}, tmp_path / "fit", 1e-6)
+    assert all(np.isfinite(v) for v in values.values()) and max(rms.values()) < 1e-2
+
+
 def test_fit_recovers_a_series_and_ridge_keeps_coefficients_small():
     T, order = 2.0, 5
     rng = np.random.default_rng(5)

@@ -289,6 +289,21 @@ def test_an_angle_crossing_pi_is_drawn_unwrapped():
     assert np.allclose(st.figure.axes[0].get_lines()[0].get_ydata(), beta) and "unwrapped" not in st.caption
 
 
+def test_an_angle_without_a_value_at_the_phase_start_is_still_drawn_unwrapped():
+    """LGR exports no control at the phase start (NaN): np.unwrap alone would turn the whole
+    curve into NaN, an empty panel."""
+    from ocdsl.report import figures as F
+
+    t = np.linspace(0.0, 1.0, 50)
+    beta = np.angle(np.exp(1j * (2.5 + 1.5 * t)))
+    beta[0] = np.nan
+    res = Result(name="wrap", status="optimal", problem={"units": {"beta": "rad"}},
+                 phases=[PhaseTrajectory("main", t, {"q": t.copy()}, {"beta": beta})])
+    (ctrl,) = [f for f in F.fig_states_controls(res) if f.key.startswith("controls")]
+    y = np.asarray(ctrl.figure.axes[0].get_lines()[0].get_ydata(), float)
+    assert np.isnan(y[0]) and np.allclose(y[1:], 2.5 + 1.5 * t[1:]) and "beta unwrapped" in ctrl.caption
+
+
 def test_many_runs_coloured_in_order_get_a_colour_bar():
     from ocdsl.report import figures as F
 

@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ..angles import unwrap_finite
 from ..result import PhaseTrajectory, Result, single_phase_result
 
 DEFAULT_WEIGHTS = (0.01, 0.1, 1, 10, 20, 40, 60)
@@ -128,7 +129,7 @@ def ecrf_angles(x, y, ux, uy, uz, mu: float) -> tuple[np.ndarray, np.ndarray]:
     rho = np.hypot(x + mu, y)
     radial = (ux * (x + mu) + uy * y) / rho
     transverse = (-ux * y + uy * (x + mu)) / rho
-    return np.unwrap(np.arctan2(radial, transverse)), np.arccos(np.clip(uz, -1.0, 1.0))
+    return unwrap_finite(np.arctan2(radial, transverse)), np.arccos(np.clip(uz, -1.0, 1.0))
 
 
 # ---------------------------------------------------------------------------------------
@@ -265,7 +266,9 @@ def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
     t = np.asarray(st["time"], float)
     delta, phi = ecrf_angles(st["x"], st["y"], u["ux"], u["uy"], u["uz"], mu)
     T = float(t[-1])
-    keep = np.r_[True, np.diff(t) > 0]
+    # LGR has no control at the phase start (exported empty, NaN): fitted on the nodes that
+    # carry one
+    keep = np.r_[True, np.diff(t) > 0] & np.isfinite(delta) & np.isfinite(phi)
     angle = {"delta": delta, "phi": phi}
     values: dict[str, float] = {"T": T}
     controls = {}
@@ -278,7 +281,7 @@ def warm_folder(optimal: Result, mu: float, orders: dict[str, int], out: Path,
     single_phase_result(f"{optimal.name} as angles", "optimal",
                         PhaseTrajectory(tr.name, np.asarray(tr.time, float), states, controls),
                         tf=optimal.tf, parameters=values).write(out)
-    rms = {c: float(np.sqrt(np.mean(controls[DEVIATIONS[c]] ** 2))) for c in orders}
+    rms = {c: float(np.sqrt(np.nanmean(controls[DEVIATIONS[c]] ** 2))) for c in orders}
     return values, rms
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ocdsl.angles import unwrap_finite
 from ocdsl.result import Result
 from ocdsl.report.figures.base import (
     FLAG_COLUMNS, HAMILTONIAN_KEYS, Fig, Series, MAX_PANELS, _bounds_of, _chunks, _grid_figures, _new_figure,
@@ -23,7 +24,7 @@ def unwrapped(panels: list[tuple[str, Series]], units: dict) -> tuple[list[tuple
     for name, series in panels:
         period = ANGLE_PERIODS.get(str(units.get(name, "")).strip().lower())
         if period is not None and any(np.any(np.abs(np.diff(np.asarray(y, float))) > period / 2) for _, _, y in series):
-            series = [(lab, t, np.unwrap(np.asarray(y, float), period=period)) for lab, t, y in series]
+            series = [(lab, t, unwrap_finite(y, period)) for lab, t, y in series]
             names.append(name)
         out.append((name, series))
     note = (f" Angles {', '.join(names)} unwrapped (no jumps of a full turn)." if names else "")
