@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..hermite import hermite_basis
+
 
 def slopes(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     """PCHIP's node derivatives: zero at a local extremum or a flat interval, else the
@@ -64,6 +66,5 @@ def interpolate(t, Y, tt) -> np.ndarray:
     D = np.column_stack([slopes(t, Y[:, j]) for j in range(Y.shape[1])])
     k = np.clip(np.searchsorted(t, tt, side="right") - 1, 0, len(t) - 2)
     h = (t[k + 1] - t[k])[:, None]
-    s = (tt - t[k])[:, None] / h
-    return ((2 * s**3 - 3 * s**2 + 1) * Y[k] + (s**3 - 2 * s**2 + s) * h * D[k]
-            + (-2 * s**3 + 3 * s**2) * Y[k + 1] + (s**3 - s**2) * h * D[k + 1])
+    h00, h10, h01, h11 = hermite_basis((tt - t[k])[:, None] / h)
+    return h00 * Y[k] + h10 * h * D[k] + h01 * Y[k + 1] + h11 * h * D[k + 1]

@@ -9,6 +9,7 @@ from typing import Mapping
 import numpy as np
 import sympy as sp
 
+from ..hermite import hermite_basis
 from ..symbolic.model import TIME
 from ..symbolic.numbers import substitute_numbers   # exp(885 - r/H) kept whole
 from ..symbolic.numeric import family                # printed once, then from the disk cache
@@ -151,7 +152,7 @@ def between_points(funcs: PhaseFunctions, uf, grid: np.ndarray, X: np.ndarray, p
     Fa = funcs.f(start, X[keep], controls_at(uf, start + 1e-7 * hk[:, 0], X[keep]))
     Fb = funcs.f(end, X[keep + 1], controls_at(uf, end - 1e-7 * hk[:, 0], X[keep + 1]))
     s = np.arange(1, per + 1) / (per + 1)
-    basis = [2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2]
+    basis = hermite_basis(s)
     terms = [X[keep], hk * Fa, X[keep + 1], hk * Fb]
     Xs = sum(w[None, :, None] * v[:, None, :] for w, v in zip(basis, terms))
     ts = start[:, None] + hk * s[None, :]
