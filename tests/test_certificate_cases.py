@@ -334,6 +334,25 @@ def test_a_corner_inside_a_segment_fails_by_the_control_the_minimum_principle_fl
     assert right.certificate["flown_control"]["passed"] and right.certificate["flown_control"]["predicted_gain"] < 1e-7
 
 
+def test_a_flown_control_is_corrected_onto_the_final_condition_before_it_refutes(tmp_path):
+    """The same corner with x(tf) == 0.5 instead of the terminal cost (a false claim before:
+    optimal, verified, certificate pass, J 6.4e-5 above 1/24, six times the tolerance). H's
+    minimiser alone misses x(tf); moved back onto it (a Newton step on a polynomial added to
+    the control, corrected_flight.py) and flown, it is feasible and gives J* itself. With a
+    breakpoint on the corner J is right and nothing is flown."""
+    res = run_file(DATA / "lq_fixed_end.yaml", None)
+    assert res.objective - 1 / 24 > 5e-5 and res.verified                 # the case: J off, verified
+    flown = res.certificate["flown_control"]
+    assert "flown_control" in res.certificate["failed"] and not res.ok
+    assert flown["corrected"]["conditions"] == ["x(tf) == 0.5"] and flown["feasible"]
+    assert abs(flown["flown"] - 1 / 24) < 1e-7 and "corrected to meet x(tf) == 0.5" in flown["reason"]
+    text = (DATA / "lq_fixed_end.yaml").read_text().replace("segments: 6", "segments: 5")
+    (tmp_path / "five.yaml").write_text(text)
+    right = run_file(tmp_path / "five.yaml", None)
+    assert right.objective == pytest.approx(1 / 24, abs=1e-8) and right.ok
+    assert right.certificate["flown_control"]["passed"]
+
+
 def test_the_flown_control_of_a_maximisation_counts_a_larger_objective_as_better(tmp_path):
     """The same problem as 'maximize' of -J: the gain has the objective's sense."""
     text = (DATA / "lq_entry_corner.yaml").read_text().replace(

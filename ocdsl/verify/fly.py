@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_right
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -62,6 +62,9 @@ class Flight:
     violation: float            # the largest relative violation of a boundary condition or state bound
     where: str                  # which one
     steps: int
+    # per equality boundary condition (its index in problem.boundary): value minus target over
+    # its sensitivity scale, signed (what a correction of the control must drive to zero)
+    residuals: dict = field(default_factory=dict)
 
 
 def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts: np.ndarray,
@@ -98,10 +101,12 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
     end = flown.Y[-1]
     run = _PhaseRun(t_rows, X_rows, scale_x, scale_q, end, end, uf)
     point, scales = _points(problem, result, {ph.name: run}, params, "global")
-    worst, where = 0.0, ""
-    for c in problem.boundary:
-        v = float(relative_violation(np.array([evaluate(c.expr, point)]), c.lower, c.upper, 1.0)[0])
-        v /= sensitivity_scale(c.expr, point, scales)
+    worst, where, residuals = 0.0, "", {}
+    for i, c in enumerate(problem.boundary):
+        value, sensitivity = evaluate(c.expr, point), sensitivity_scale(c.expr, point, scales)
+        v = float(relative_violation(np.array([value]), c.lower, c.upper, 1.0)[0]) / sensitivity
+        if c.is_equality:
+            residuals[i] = (value - c.lower) / sensitivity
         if not v <= worst:
             worst, where = (v if math.isfinite(v) else math.inf), c.text or str(c.expr)
     for j, (lo, hi) in enumerate(bounds_of(ph, names_x, "states")):
@@ -109,4 +114,4 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
             v = float(np.max(relative_violation(flown.Y[:, j], lo, hi, scale_x[j])))
             if not v <= worst:
                 worst, where = (v if math.isfinite(v) else math.inf), f"bound of {names_x[j]}"
-    return Flight(evaluate(problem.objective.expr, point), worst, where, flown.steps)
+    return Flight(evaluate(problem.objective.expr, point), worst, where, flown.steps, residuals)
