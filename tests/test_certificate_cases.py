@@ -10,6 +10,7 @@ from ocdsl.api import compile_file, run_file
 from ocdsl.solve.certify import certify_result
 
 DATA = Path(__file__).parent / "data"
+CONFIGS = Path(__file__).parent.parent / "configs"
 NU = np.sqrt(0.0234375)    # int_0^1.5 ((0.75 - t) / (2 nu))^2 dt = 3
 
 
@@ -351,6 +352,27 @@ def test_a_flown_control_is_corrected_onto_the_final_condition_before_it_refutes
     right = run_file(tmp_path / "five.yaml", None)
     assert right.objective == pytest.approx(1 / 24, abs=1e-8) and right.ok
     assert right.certificate["flown_control"]["passed"]
+
+
+def test_a_bang_bang_control_is_corrected_onto_the_final_conditions_by_its_switch_times(tmp_path):
+    """Bryson & Ho's minimum-fuel double integrator (bang-off-bang, x(tf) = v(tf) = 0) on a
+    uniform LGR 4 x 4 mesh: J 3.9e-3 above tf - sqrt(0.1). H's minimiser has no interior arc to
+    correct with; its two switches, moved by Newton's method onto the final conditions and
+    flown, give the closed-form optimum and its switch times."""
+    import math
+
+    text = (CONFIGS / "lit_min_fuel_double_integrator.yaml").read_text()
+    text = text.replace("  mesh: {tolerance: 1.0e-6, max_iterations: 15}\n", "")
+    (tmp_path / "uniform.yaml").write_text(text)
+    res = run_file(tmp_path / "uniform.yaml", None)
+    best = 1.5 - math.sqrt(0.1)
+    assert res.objective - best > 1e-3                                     # the case: J off
+    flown = res.certificate["flown_control"]
+    assert not flown["passed"] and flown["feasible"] and flown["corrected"]["share"] == 1.0
+    assert abs(flown["flown"] - best) < 1e-7
+    root = math.sqrt((1.5 - 0.5) ** 2 - 4 * 0.1 - 2 * 0.5 ** 2)
+    assert np.allclose(flown["switches"], [(2.0 - root) / 2, (2.0 + root) / 2], atol=1e-5)
+    assert "switches between bounds at t = 0.8418" in flown["reason"]
 
 
 def test_the_flown_control_of_a_maximisation_counts_a_larger_objective_as_better(tmp_path):

@@ -4,8 +4,9 @@ Built from approximate costates, H's minimiser misses a condition on the final s
 integral (Goddard: by 0.24), and a trajectory that misses one bounds nothing. It is moved back
 onto the conditions: the solution's own control plus a share ``alpha`` of the step to H's
 minimiser, plus a correction in low-order Legendre polynomials of time on each control (zero
-where the control holds a bound, so the box is kept), whose coefficients a Newton iteration
-(finite differences, one flight per coefficient) picks to zero the conditions' residuals. To
+where the control holds a bound, so the box is kept) and, for the whole step, its bang
+switches moved in time; a Newton iteration (finite differences, one flight per unknown) picks
+the coefficients and the switch times that zero the conditions' residuals. To
 first order the corrected flight gains alpha x the Hamiltonian gain the certificate predicts
 (the final conditions' multipliers are in the costates), so a smaller share is tried when the
 whole step's second-order cost eats the gain. Whatever control this builds, a feasible flight
@@ -22,7 +23,7 @@ import numpy as np
 SHARES = (1.0, 0.5, 0.25)
 # flights one check may spend (each is one DOP853 integration of the phase)
 MAX_FLIGHTS = 40
-NEWTON_STEPS = 6
+NEWTON_STEPS = 12
 
 
 @dataclass
@@ -31,6 +32,7 @@ class Corrected:
     share: float            # alpha
     flights: int
     met: bool               # the final conditions met to the target
+    switches: np.ndarray    # the times of the flown control's bang switches (moved by the correction)
 
 
 def late_equalities(problem) -> list[int]:
@@ -59,54 +61,115 @@ def _directions(t: np.ndarray, U: np.ndarray, bounds, count: int) -> np.ndarray:
     return np.array(out)
 
 
-def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, bounds, conditions: list[int],
-                     target: float, better) -> Corrected | None:
-    """``fly(U)`` flies a control table at times ``t`` (those of ``U_own``, ``U_min``) and returns a
-    Flight; ``conditions``: the residuals to zero, each to ``target``; ``better(flight)``: the
-    flight refutes the claim. Returns the first corrected flight that refutes it, else the last
-    one that met the conditions, else None."""
+def _jumps(t: np.ndarray, U: np.ndarray, bounds) -> list[tuple[int, int]]:
+    """(table index of the entry before, control) of each bang switch: ``_tabulate`` writes a
+    switch as two entries a hair apart, the first on the old bound, the second on the new."""
+    close = np.flatnonzero(np.diff(t) <= 1e-8 * (t[-1] - t[0]))
+    out = []
+    for j, (lo, hi) in enumerate(bounds):
+        if math.isfinite(lo) and math.isfinite(hi):
+            out += [(int(i), j) for i in close if abs(U[i + 1, j] - U[i, j]) > 0.5 * (hi - lo)]
+    return sorted(out)
+
+
+def _moved(t: np.ndarray, U: np.ndarray, jumps: list[tuple[int, int]], shifts: np.ndarray):
+    """The table with switch k moved by ``shifts[k]`` x the phase's length: the arc before it
+    extended (or the one after it, moving back) to the new time. Returns (t, U, cuts)."""
+    span = t[-1] - t[0]
+    eps = 1e-9 * span
+    keep = np.ones(len(t), bool)
+    for i, _ in jumps:
+        keep[i] = keep[i + 1] = False
+    T, V = t[keep], U[keep].copy()
+    extra_t, extra_U, cuts = [], [], []
+    for (i, j), d in zip(jumps, shifts):
+        s, before, after = t[i], U[i, j], U[i + 1, j]
+        new = min(max(s + d * span, t[0] + 2 * eps), t[-1] - 3 * eps)
+        lo, hi = min(s, new), max(s, new)
+        between = (T >= lo) & (T <= hi + eps)
+        V[between & (T <= new), j] = before
+        V[between & (T > new), j] = after
+        row = np.array([np.interp(new, T, V[:, c]) for c in range(V.shape[1])])
+        left, right = row.copy(), row.copy()
+        left[j], right[j] = before, after
+        extra_t += [new, new + eps]
+        extra_U += [left, right]
+        cuts.append(new)
+    times = np.concatenate([T, extra_t])
+    order = np.argsort(times, kind="stable")
+    return times[order], np.vstack([V] + extra_U)[order], np.array(sorted(cuts))
+
+
+def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, cuts: np.ndarray, bounds,
+                     conditions: list[int], target: float, better, gain) -> Corrected | None:
+    """``fly(t, U, cuts)`` flies a control table (jumping at ``cuts``) and returns a Flight;
+    ``U_own``, ``U_min``: the solution's control and H's minimiser at the times ``t`` of
+    ``U_min``'s table, whose bang switches are at ``cuts``; ``conditions``: the residuals to zero,
+    each to ``target``; ``better(flight)``: the flight refutes the claim; ``gain(flight)``: by how
+    much it beats the claim (of the objective's sense). The unknowns are the
+    polynomials' coefficients on the interior arcs and, for the whole step to H's minimiser,
+    the times of its bang switches. Returns the first corrected flight that refutes the claim,
+    else the last one that met the conditions, else None."""
+    t = np.asarray(t, float)
     lo = np.array([b[0] for b in bounds])
     hi = np.array([b[1] for b in bounds])
     flights, met = 0, None
+    switches = _jumps(t, U_min, bounds)
 
     def residuals(flight) -> np.ndarray:
         return np.array([flight.residuals.get(i, math.inf) for i in conditions], float)
 
     for share in SHARES:
         base = np.clip(U_own + share * (U_min - U_own), lo, hi)
-        V = _directions(np.asarray(t, float), base, bounds, len(conditions))
-        if not len(V) or flights + len(V) + 2 > MAX_FLIGHTS:
-            break
-        coef = np.zeros(len(V))
+        V = _directions(t, base, bounds, len(conditions))
+        jumps = switches if share == 1.0 else []     # a share of a jump is no bang switch to move
+        n = len(V) + len(jumps)
+        if not n or flights + n + 2 > MAX_FLIGHTS:
+            continue
 
-        def control(c):
-            return np.clip(base + np.tensordot(c, V, axes=1), lo, hi)
+        def control(c, base=base, V=V, jumps=jumps):
+            U = np.clip(base + np.tensordot(c[:len(V)], V, axes=1), lo, hi) if len(V) else base
+            return _moved(t, U, jumps, c[len(V):]) if jumps else (t, U, cuts)
 
-        flight = fly(control(coef))
+        coef = np.zeros(n)
+        table = control(coef)
+        flight = fly(*table)
         flights += 1
         r = residuals(flight)
         if not np.all(np.isfinite(r)):
             continue
-        step = 1e-6 * max(1.0, float(np.max(np.abs(base))))
-        jac = np.empty((len(r), len(V)))
-        for k in range(len(V)):
-            dc = np.zeros(len(V))
-            dc[k] = step
-            jac[:, k] = (residuals(fly(control(dc))) - r) / step
+        steps = np.concatenate([np.full(len(V), 1e-6 * max(1.0, float(np.max(np.abs(base))))),
+                                np.full(len(jumps), 1e-6)])
+        jac = np.empty((len(r), n))
+        for k in range(n):
+            dc = np.zeros(n)
+            dc[k] = steps[k]
+            jac[:, k] = (residuals(fly(*control(dc))) - r) / steps[k]
             flights += 1
         if not np.all(np.isfinite(jac)):
             continue
         for _ in range(NEWTON_STEPS):
             if np.max(np.abs(r)) <= target or flights >= MAX_FLIGHTS:
                 break
-            coef = coef - np.linalg.lstsq(jac, r, rcond=None)[0]
-            flight = fly(control(coef))
+            step = -np.linalg.lstsq(jac, r, rcond=None)[0]
+            coef = coef + step
+            table = control(coef)
+            flight = fly(*table)
             flights += 1
-            r = residuals(flight)
-            if not np.all(np.isfinite(r)):
+            r_new = residuals(flight)
+            if not np.all(np.isfinite(r_new)):
+                r = r_new
                 break
+            # Broyden's update: the finite-difference Jacobian was taken at the start, and a
+            # switch moved far changes it (the chord alone converged 4x per step)
+            jac += np.outer(r_new - r - jac @ step, step) / float(step @ step)
+            r = r_new
         if np.all(np.isfinite(r)) and np.max(np.abs(r)) <= target:
-            met = Corrected(flight, share, flights, True)
+            met = Corrected(flight, share, flights, True, table[2])
             if better(flight):
+                return met
+            if not gain(flight) > 0:
+                # no better than the claim at all: the costates, not the step's second-order
+                # cost, are what is off, and a smaller share of the step would not help
                 return met
     return met

@@ -214,8 +214,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     # integrates at 1e-10)
     late = late_equalities(problem)
 
-    def fly(U):
-        return fly_control(problem, result, t_tab, U, cuts, rtol=min(1e-11 if late else 1e-9, 1e-4 * tolerance))
+    def fly(t_fly, U, cuts_fly):
+        return fly_control(problem, result, t_fly, U, cuts_fly, rtol=min(1e-11 if late else 1e-9, 1e-4 * tolerance))
 
     def gain_of(flight) -> float:
         return (claimed - flight.objective) * (1.0 if problem.objective.sense == "minimize" else -1.0)
@@ -224,19 +224,20 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     if late:
         # conditions on the final state or an integral: the control is first moved back onto them
         corrected = corrected_flight(
-            fly, t_tab, own.at(t_tab), U_tab, bounds, late, 0.5 * FEASIBLE_SHARE * tolerance,
-            lambda f: f.violation <= FEASIBLE_SHARE * tolerance and gain_of(f) > limit)
+            fly, t_tab, own.at(t_tab), U_tab, cuts, bounds, late, 0.5 * FEASIBLE_SHARE * tolerance,
+            lambda f: f.violation <= FEASIBLE_SHARE * tolerance and gain_of(f) > limit, gain_of)
         if corrected is None:
             texts = "; ".join(problem.boundary[i].text or str(problem.boundary[i].expr) for i in late)
             return {"claimed": claimed, "predicted_gain": predicted, "limit": limit, "corners": corner_times,
                     "passed": True, "note": f"H's minimiser could not be corrected to meet {texts}: not compared"}
-        flight = corrected.flight
+        flight, switches = corrected.flight, corrected.switches
     else:
-        flight = fly(U_tab)
+        flight, switches = fly(t_tab, U_tab, cuts), cuts
     gain = gain_of(flight)
     feasible = flight.violation <= FEASIBLE_SHARE * tolerance
     out = {"claimed": claimed, "flown": flight.objective, "gain": gain, "predicted_gain": predicted, "limit": limit,
            "violation": flight.violation, "feasible": bool(feasible), "corners": corner_times,
+           "switches": [float(c) for c in switches],
            "passed": not (feasible and gain > limit)}
     if corrected is not None:
         out["corrected"] = {"share": corrected.share, "flights": corrected.flights,
@@ -246,8 +247,11 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
                        "its objective bounds nothing")
     elif not out["passed"]:
         t0, tf = float(tt[0]), float(tt[-1])
-        shown = ", ".join(f"{c:.6g}" for c in corner_times[:6])
-        scaled = ", ".join(f"{(c - t0) / (tf - t0):.6g}" for c in corner_times[:6])
+        features = sorted(corner_times + out["switches"])
+        shown = ", ".join(f"{c:.6g}" for c in features[:6])
+        scaled = ", ".join(f"{(c - t0) / (tf - t0):.6g}" for c in features[:6])
+        what = ("reaches or leaves a bound" if not out["switches"] else
+                "switches between bounds" if not corner_times else "reaches, leaves or switches between bounds")
         corrected_to = ("" if corrected is None else
                         f" ({corrected.share:g} of the step from the solution's control to it, corrected to meet "
                         f"{'; '.join(out['corrected']['conditions'])})")
@@ -255,7 +259,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
                          f"from x(t0){corrected_to}, gives J = {flight.objective:.10g}, better than the claimed {claimed:.10g} "
                          f"by {gain:.1e} (the tolerance allows {limit:.1e}): the solution is not optimal; its "
                          "control cannot follow the optimum between nodes"
-                         + (f". That control reaches or leaves a bound at t = {shown} (phase time {scaled} "
+                         + (f". That control {what} at t = {shown} (phase time {scaled} "
                             "of [0, 1]): breakpoints there (`segments: [0, ..., 1]`) let the mesh follow it"
-                            if corner_times else ": more segments, or `mesh:`"))
+                            if features else ": more segments, or `mesh:`"))
     return out

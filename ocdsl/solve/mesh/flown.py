@@ -20,12 +20,14 @@ from ..certificate.flown_control import FLIGHT_RESOLUTION
 
 
 def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
-    """Phase name -> normalised times of the flown control's corners, when the certificate's
+    """Phase name -> normalised times of the flown control's corners and bang switches, when the certificate's
     ``flown_control`` flew a feasible trajectory better than the result by more than the mesh
     ``tolerance`` x (1 + |J|) (single-phase problems only; the certificate itself fails at the
     verification's tolerance); empty otherwise."""
     check = (result.certificate or {}).get("flown_control") or {}
-    if not check.get("feasible") or not check.get("corners") or len(result.phases) != 1:
+    # where the flown control reaches or leaves a bound, and where it switches between bounds
+    times = list(check.get("corners") or []) + list(check.get("switches") or [])
+    if not check.get("feasible") or not times or len(result.phases) != 1:
         return {}
     if not check.get("gain", 0.0) > max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(check["claimed"])):
         return {}
@@ -35,7 +37,7 @@ def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
     t0, tf = float(t[0]), float(t[-1])
     if not tf > t0:
         return {}
-    points = [(c - t0) / (tf - t0) for c in check["corners"]]
+    points = sorted((c - t0) / (tf - t0) for c in times)
     return {traj.name: [p for p in points if math.isfinite(p) and 0.0 < p < 1.0]}
 
 
