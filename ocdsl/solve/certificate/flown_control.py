@@ -173,6 +173,9 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     model = ph.model
     if not _quadratic_in_controls(model, params, lagrange):
         return None
+    late = {sym for sym, bv in problem.boundary_values.items() if bv.which == "tf"} | set(problem.integrals)
+    if sp.sympify(lagrange) == 0 and not problem.objective.expr.free_symbols & late:
+        return None     # J of t_f and parameters alone (minimum time): a flight keeps both
     t = np.asarray(traj.time, float)
     X = np.column_stack([np.asarray(traj.states[s.name], float) for s in model.states])
     Lam = np.column_stack([np.asarray(traj.costates.get(s.name, np.full(len(t), np.nan)), float)
