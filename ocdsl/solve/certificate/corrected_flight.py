@@ -152,6 +152,8 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
             if np.max(np.abs(r)) <= target or flights >= MAX_FLIGHTS:
                 break
             step = -np.linalg.lstsq(jac, r, rcond=None)[0]
+            if not (np.all(np.isfinite(step)) and float(step @ step) > 0.0):
+                break
             coef = coef + step
             table = control(coef)
             flight = fly(*table)
@@ -164,6 +166,8 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
             # switch moved far changes it (the chord alone converged 4x per step)
             jac += np.outer(r_new - r - jac @ step, step) / float(step @ step)
             r = r_new
+            if not np.all(np.isfinite(jac)):
+                break
         if np.all(np.isfinite(r)) and np.max(np.abs(r)) <= target:
             met = Corrected(flight, share, flights, True, table[2])
             if better(flight):
