@@ -375,6 +375,29 @@ def test_a_bang_bang_control_is_corrected_onto_the_final_conditions_by_its_switc
     assert "switches between bounds at t = 0.8418" in flown["reason"]
 
 
+def test_a_minimum_time_claim_is_refuted_by_a_shorter_corrected_flight(tmp_path):
+    """A free final time is one more unknown of the correction (the phase stretched about t0):
+    the minimum-time double integrator from x = -1.3 on LGR 3 x 3 claims tf 1.3e-2 above
+    2 sqrt(1.3); the switch and tf moved onto x(tf) = v(tf) = 0 fly in 2 sqrt(1.3) itself. A
+    claim below the optimum (LG, the trajectory infeasible) is never beaten by a feasible one."""
+    import math
+
+    text = (CONFIGS / "double_integrator.yaml").read_text()
+    text = text.replace("x(t0) == -1", "x(t0) == -1.3").split("expect:")[0]
+    (tmp_path / "lgr.yaml").write_text(text.replace("segments: 10, degree: 5", "segments: 3, degree: 3"))
+    res = run_file(tmp_path / "lgr.yaml", None)
+    best = 2 * math.sqrt(1.3)
+    assert res.objective - best > 1e-2
+    flown = res.certificate["flown_control"]
+    assert not flown["passed"] and flown["feasible"] and abs(flown["flown"] - best) < 1e-8
+    assert flown["corrected"]["stretch"] == pytest.approx(best / res.objective, rel=1e-7)
+    assert np.allclose(flown["switches"], [best / 2], atol=1e-6)
+    (tmp_path / "lg.yaml").write_text(text.replace("transcription: LGR, segments: 10, degree: 5",
+                                                   "transcription: LG, segments: 3, degree: 4"))
+    low = run_file(tmp_path / "lg.yaml", None)
+    assert low.objective < best - 1e-3 and low.certificate["flown_control"]["passed"]
+
+
 def test_a_flown_control_that_cannot_be_flown_keeps_the_other_checks_verdict(monkeypatch):
     """An exception inside the flown control (an SVD that did not converge on mesh_moon_landing)
     made the whole certificate 'could not be evaluated' and hid its failed switching check: the

@@ -68,10 +68,11 @@ class Flight:
 
 
 def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts: np.ndarray,
-                rtol: float = 1e-9) -> Flight:
+                rtol: float = 1e-9, stretch: float = 1.0) -> Flight:
     """Integrate the single phase of ``problem`` from the result's first row with the control
     tabulated at ``t_table`` (linear between entries, restarted at ``cuts``, where it jumps);
-    the result's final time and parameters are kept. Violations are relative as in the
+    the result's parameters are kept, and its final time unless ``stretch`` (a free final time
+    moved: the phase and the table stretched by that factor about t0). Violations are relative as in the
     verification (boundary conditions by their sensitivity scale, state bounds by the state's
     range)."""
     (ph,) = problem.phases
@@ -82,6 +83,11 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
     X_rows = np.column_stack([np.asarray(traj.states[n], float) for n in names_x])
     keep = np.isfinite(t_rows) & np.isfinite(X_rows).all(axis=1)
     t_rows, X_rows = t_rows[keep], X_rows[keep]
+    if stretch != 1.0:
+        # a free final time moved: the phase (rows, table and cuts) stretched about t0
+        t0 = t_rows[0]
+        t_rows, t_table = t0 + stretch * (t_rows - t0), t0 + stretch * (np.asarray(t_table, float) - t0)
+        cuts = t0 + stretch * (np.asarray(cuts, float) - t0)
     funcs = PhaseFunctions(ph, params, ph.integrals)
     uf = _Linear(t_table, U_table)
     breaks = np.unique(np.concatenate([[t_rows[0], t_rows[-1]], np.asarray(cuts, float)]))
@@ -109,6 +115,10 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
             residuals[i] = (value - c.lower) / sensitivity
         if not v <= worst:
             worst, where = (v if math.isfinite(v) else math.inf), c.text or str(c.expr)
+    lo_tf, hi_tf = ph.tf_bounds
+    v = float(relative_violation(np.array([t_rows[-1]]), lo_tf, hi_tf, max(t_rows[-1] - t_rows[0], 1e-12))[0])
+    if not v <= worst:
+        worst, where = (v if math.isfinite(v) else math.inf), "bounds of the final time"
     for j, (lo, hi) in enumerate(bounds_of(ph, names_x, "states")):
         if math.isfinite(lo) or math.isfinite(hi):
             v = float(np.max(relative_violation(flown.Y[:, j], lo, hi, scale_x[j])))

@@ -33,6 +33,7 @@ class Corrected:
     flights: int
     met: bool               # the final conditions met to the target
     switches: np.ndarray    # the times of the flown control's bang switches (moved by the correction)
+    stretch: float = 1.0    # the flown phase's length over the solution's (a free final time)
 
 
 def late_equalities(problem) -> list[int]:
@@ -101,14 +102,17 @@ def _moved(t: np.ndarray, U: np.ndarray, jumps: list[tuple[int, int]], shifts: n
 
 
 def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, cuts: np.ndarray, bounds,
-                     conditions: list[int], target: float, better, gain) -> Corrected | None:
+                     conditions: list[int], target: float, better, gain,
+                     free_final_time: bool = False) -> Corrected | None:
     """``fly(t, U, cuts)`` flies a control table (jumping at ``cuts``) and returns a Flight;
     ``U_own``, ``U_min``: the solution's control and H's minimiser at the times ``t`` of
     ``U_min``'s table, whose bang switches are at ``cuts``; ``conditions``: the residuals to zero,
     each to ``target``; ``better(flight)``: the flight refutes the claim; ``gain(flight)``: by how
     much it beats the claim (of the objective's sense). The unknowns are the
     polynomials' coefficients on the interior arcs and, for the whole step to H's minimiser,
-    the times of its bang switches. Returns the first corrected flight that refutes the claim,
+    the times of its bang switches, and with a ``free_final_time`` the phase's length (``fly``'s
+    ``stretch``: a minimum-time claim is refuted by a shorter flight that meets the conditions).
+    Returns the first corrected flight that refutes the claim,
     else the last one that met the conditions, else None."""
     t = np.asarray(t, float)
     lo = np.array([b[0] for b in bounds])
@@ -123,13 +127,15 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
         base = np.clip(U_own + share * (U_min - U_own), lo, hi)
         V = _directions(t, base, bounds, len(conditions))
         jumps = switches if share == 1.0 else []     # a share of a jump is no bang switch to move
-        n = len(V) + len(jumps)
+        n = len(V) + len(jumps) + int(free_final_time)
         if not n or flights + n + 2 > MAX_FLIGHTS:
             continue
 
         def control(c, base=base, V=V, jumps=jumps):
             U = np.clip(base + np.tensordot(c[:len(V)], V, axes=1), lo, hi) if len(V) else base
-            return _moved(t, U, jumps, c[len(V):]) if jumps else (t, U, cuts)
+            table = _moved(t, U, jumps, c[len(V):len(V) + len(jumps)]) if jumps else (t, U, cuts)
+            # a Newton step far out (a stretch of -75 once) is cut back to a factor of 5
+            return (*table, float(np.clip(1.0 + c[-1], 0.2, 5.0)) if free_final_time else 1.0)
 
         coef = np.zeros(n)
         table = control(coef)
@@ -139,7 +145,7 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
         if not np.all(np.isfinite(r)):
             continue
         steps = np.concatenate([np.full(len(V), 1e-6 * max(1.0, float(np.max(np.abs(base))))),
-                                np.full(len(jumps), 1e-6)])
+                                np.full(len(jumps) + int(free_final_time), 1e-6)])
         jac = np.empty((len(r), n))
         for k in range(n):
             dc = np.zeros(n)
@@ -169,7 +175,7 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
             if not np.all(np.isfinite(jac)):
                 break
         if np.all(np.isfinite(r)) and np.max(np.abs(r)) <= target:
-            met = Corrected(flight, share, flights, True, table[2])
+            met = Corrected(flight, share, flights, True, t[0] + table[3] * (table[2] - t[0]), table[3])
             if better(flight):
                 return met
             if not gain(flight) > 0:

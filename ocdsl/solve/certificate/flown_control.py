@@ -174,8 +174,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     if not _quadratic_in_controls(model, params, lagrange):
         return None
     late = {sym for sym, bv in problem.boundary_values.items() if bv.which == "tf"} | set(problem.integrals)
-    if sp.sympify(lagrange) == 0 and not problem.objective.expr.free_symbols & late:
-        return None     # J of t_f and parameters alone (minimum time): a flight keeps both
+    if sp.sympify(lagrange) == 0 and not problem.objective.expr.free_symbols & late and ph.tf is not None:
+        return None     # J of a fixed t_f and parameters alone: no flight changes it
     t = np.asarray(traj.time, float)
     X = np.column_stack([np.asarray(traj.states[s.name], float) for s in model.states])
     Lam = np.column_stack([np.asarray(traj.costates.get(s.name, np.full(len(t), np.nan)), float)
@@ -217,8 +217,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     # integrates at 1e-10)
     late = late_equalities(problem)
 
-    def fly(t_fly, U, cuts_fly):
-        return fly_control(problem, result, t_fly, U, cuts_fly, rtol=min(1e-11 if late else 1e-9, 1e-4 * tolerance))
+    def fly(t_fly, U, cuts_fly, stretch=1.0):
+        return fly_control(problem, result, t_fly, U, cuts_fly, stretch=stretch, rtol=min(1e-11 if late else 1e-9, 1e-4 * tolerance))
 
     def gain_of(flight) -> float:
         return (claimed - flight.objective) * (1.0 if problem.objective.sense == "minimize" else -1.0)
@@ -228,7 +228,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
         # conditions on the final state or an integral: the control is first moved back onto them
         corrected = corrected_flight(
             fly, t_tab, own.at(t_tab), U_tab, cuts, bounds, late, 0.5 * FEASIBLE_SHARE * tolerance,
-            lambda f: f.violation <= FEASIBLE_SHARE * tolerance and gain_of(f) > limit, gain_of)
+            lambda f: f.violation <= FEASIBLE_SHARE * tolerance and gain_of(f) > limit, gain_of,
+            free_final_time=ph.tf is None)
         if corrected is None:
             texts = "; ".join(problem.boundary[i].text or str(problem.boundary[i].expr) for i in late)
             return {"claimed": claimed, "predicted_gain": predicted, "limit": limit, "corners": corner_times,
@@ -243,7 +244,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
            "switches": [float(c) for c in switches],
            "passed": not (feasible and gain > limit)}
     if corrected is not None:
-        out["corrected"] = {"share": corrected.share, "flights": corrected.flights,
+        out["corrected"] = {"share": corrected.share, "flights": corrected.flights, "stretch": corrected.stretch,
                             "conditions": [problem.boundary[i].text or str(problem.boundary[i].expr) for i in late]}
     if not feasible:
         out["note"] = (f"the flown control misses {flight.where} by {flight.violation:.1e} (relative): "
@@ -257,7 +258,9 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
                 "switches between bounds" if not corner_times else "reaches, leaves or switches between bounds")
         corrected_to = ("" if corrected is None else
                         f" ({corrected.share:g} of the step from the solution's control to it, corrected to meet "
-                        f"{'; '.join(out['corrected']['conditions'])})")
+                        f"{'; '.join(out['corrected']['conditions'])}"
+                        + (f", over a final time {t0 + corrected.stretch * (tf - t0):.10g}" if corrected.stretch != 1.0 else "")
+                        + ")")
         out["reason"] = (f"the control that minimises H along the solution's own states and costates, flown "
                          f"from x(t0){corrected_to}, gives J = {flight.objective:.10g}, better than the claimed {claimed:.10g} "
                          f"by {gain:.1e} (the tolerance allows {limit:.1e}): the solution is not optimal; its "
