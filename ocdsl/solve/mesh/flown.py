@@ -37,7 +37,11 @@ def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
     t0, tf = float(t[0]), float(t[-1])
     if not tf > t0:
         return {}
-    points = sorted((c - t0) / (tf - t0) for c in times)
+    # the switches of a flight over a moved free final time are in its own time, the corners
+    # (H's minimiser before any correction) in the solution's
+    stretch = float((check.get("corrected") or {}).get("stretch", 1.0))
+    points = sorted([(c - t0) / (tf - t0) for c in check.get("corners") or []]
+                    + [(c - t0) / (stretch * (tf - t0)) for c in check.get("switches") or []])
     return {traj.name: [p for p in points if math.isfinite(p) and 0.0 < p < 1.0]}
 
 
