@@ -162,7 +162,11 @@ method: {transcription: flat-bspline, degree: 5, control_points: 8, collocation_
     np.testing.assert_allclose(b.states["x"], 3 * b.time ** 2 - 2 * b.time ** 3, atol=1e-7)
     # a tighter bound becomes active (at the collocation points)
     res2 = ocdsl.load(write(tmp_path, text.replace("u >= -6.5", "u >= -5"), "p2.yaml")).solve()
-    assert res2.status == "optimal" and res2.objective > 12.0 + 1e-3
+    assert res2.objective > 12.0 + 1e-3
+    # with the bound active, 8 control points do not settle J: twice the knot spans move it by
+    # more than the tolerance, and the run says so instead of `optimal` (flat_bspline_refine.confirm_objective)
+    assert res2.status == "mesh_not_converged" and res2.extra["confirmation"]["change"] > 1e-5
+    assert res.extra["confirmation"]["change"] < 1e-7        # the unconstrained optimum: confirmed
     u = res2.phase("b").controls["u"]
     assert u[-1] == pytest.approx(-5.0, abs=1e-6)       # active at the last collocation point
 

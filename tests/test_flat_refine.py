@@ -203,6 +203,20 @@ def test_a_verified_level_whose_objective_has_not_settled_is_not_optimal(tmp_pat
     assert "did not settle" in res.message and res.verification["status"] == "verified"
 
 
+@pytest.mark.ipopt
+def test_one_level_without_a_tolerance_is_not_optimal_unless_twice_the_spans_confirm_it(tmp_path):
+    """unseen19 F1 (a false claim): without `tolerance:` one level is solved, verified
+    (its dynamics hold by construction) and was reported `optimal` at J = 4.0024 for 4. Its J
+    is now confirmed on twice the knot spans; 35 control points move it by 5e-4, and the run
+    says mesh_not_converged, naming `tolerance:`."""
+    text = BRYSON_DENHAM_FLAT.replace("  tolerance: 1.0e-6\n  refinements: REFINEMENTS\n", "")
+    res = ocdsl.load(write(tmp_path, text, "bd.yaml")).solve()
+    assert res.objective - 4.0 > 1e-3 and res.verification["status"] == "verified"
+    assert res.status == "mesh_not_converged" and not res.ok
+    check = res.extra["confirmation"]
+    assert check["control_points"] == 35 and check["change"] > 1e-4 and "`tolerance:`" in res.message
+
+
 @pytest.mark.slow
 @pytest.mark.ipopt
 def test_flat_refinement_reaches_bryson_denham_optimum(tmp_path):

@@ -362,6 +362,11 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
 
         with timer.measure("refine"):
             result = refine(file, mp, result, options, verbose, sum(timer.breakdown().values()))
+    else:
+        from .flat_bspline_refine import confirm_objective
+
+        with timer.measure("bisection"):
+            result = confirm_objective(file, mp, result, options, verbose)
     result.wall_time_s = timer.breakdown()
     return result
 
