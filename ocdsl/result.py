@@ -205,8 +205,21 @@ class Result(ResultViews):
                 shutil.copytree(src, tmp / name, ignore=shutil.ignore_patterns(".*.ocdsl-*"))
         return run_dir
 
+    def judge_expectations(self) -> None:
+        """A published value is met only by a solution: a failed solve's last iterate that
+        happens to match one is no pass (unseen19 F3: Ipopt ended 'error', the objective 5e-9
+        from the reference, printed `pass`). Such checks are marked not passed."""
+        mesh = self.extra.get("mesh") or {}
+        if self.has_solution or mesh.get("chosen_status") in ("optimal", "acceptable"):
+            return      # a cut-short refinement reports a completed mesh's solution
+        for check in self.expect:
+            if check.get("passed"):
+                check["passed"] = False
+                check["not_a_solution"] = True
+
     def write_contents(self, folder: Path, extra_files: dict[str, str] | None = None) -> None:
         """The run folder's files, into ``folder`` being assembled (see :meth:`write`)."""
+        self.judge_expectations()
         for p in self.phases:
             _write_csv(folder / _trajectory_file(p.name, len(self.phases)), p.columns())
         for name, table in self.tables.items():

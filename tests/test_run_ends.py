@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import CONFIGS
 from ocdsl.api import compile_file, run_file
 from ocdsl.spec.errors import SpecError
 
@@ -366,3 +367,20 @@ def test_every_attempt_of_a_solve_gets_the_time_left(monkeypatch):
     assert warm and not cold
     assert w_left is not None and 4.0 < w_left <= 5.0
     assert c_left is not None and c_left <= w_left - 0.19
+
+
+def test_a_published_value_matched_by_a_failed_solves_last_iterate_is_no_pass(tmp_path):
+    """unseen19 F3: Ipopt ended 'error' and the summary printed `... (last iterate, not a
+    solution) pass` with result.json `passed: true`. Only a solution meets a published value."""
+    import re
+
+    text = (CONFIGS / "brachistochrone.yaml").read_text().split("expect:")[0]
+    text = re.sub(r"(?m)^solver:.*\n", "", text)
+    text += "solver: {options: {max_iter: 2}}\nexpect:\n  objective: {value: 1.8, atol: 1.0e+3}\n"
+    res = run_file(write(tmp_path, text), tmp_path / "run")
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert saved["status"] == "max_iter" and abs(saved["objective"] - 1.8) < 1e3     # the value "matches"
+    (check,) = saved["expect"]
+    assert check["passed"] is False and check["not_a_solution"] is True
+    assert not res.expect[0]["passed"]
+
