@@ -64,3 +64,30 @@ def test_unknown_key_is_rejected(tmp_path):
     method_line = next(i + 1 for i, l in enumerate(p.read_text().splitlines()) if l.startswith("method:"))
     assert f"bad.yaml:{line}" in str(e.value) or f"bad.yaml:{method_line}" in str(e.value)
     assert "jinn" in str(e.value)
+
+
+def test_a_search_result_whose_series_leaves_the_control_bound_is_infeasible():
+    """unseen19 F2: the series are searched in their coefficients' box and not saturated; a
+    result meeting the terminal tolerances with u = 4 against -1 <= u <= 1 was `feasible`. The
+    problem-file runner now calls it infeasible, naming the control and its range; inside the
+    bound it stays feasible."""
+    import numpy as np
+
+    from ocdsl.api import compile_file
+    from ocdsl.result import PhaseTrajectory, Result
+    from ocdsl.search.problem_file import _control_bounds
+
+    file = compile_file(Path(__file__).parent / "data" / "series_outside_control_bound.yaml")
+    t = np.linspace(0.0, 0.5, 11)
+
+    def result(u):
+        return Result(name="r", status="feasible", message="PSO stopped",
+                      phases=[PhaseTrajectory("main", t, {"x": u * t}, {"u": np.full_like(t, u)})])
+
+    outside = result(4.0)
+    _control_bounds(file, outside)
+    assert outside.status == "infeasible" and "u reaches 4 .. 4 against -1 <= u <= 1" in outside.message
+    inside = result(1.0)
+    _control_bounds(file, inside)
+    assert inside.status == "feasible"
+

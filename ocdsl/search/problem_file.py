@@ -46,8 +46,41 @@ def run_parametric_file(file, timer, *, seed=None, warm_start=None, verbose=Fals
         if s.name in result.parameters:
             values[s] = float(result.parameters[s.name])
     result.expect = check_expectations(file, values, result.objective)
+    _control_bounds(file, result)
     result.wall_time_s = timer.breakdown()
     return result
+
+
+def _control_bounds(file, result: Result) -> None:
+    """The series are searched in their coefficients' box, not in the problem's control
+    bounds, and nothing saturates them: a search result whose control leaves a bound the
+    problem states (``-1 <= u <= 1``) is no feasible trajectory of the problem (unseen19 F2:
+    `feasible`, u up to 5.14, the verification failing on the mesh). It becomes `infeasible`,
+    saying which control and how far."""
+    import numpy as np
+
+    if result.status != "feasible":
+        return
+    tol = float(file.spec.verify.tolerance)
+    out = []
+    for ph, traj in zip(file.problem.phases, result.phases):
+        for c in ph.controls:
+            lo, hi = (float(b) for b in ph.control_bounds.get(c, (-np.inf, np.inf)))
+            u = np.asarray(traj.controls.get(c.name, []), float)
+            u = u[np.isfinite(u)]
+            if not len(u) or not (np.isfinite(lo) or np.isfinite(hi)):
+                continue
+            scale = max(hi - lo if np.isfinite(hi - lo) else 0.0, float(np.max(np.abs(u))), 1.0)
+            over = float(max(np.max(lo - u), np.max(u - hi), 0.0))
+            if over > tol * scale:
+                out.append(f"{c.name} reaches {float(np.min(u)):.6g} .. {float(np.max(u)):.6g} against "
+                           f"{lo:g} <= {c.name} <= {hi:g}")
+    if out:
+        result.status = "infeasible"
+        result.message = (f"{result.message}; but the series control leaves the problem's bounds ({'; '.join(out)}): "
+                          "a series is searched in its coefficients' box and is not saturated, so the "
+                          "terminal errors are met by a control the problem does not allow. Narrow the "
+                          "series' `bounds` and `a0`, lower its order, or use a pseudospectral method")
 
 
 register_runner("parametric", run_parametric_file)
