@@ -91,3 +91,16 @@ def test_a_search_result_whose_series_leaves_the_control_bound_is_infeasible():
     _control_bounds(file, inside)
     assert inside.status == "feasible"
 
+
+def test_an_integral_in_a_parametric_problem_is_one_error_at_check_time():
+    """unseen19: `ocdsl check` said ok and the run ended with "unknown symbols
+    ['integral1_main']": the shooting kernel integrates the states only."""
+    from ocdsl.api import compile_file
+    from ocdsl.spec.errors import SpecError
+
+    with pytest.raises(SpecError) as err:
+        compile_file(Path(__file__).parent / "data" / "parametric_integral_objective.yaml")
+    text = str(err.value)
+    assert "parametric_integral_objective.yaml:10" in text and "integral(...)" in text
+    assert "integral1_main" not in text
+

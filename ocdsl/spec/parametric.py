@@ -266,6 +266,12 @@ class ParametricSpec(_Strict):
                 if name not in states and not (key == "tolerances" and name == "default"):
                     out.append(((key, name), f"'{name}' is not a state of the model"
                                 + did_you_mean(name, states) + f"; states: {', '.join(states)}"))
+        if problem.integrals:
+            # the shooting kernel integrates the states only (unseen19: `ocdsl check` said ok,
+            # the run ended "unknown symbols ['integral1_main']")
+            out.append(((), "the parametric method integrates the model's states only: integral(...) in the "
+                            "objective or the constraints is not supported; add the integrand as a state "
+                            "(q' = u**2, q(t0) == 0, minimize q(tf)), or use a pseudospectral method"))
         return out
 
 
