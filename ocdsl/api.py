@@ -232,11 +232,13 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
         except SpecError:
             raise
         except Exception as e:  # a crash in a back end (or a stage) still leaves a diagnosed run folder
-            result = Result(name=file.spec.name, status="error",
-                            message=f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=6)}",
+            # the message is what went wrong; where in ocdsl it happened is for a bug report
+            # (unseen19: a model that is not flat printed the reason, then a traceback)
+            result = Result(name=file.spec.name, status="error", message=f"{type(e).__name__}: {e}",
                             wall_time_s=timer.breakdown(), method=dict(file.spec.method),
                             parameters=file.parameters,
-                            problem=file.problem.description if file.problem else {})
+                            problem=file.problem.description if file.problem else {},
+                            extra={"traceback": traceback.format_exc(limit=6)})
         if out_dir is not None:
             write_run(result, out_dir, Path(path), force=force, extra_dirs=chain_stages.entries(stages))
     return result

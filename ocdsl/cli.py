@@ -174,7 +174,11 @@ def _summary(result, out: Path) -> None:
     if vstatus not in ("verified", "not_applicable") and v.get("summary"):
         con.print(f"  {v['summary']}", markup=False)
     if result.status not in ("optimal",) and result.message:
-        con.print(f"  {result.message.splitlines()[0]}", markup=False)     # "controls [up, um]" is text
+        # "controls [up, um]" is text; an error's reason may take several lines (every set of
+        # flat outputs tried), other statuses' first line is their headline
+        shown = result.message.splitlines() if result.status == "error" else result.message.splitlines()[:1]
+        for line in shown:
+            con.print(f"  {line}", markup=False)
     for note in result.extra.get("notes", []):
         con.print(f"  note: {note}", markup=False)
     t = Table(show_header=False, box=None, padding=(0, 2))

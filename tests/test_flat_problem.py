@@ -2,6 +2,8 @@
 Problem (boundary values, links, phase times, path bounds, integrals, objective) onto the
 flat B-spline back end, the Result it returns, and the seed-2 problem files (Hohmann burn
 written as named expressions of the parameters in the file)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -235,3 +237,20 @@ def test_strategy3_2km_row_from_the_problem_file():
     assert levels[0]["variables"] == 2 * 15 + 1 + 15 + 1 + 1 + 1 and levels[0]["verification"] == "failed"
     assert levels[-1]["verification"] == res.verification["status"] == "verified"
     assert res.extra["flat_reduction"]["descent"]["outputs"] == ["r"]
+
+
+@pytest.mark.ipopt
+def test_a_model_that_is_not_flat_is_an_error_with_its_reasons_and_no_traceback(tmp_path, capsys):
+    """unseen19: the run folder's message held the reasons and then a Python traceback, and
+    the summary printed only the first line ("... by any set of up to 2 states:")."""
+    from ocdsl.api import run_file
+    from ocdsl.cli import _summary
+
+    res = run_file(Path(__file__).parent / "data" / "flat_not_flat.yaml", tmp_path / "run")
+    assert res.status == "error" and "Traceback" not in res.message
+    assert "blocking equation(s)" in res.message and "Traceback" in res.extra["traceback"]
+    capsys.readouterr()
+    _summary(res, tmp_path / "run")
+    shown = capsys.readouterr().out
+    assert "blocking equation(s)" in shown and "Traceback" not in shown
+
