@@ -398,6 +398,29 @@ def test_a_minimum_time_claim_is_refuted_by_a_shorter_corrected_flight(tmp_path)
     assert low.objective < best - 1e-3 and low.certificate["flown_control"]["passed"]
 
 
+def test_flights_that_leave_the_models_domain_are_cut_by_a_time_budget(monkeypatch):
+    """unseen18: a corrected control flew the moon lander out of its domain, where the stiff
+    integrator at rtol 1e-11 went on for minutes (mesh_moon_landing did not end). Every flight
+    runs under the check's time budget, and one that runs out counts as failed: here every
+    flight would run forever, and the check still ends, refuting nothing."""
+    import ocdsl.solve.certificate.flown_control as fc
+    import ocdsl.verify.fly as fly
+    from ocdsl.verify.integrate import _check_deadline
+
+    calls = []
+
+    def endless(*args, **kwargs):
+        calls.append(1)
+        while True:
+            _check_deadline(0.0)
+
+    monkeypatch.setattr(fly, "fly_control", endless)
+    monkeypatch.setattr(fc, "FLIGHT_BUDGET_S", 0.5)
+    res = run_file(DATA / "lq_fixed_end.yaml", None)
+    flown = res.certificate["flown_control"]
+    assert calls and flown["passed"] and "could not be corrected" in flown["note"]
+
+
 def test_a_flown_control_that_cannot_be_flown_keeps_the_other_checks_verdict(monkeypatch):
     """An exception inside the flown control (an SVD that did not converge on mesh_moon_landing)
     made the whole certificate 'could not be evaluated' and hid its failed switching check: the

@@ -134,8 +134,8 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
         def control(c, base=base, V=V, jumps=jumps):
             U = np.clip(base + np.tensordot(c[:len(V)], V, axes=1), lo, hi) if len(V) else base
             table = _moved(t, U, jumps, c[len(V):len(V) + len(jumps)]) if jumps else (t, U, cuts)
-            # a Newton step far out (a stretch of -75 once) is cut back to a factor of 5
-            return (*table, float(np.clip(1.0 + c[-1], 0.2, 5.0)) if free_final_time else 1.0)
+            # a Newton step far out (a stretch of -75 once) is cut back to a factor of 2
+            return (*table, float(np.clip(1.0 + c[-1], 0.5, 2.0)) if free_final_time else 1.0)
 
         coef = np.zeros(n)
         table = control(coef)
