@@ -421,6 +421,19 @@ def test_flights_that_leave_the_models_domain_are_cut_by_a_time_budget(monkeypat
     assert calls and flown["passed"] and "could not be corrected" in flown["note"]
 
 
+def test_a_control_bound_entered_inside_a_segment_of_a_multi_phase_problem_is_bisected():
+    """unseen18 P15M (a false claim): the saturated scalar LQ as two phases on LGR 3 x 3 was
+    optimal, verified, certificate pass, exit 0 with J 7.3e-5 above the closed form; the flown
+    control does not apply to several phases and the bisection only ran for state and path
+    constraints. Where the flown control did not judge the run, a control bound that binds
+    inside a phase triggers the bisection too: J moves, mesh_not_converged."""
+    res = run_file(DATA / "two_phase_saturated_lq.yaml", None)
+    assert res.objective - 0.5191609695 > 3e-5 and res.verified           # the case: J off, verified
+    assert "flown_control" not in res.certificate
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert res.extra["bisection"]["agrees"] is False and "`-0.9 <= u <= 0.9`" in res.message
+
+
 def test_a_flown_control_that_cannot_be_flown_keeps_the_other_checks_verdict(monkeypatch):
     """An exception inside the flown control (an SVD that did not converge on mesh_moon_landing)
     made the whole certificate 'could not be evaluated' and hid its failed switching check: the

@@ -131,9 +131,10 @@ class Bisection:
         return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the tolerance {self.tolerance:g}"
 
 
-def _binding_rows(tr):
+def _binding_rows(tr, controls: bool = False):
     """Per phase of a solved transcription ``tr``: (phase block, [(constraint text, normalised
-    times of the nodes inside the phase where it binds)]), see :func:`binding_arcs`."""
+    times of the nodes inside the phase where it binds)]), see :func:`binding_arcs`; with
+    ``controls``, the control bounds too."""
     import pyomo.core as pyo
 
     from ..transcribe.solution import node_values
@@ -141,12 +142,16 @@ def _binding_rows(tr):
 
     for pb in tr.phases:
         ph, lay = pb.phase, pb.layout
-        X, _ = node_values(pb)
+        X, U = node_values(pb)
         rows = []         # (constraint text, values at nodes, their normalised times, lo, hi)
         for j, s in enumerate(ph.states):
             lo, hi = ph.bounds_of(s)
             if math.isfinite(lo) or math.isfinite(hi):
                 rows.append((_bound_text(s.name, lo, hi), X[:, j], lay.s_state, lo, hi))
+        for j, c in enumerate(ph.controls if controls else ()):
+            lo, hi = ph.bounds_of(c)
+            if math.isfinite(lo) or math.isfinite(hi):
+                rows.append((_bound_text(c.name, lo, hi), U[:, j], lay.s_colloc, lo, hi))
         npath = len(ph.path)
         path_rows = getattr(pb.block, "path", None)
         if npath and path_rows is not None and len(path_rows) == lay.n_colloc * npath:
@@ -172,15 +177,15 @@ def _binding_rows(tr):
         yield pb, out
 
 
-def binding_arcs(tr) -> list[PhaseArcs]:
+def binding_arcs(tr, controls: bool = False) -> list[PhaseArcs]:
     """The phases of a solved pseudospectral transcription ``tr`` whose state bounds or
-    inequality path constraints bind at a node inside the phase (not only at its ends,
-    where boundary conditions hold states at bounds; a touch point counts: the 3-segment
-    speed limit touched at one node): which, and over what times."""
+    inequality path constraints (with ``controls``, control bounds too) bind at a node inside
+    the phase (not only at its ends, where boundary conditions hold states at bounds; a touch
+    point counts: the 3-segment speed limit touched at one node): which, and over what times."""
     from ..transcribe.solution import phase_times
 
     found = []
-    for pb, rows in _binding_rows(tr):
+    for pb, rows in _binding_rows(tr, controls):
         t0, tf = phase_times(pb)
         arcs = []
         for text, s_on in rows:
