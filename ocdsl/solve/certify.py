@@ -74,10 +74,11 @@ def _degenerate_rows(result: Result) -> dict | None:
 
 
 def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
-                   mesh_tolerance: float | None = None, always_fly: bool = False) -> dict:
+                   mesh_tolerance: float | None = None, always_fly: bool = False,
+                   flight_budget_s: float | None = None) -> dict:
     """The certificate per phase; ``tolerance``: the verification's, which a missing end arc's
     predicted gain in J (relative to 1 + |J|) must stay under; ``mesh_tolerance``: a ``mesh:``
-    run's, and ``always_fly`` (``flown_control``)."""
+    run's, ``always_fly`` and ``flight_budget_s`` (``flown_control``)."""
     degenerate = _degenerate_rows(result)
     if degenerate is not None:
         return degenerate
@@ -141,8 +142,8 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
                         tolerance * (1.0 + abs(float(result.objective or 0.0))))
         # a feasible trajectory better than the claim, from the minimum principle's control
         try:
-            flown = flown_control(problem, result, L, params, tolerance, mesh_tolerance, always_fly) \
-                if len(problem.phases) == 1 else None
+            flown = flown_control(problem, result, L, params, tolerance, mesh_tolerance, always_fly,
+                                  flight_budget_s) if len(problem.phases) == 1 else None
         except Exception as exc:  # noqa: BLE001  (it can only refute: a failure of its own keeps the other checks' verdict)
             flown = {"passed": True, "note": f"the minimum principle's control could not be flown: "
                                              f"{type(exc).__name__}: {exc}"}

@@ -47,6 +47,12 @@ FLIGHT_BUDGET_S = 10.0
 FLIGHT_SHARE_S = 0.2       # ... and each flight after the first at most 20 times the first, or this
 
 
+def flight_budget(solve_s: float) -> float:
+    """The flights' budget for a run whose solve took ``solve_s``: twice that, at least 0.5 s, at
+    most FLIGHT_BUDGET_S (Goddard's corrected flights took 10 s after a 0.08 s solve)."""
+    return min(FLIGHT_BUDGET_S, max(0.5, 2.0 * float(solve_s)))
+
+
 def _quadratic_in_controls(model, params, lagrange) -> bool:
     """Whether f and L are polynomials of degree at most 2 in the controls (H's minimiser over
     a box is then found exactly, coordinate by coordinate)."""
@@ -164,13 +170,15 @@ def _tabulate(t, U, G, bounds, corners):
 
 
 def flown_control(problem: Problem, result: Result, lagrange, params: dict, tolerance: float,
-                  mesh_tolerance: float | None = None, always_fly: bool = False) -> dict[str, Any] | None:
+                  mesh_tolerance: float | None = None, always_fly: bool = False,
+                  budget_s: float | None = None) -> dict[str, Any] | None:
     """The check's record (``params``: the phase's parameter values, as the certificate's): the
     claimed and the flown objective, the gain, the flown trajectory's worst violation; ``passed``
     False when it is feasible and better than the claim by more than ``tolerance`` x (1 + |J|). None where the check does not apply. With a
     ``mesh_tolerance`` (a ``mesh:`` run, which refines again on a gain above it, mesh/flown.py)
     the control is also flown for predicted gains near that tolerance; ``always_fly``: whatever
-    gain it predicts (the flown J then bounds what other meshes' J can be, mesh/flown.py)."""
+    gain it predicts (the flown J then bounds what other meshes' J can be, mesh/flown.py);
+    ``budget_s``: wall seconds for all its flights (default FLIGHT_BUDGET_S)."""
     if len(problem.phases) != 1 or result.objective is None or not math.isfinite(float(result.objective)):
         return None
     ph, traj = problem.phases[0], result.phases[0]
@@ -227,7 +235,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     # J to 1e-3 of the tolerance is all the comparison needs (the verification's own flight
     # integrates at 1e-10); a correction onto final conditions needs them met to below that
     rtol = min(1e-11 if late else 1e-9, 1e-4 * tolerance)
-    deadline = time.monotonic() + FLIGHT_BUDGET_S
+    deadline = time.monotonic() + (FLIGHT_BUDGET_S if budget_s is None else budget_s)
     first: list[float] = []      # the first flight's seconds: a flight 20 times as long has left the domain
 
     def fly(t_fly, U, cuts_fly, stretch=1.0):
