@@ -67,8 +67,16 @@ class Flight:
     residuals: dict = field(default_factory=dict)
 
 
+def flight_functions(problem, result) -> PhaseFunctions:
+    """The single phase's compiled dynamics and integrands for ``fly_control``: built once by a
+    caller that flies many controls (a corrected flight flies up to 40; building them each time
+    was 0.9 s of seed 0's 2.3 s)."""
+    (ph,) = problem.phases
+    return PhaseFunctions(ph, _numbers(result.parameters), ph.integrals)
+
+
 def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts: np.ndarray,
-                rtol: float = 1e-9, stretch: float = 1.0) -> Flight:
+                rtol: float = 1e-9, stretch: float = 1.0, funcs: PhaseFunctions | None = None) -> Flight:
     """Integrate the single phase of ``problem`` from the result's first row with the control
     tabulated at ``t_table`` (linear between entries, restarted at ``cuts``, where it jumps);
     the result's parameters are kept, and its final time unless ``stretch`` (a free final time
@@ -88,7 +96,8 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
         t0 = t_rows[0]
         t_rows, t_table = t0 + stretch * (t_rows - t0), t0 + stretch * (np.asarray(t_table, float) - t0)
         cuts = t0 + stretch * (np.asarray(cuts, float) - t0)
-    funcs = PhaseFunctions(ph, params, ph.integrals)
+    if funcs is None:
+        funcs = flight_functions(problem, result)
     uf = _Linear(t_table, U_table)
     breaks = np.unique(np.concatenate([[t_rows[0], t_rows[-1]], np.asarray(cuts, float)]))
     breaks = breaks[(breaks >= t_rows[0]) & (breaks <= t_rows[-1])]
