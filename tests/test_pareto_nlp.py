@@ -246,3 +246,14 @@ pareto:
         load_pareto(f)
     (issue,) = e.value.issues
     assert issue.line == 9 and message in issue.message, issue
+
+
+def test_mesh_in_an_nlp_pareto_file_is_one_error_at_load():
+    """unseen19 q5: `mesh:` was ignored in silence by the epsilon solver (every point on the
+    uniform mesh, three of four unverified, the message then advising `mesh:`)."""
+    from ocdsl.spec.errors import SpecError
+
+    with pytest.raises(SpecError) as e:
+        load_pareto(Path(__file__).parent / "data" / "pareto_epsilon_with_mesh.yaml")
+    assert "pareto_epsilon_with_mesh.yaml:12" in str(e.value) and "`mesh:` is not applied" in str(e.value)
+
