@@ -97,3 +97,14 @@ problem:
     notes = res.extra["notes"]
     assert "the guess tf = 50 is outside its bounds [0.1, 10]: the solve starts from 10" in notes
     assert "the guess of u (7) is outside its bounds [-1, 1]: it is moved onto them" in notes
+
+
+def test_an_expectation_of_zero_shows_its_absolute_error():
+    """unseen19 e1: `x(tf): 0 vs 0 (relative error inf, rtol 1.0e-06) pass` for an exact zero."""
+    from ocdsl.result_views import expect_comparison
+    from ocdsl.run import expect_check
+
+    text = expect_comparison(expect_check("x(tf)", 0.0, 0.0, 1e-6, None))
+    assert "inf" not in text and "error 0.00e+00" in text
+    assert "relative error 1.00e-02" in expect_comparison(expect_check("J", 1.01, 1.0, 1e-6, None))
+
