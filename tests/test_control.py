@@ -356,3 +356,18 @@ controller:
     assert abs(x[-1]) < 0.01 and np.max(np.abs(x[-int(0.1 * len(x)):])) > 0.9   # the case: a zero crossing
     assert data["status"] == "unstable" and run.returncode == 1, run.stdout
     assert "last tenth of the horizon" in run.stdout
+
+
+def test_lqr_with_a_mode_q_cannot_see_is_a_design_error_naming_it():
+    """unseen19 c4: Q = diag(0, 1) on a double integrator ((A, Q) not detectable). SciPy returns
+    a Riccati solution whose loop keeps an eigenvalue at 0; the run ended `unstable` with "not
+    regulated within the horizon". Now the design fails naming the unseen mode; a nearly free
+    but detectable design (Q = 1e-12 I, R = 1e6 on an oscillator) still passes."""
+    from ocdsl.control.lqr import ControlError, lqr
+
+    A, B = np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([[0.0], [1.0]])
+    with pytest.raises(ControlError, match="not detectable.*eigenvalue 0, 0"):
+        lqr(A, B, np.diag([0.0, 1.0]), np.eye(1))
+    K, _, eig = lqr(np.array([[0.0, 1.0], [-1.0, 0.0]]), B, 1e-12 * np.eye(2), 1e6 * np.eye(1))
+    assert np.all(eig.real < 0)
+

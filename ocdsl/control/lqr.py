@@ -32,10 +32,28 @@ def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, what: str =
 
 
 def lqr(A, B, Q, R, what: str = "LQR"):
-    """(K, P, closed-loop eigenvalues) of the infinite-horizon LQR."""
+    """(K, P, closed-loop eigenvalues) of the infinite-horizon LQR; a ControlError when the
+    gain does not stabilise A - B K because Q does not see a mode of A that is not stable
+    ((A, Q) not detectable: SciPy then returns a Riccati solution all the same, and the run
+    ended 'unstable' as if the horizon were too short; unseen19 c4, Q = diag(0, 1) on a double
+    integrator)."""
     P = care(A, B, Q, R, what)
     K = np.linalg.solve(R, B.T @ P)
-    return K, P, np.linalg.eigvals(A - B @ K)
+    eig = np.linalg.eigvals(A - B @ K)
+    scale = max(1.0, float(np.max(np.abs(np.linalg.eigvals(A)))))
+    if np.max(eig.real) >= -1e-9 * scale:
+        # a nearly free control leaves poles near the axis on purpose (Q 1e-12, R 1e6: -5e-7 +- 1i);
+        # only a mode Q cannot see (PBH) is a design error
+        n = A.shape[0]
+        seen = np.asarray(Q, float) * (scale / max(float(np.max(np.abs(Q))), 1e-300))    # Q's pattern, A's size
+        blind = [complex(lam) for lam in np.linalg.eigvals(A) if lam.real >= -1e-9 * scale
+                 and np.linalg.matrix_rank(np.vstack([A - lam * np.eye(n), seen]), tol=1e-9 * scale) < n]
+        if blind:
+            shown = ", ".join(f"{lam.real:.3g}" + (f"{lam.imag:+.3g}j" if lam.imag else "") for lam in blind)
+            raise ControlError(f"{what + ': ' if what else ''}the Riccati solution does not stabilise: (A, Q) "
+                               f"is not detectable: Q gives no weight to the mode(s) of A with eigenvalue {shown} "
+                               "(weight the states that mode moves)")
+    return K, P, eig
 
 
 class LQRController:
