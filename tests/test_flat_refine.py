@@ -217,6 +217,26 @@ def test_one_level_without_a_tolerance_is_not_optimal_unless_twice_the_spans_con
     assert check["control_points"] == 35 and check["change"] > 1e-4 and "`tolerance:`" in res.message
 
 
+@pytest.mark.ipopt
+def test_a_refinement_the_time_limit_ends_says_so(tmp_path, monkeypatch):
+    """unseen19 f5: "did not settle within 5 refinement(s)" where the next level's solve had hit
+    the run's time limit; the message names the time limit."""
+    from ocdsl.solve import ipopt
+
+    real, calls = ipopt.solve, []
+
+    def solve(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:          # the first refined level
+            return ipopt.SolveInfo("time_limit", "the run's time limit was reached", 0, None, 0.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(ipopt, "solve", solve)
+    res = ocdsl.load(write(tmp_path, BRYSON_DENHAM_FLAT.replace("REFINEMENTS", "3"), "bd.yaml")).solve()
+    assert res.status == "mesh_not_converged"
+    assert "ended 'time_limit' (the run's time limit)" in res.message and "raise the time limit" in res.message
+
+
 @pytest.mark.slow
 @pytest.mark.ipopt
 def test_flat_refinement_reaches_bryson_denham_optimum(tmp_path):

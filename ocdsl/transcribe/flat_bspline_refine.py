@@ -61,6 +61,7 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     verified: list[tuple[Result, object]] = []       # (level, its options), coarse to fine
     solved: list[tuple[float, Result, object]] = []  # (worst check / its limit, level, options)
     settled = diverging = False
+    stopped = ""        # why the refinement ended before its budget, when a level's solve did not converge
     for step in range(method.refinements + 1):
         if best.status in CONVERGED:
             solved.append((_worst_check(best.verification)[0], best, current.opts))
@@ -86,6 +87,8 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         attach_verification(file.problem, res, settings)
         levels.append(_level(res, nxt.opts, res.verification, time.perf_counter() - t))
         if res.status not in CONVERGED:
+            stopped = (f"the level with {nxt.opts.n_ctrl} control points ended '{res.status}'"
+                       + (" (the run's time limit)" if res.status == "time_limit" else ""))
             break
         best, current = res, nxt
     opts = current.opts
@@ -123,8 +126,14 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
                   f"it changed by {_relative_change(verified[-2][0], best):.2e} from the previous verified "
                   f"level ({verified[-2][0].objective:.10g} -> {best.objective:.10g})")
         best.status = "mesh_not_converged"
-        best.message = (f"the objective did not settle to the tolerance {tol:g} within {method.refinements} "
-                        f"refinement(s): {change}; raise refinements or control_points")
+        if stopped.endswith("(the run's time limit)"):
+            # unseen19 f5: "did not settle within 5 refinement(s)" where the time limit ended it
+            best.message = (f"the objective did not settle to the tolerance {tol:g}: {stopped}, {change}; "
+                            "raise the time limit")
+        else:
+            best.message = (f"the objective did not settle to the tolerance {tol:g} within {method.refinements} "
+                            f"refinement(s): {change}" + (f" ({stopped})" if stopped else "")
+                            + "; raise refinements or control_points")
     best.extra["starts"] = first.extra.get("starts", [])
     best.extra["refinement"] = {"tolerance": tol, "levels": levels, "objective_settled": settled,
                                 "wall_time_s": round(time.perf_counter() - start, 3)}
