@@ -216,7 +216,12 @@ def _summary(result, out: Path) -> None:
         t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()) + qualifier)
     elif result.tf is not None:
         t.add_row("final time", f"{result.tf:.10g}{qualifier}")
-    starts = _starts_line(result.extra.get("starts") or [], result.objective)
+    # a flat refinement's starts solved its first level, whose objective is not the reported
+    # (refined) one (unseen19: seed 2 printed "8: 0 ended at this objective")
+    levels = (result.extra.get("refinement") or {}).get("levels") or []
+    starts = _starts_line(result.extra.get("starts") or [],
+                          levels[0].get("objective") if len(levels) > 1 else result.objective,
+                          "the first level's objective" if len(levels) > 1 else "this objective")
     if starts:
         t.add_row("starts", starts)
     if result.nlp:
@@ -269,9 +274,10 @@ def _robustness_line(table) -> str:
     return f"factors {', '.join(factors)}: " + "; ".join(parts) if parts else ""
 
 
-def _starts_line(records: list, best: float | None) -> str:
+def _starts_line(records: list, best: float | None, what: str = "this objective") -> str:
     """How the starts of ``method: {starts: N}`` ended (unseen8: eight starts back in one
-    basin read as confirmation, and the summary did not say how they ended)."""
+    basin read as confirmation, and the summary did not say how they ended); ``best``: the
+    objective they are compared with, ``what`` it is."""
     if len(records) < 2 or best is None:
         return ""
     solved = [r["objective"] for r in records if r.get("status") in ("optimal", "acceptable")
@@ -279,7 +285,7 @@ def _starts_line(records: list, best: float | None) -> str:
     near = 1e-6 * max(1.0, abs(best))
     same = sum(abs(j - best) <= near for j in solved)
     others = sorted({round(j, 8) for j in solved if abs(j - best) > near})
-    text = f"{len(records)}: {same} ended at this objective"
+    text = f"{len(records)}: {same} ended at {what}"
     if others:
         shown = ", ".join(f"{j:.8g}" for j in others[:4]) + (", ..." if len(others) > 4 else "")
         text += f", {len(solved) - same} elsewhere ({shown})"

@@ -108,3 +108,19 @@ def test_an_expectation_of_zero_shows_its_absolute_error():
     assert "inf" not in text and "error 0.00e+00" in text
     assert "relative error 1.00e-02" in expect_comparison(expect_check("J", 1.01, 1.0, 1e-6, None))
 
+
+def test_the_starts_of_a_refined_flat_run_are_compared_with_its_first_level(tmp_path, capsys):
+    """unseen19: seed 2 printed "starts 8: 0 ended at this objective": its starts solve the
+    first level, whose J is not the refined one reported."""
+    from ocdsl.cli import _summary
+    from ocdsl.result import Result
+
+    res = Result(name="flat", status="optimal", objective=150.39,
+                 extra={"starts": [{"status": "optimal", "objective": 149.0}] * 3
+                        + [{"status": "optimal", "objective": 151.0}],
+                        "refinement": {"levels": [{"objective": 149.0}, {"objective": 150.39}]}})
+    capsys.readouterr()
+    _summary(res, tmp_path / "run")
+    shown = capsys.readouterr().out
+    assert "4: 3 ended at the first level's objective, 1 elsewhere (151)" in shown, shown
+
