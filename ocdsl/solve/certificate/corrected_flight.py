@@ -39,11 +39,16 @@ class Corrected:
     stretch: float = 1.0    # the flown phase's length over the solution's (a free final time)
 
 
+def late_symbols(problem) -> set:
+    """The final states' and the integrals' symbols: what a flown control changes."""
+    return {s for s, bv in problem.boundary_values.items() if bv.which == "tf"} | set(problem.integrals)
+
+
 def late_equalities(problem) -> list[int]:
     """Indices (in ``problem.boundary``) of the equality conditions on a final state or an
     integral: those a flown control changes. Conditions on t_f or parameters alone keep the
     solution's values (the flight keeps both)."""
-    late = {s for s, bv in problem.boundary_values.items() if bv.which == "tf"} | set(problem.integrals)
+    late = late_symbols(problem)
     return [i for i, c in enumerate(problem.boundary) if c.is_equality and c.expr.free_symbols & late]
 
 

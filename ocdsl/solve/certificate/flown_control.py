@@ -25,7 +25,7 @@ from ...symbolic.numbers import substitute_numbers
 from ...symbolic.problem import Problem
 from .. import pchip
 from .conditions import _param_subs
-from .corrected_flight import MAX_CONDITIONS, corrected_flight, late_equalities
+from .corrected_flight import MAX_CONDITIONS, corrected_flight, late_equalities, late_symbols
 from .nodes import _hamiltonian_nodes, _Numeric
 
 # points between consecutive rows at which the minimising control is tabulated (linear in
@@ -191,8 +191,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     model = ph.model
     if not _quadratic_in_controls(model, params, lagrange):
         return None
-    late = {sym for sym, bv in problem.boundary_values.items() if bv.which == "tf"} | set(problem.integrals)
-    if sp.sympify(lagrange) == 0 and not problem.objective.expr.free_symbols & late and ph.tf is not None:
+    if sp.sympify(lagrange) == 0 and not problem.objective.expr.free_symbols & late_symbols(problem) \
+            and ph.tf is not None:
         return None     # J of a fixed t_f and parameters alone: no flight changes it
     t = np.asarray(traj.time, float)
     X = np.column_stack([np.asarray(traj.states[s.name], float) for s in model.states])
