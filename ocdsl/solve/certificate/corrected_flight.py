@@ -31,10 +31,10 @@ NEWTON_STEPS = 12
 
 @dataclass
 class Corrected:
+    """A corrected flight that met the final conditions to the target."""
     flight: object          # verify.fly.Flight of the last corrected control
     share: float            # alpha
     flights: int
-    met: bool               # the final conditions met to the target
     switches: np.ndarray    # the times of the flown control's bang switches (moved by the correction)
     stretch: float = 1.0    # the flown phase's length over the solution's (a free final time)
 
@@ -196,7 +196,7 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
             if not np.all(np.isfinite(jac)):
                 break
         if np.all(np.isfinite(r)) and np.max(np.abs(r)) <= target:
-            met = Corrected(flight, share, flights, True, t[0] + table[3] * (table[2] - t[0]), table[3])
+            met = Corrected(flight, share, flights, t[0] + table[3] * (table[2] - t[0]), table[3])
             if better(flight):
                 return met
             if not gain(flight) > 0:
