@@ -61,7 +61,7 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     verified: list[tuple[Result, object]] = []       # (level, its options), coarse to fine
     solved: list[tuple[float, Result, object]] = []  # (worst check / its limit, level, options)
     settled = diverging = False
-    stopped = ""        # why the refinement ended before its budget, when a level's solve did not converge
+    stopped = None      # the level whose solve did not converge, when one ended the refinement
     for step in range(method.refinements + 1):
         if best.status in CONVERGED:
             solved.append((_worst_check(best.verification)[0], best, current.opts))
@@ -87,8 +87,7 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         attach_verification(file.problem, res, settings)
         levels.append(_level(res, nxt.opts, res.verification, time.perf_counter() - t))
         if res.status not in CONVERGED:
-            stopped = (f"the level with {nxt.opts.n_ctrl} control points ended '{res.status}'"
-                       + (" (the run's time limit)" if res.status == "time_limit" else ""))
+            stopped = (nxt.opts.n_ctrl, res.status)
             break
         best, current = res, nxt
     opts = current.opts
@@ -126,13 +125,14 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
                   f"it changed by {_relative_change(verified[-2][0], best):.2e} from the previous verified "
                   f"level ({verified[-2][0].objective:.10g} -> {best.objective:.10g})")
         best.status = "mesh_not_converged"
-        if stopped.endswith("(the run's time limit)"):
+        ended = "" if stopped is None else f"the level with {stopped[0]} control points ended '{stopped[1]}'"
+        if stopped is not None and stopped[1] == "time_limit":
             # unseen19 f5: "did not settle within 5 refinement(s)" where the time limit ended it
-            best.message = (f"the objective did not settle to the tolerance {tol:g}: {stopped}, {change}; "
-                            "raise the time limit")
+            best.message = (f"the objective did not settle to the tolerance {tol:g}: {ended} (the run's time "
+                            f"limit), {change}; raise the time limit")
         else:
             best.message = (f"the objective did not settle to the tolerance {tol:g} within {method.refinements} "
-                            f"refinement(s): {change}" + (f" ({stopped})" if stopped else "")
+                            f"refinement(s): {change}" + (f" ({ended})" if ended else "")
                             + "; raise refinements or control_points")
     best.extra["starts"] = first.extra.get("starts", [])
     best.extra["refinement"] = {"tolerance": tol, "levels": levels, "objective_settled": settled,
@@ -164,7 +164,7 @@ def confirm_objective(file, mp, result: Result, options: dict, verbose: bool) ->
     record = {"control_points": finer.opts.n_ctrl, "status": info.status, "objective": info.objective,
               "tolerance": tol}
     if info.status in ("optimal", "acceptable") and info.objective is not None:
-        change = abs(float(info.objective) - float(result.objective)) / max(1.0, abs(float(info.objective)))
+        change = _relative_change(result, info)
         record["change"] = change
         if change > tol:
             result.status = "mesh_not_converged"
