@@ -70,14 +70,19 @@ def _directions(t: np.ndarray, U: np.ndarray, bounds, count: int) -> np.ndarray:
     return np.array(out)
 
 
-def _jumps(t: np.ndarray, U: np.ndarray, bounds) -> list[tuple[int, int]]:
+def bang_jumps(U: np.ndarray, j: int, lo: float, hi: float) -> np.ndarray:
+    """Between which rows of ``U`` control ``j`` goes from one bound to the other (a bang switch)."""
+    return np.abs(np.diff(U[:, j])) > 0.5 * (hi - lo)
+
+
+def _switches(t: np.ndarray, U: np.ndarray, bounds) -> list[tuple[int, int]]:
     """(table index of the entry before, control) of each bang switch: ``_tabulate`` writes a
     switch as two entries a hair apart, the first on the old bound, the second on the new."""
-    close = np.flatnonzero(np.diff(t) <= 1e-8 * (t[-1] - t[0]))
+    close = np.diff(t) <= 1e-8 * (t[-1] - t[0])
     out = []
     for j, (lo, hi) in enumerate(bounds):
         if math.isfinite(lo) and math.isfinite(hi):
-            out += [(int(i), j) for i in close if abs(U[i + 1, j] - U[i, j]) > 0.5 * (hi - lo)]
+            out += [(int(i), j) for i in np.flatnonzero(close & bang_jumps(U, j, lo, hi))]
     return sorted(out)
 
 
@@ -134,7 +139,7 @@ def corrected_flight(fly, t: np.ndarray, U_own: np.ndarray, U_min: np.ndarray, c
     lo = np.array([b[0] for b in bounds])
     hi = np.array([b[1] for b in bounds])
     flights, met = 0, None
-    switches = _jumps(t, U_min, bounds)
+    switches = _switches(t, U_min, bounds)
 
     def residuals(flight) -> np.ndarray:
         return np.array([flight.residuals.get(i, math.inf) for i in conditions], float)

@@ -25,7 +25,7 @@ from ...symbolic.numbers import substitute_numbers
 from ...symbolic.problem import Problem
 from .. import pchip
 from .conditions import _param_subs
-from .corrected_flight import MAX_CONDITIONS, corrected_flight, late_equalities, late_symbols
+from .corrected_flight import MAX_CONDITIONS, bang_jumps, corrected_flight, late_equalities, late_symbols
 from .nodes import _hamiltonian_nodes, _Numeric
 
 # points between consecutive rows at which the minimising control is tabulated (linear in
@@ -76,11 +76,6 @@ def _gradient(G0, R, U, U0):
     return G0 + np.einsum("pjk,pk->pj", R, U - U0)
 
 
-def _jumps(U, j: int, lo: float, hi: float) -> np.ndarray:
-    """Between which grid points control ``j`` goes from one bound to the other (a bang switch)."""
-    return np.abs(np.diff(U[:, j])) > 0.5 * (hi - lo)
-
-
 def _minimising_controls(num: _Numeric, t, X, Lam, bounds):
     """argmin over the box of H(t, x, lambda, u) at every point, with dH/du there; None when H
     has no minimiser on it (unbounded control, H not convex in it). H is quadratic in u: its
@@ -124,7 +119,7 @@ def _corners(t, U, G0, R, U0, lo, hi) -> list[tuple[float, int, float]]:
                 continue
             on = np.isclose(U[:, j], bound, rtol=0, atol=1e-12 * max(1.0, abs(bound)))
             # a jump from one bound to the other is a switch (``_tabulate``), not a corner
-            for i in np.flatnonzero((on[1:] != on[:-1]) & ~_jumps(U, j, lo[j], hi[j])):
+            for i in np.flatnonzero((on[1:] != on[:-1]) & ~bang_jumps(U, j, lo[j], hi[j])):
                 Ub = U[i:i + 2].copy()
                 Ub[:, j] = bound
                 g = _gradient(G0[i:i + 2], R[i:i + 2], Ub, U0[i:i + 2])[:, j]
@@ -153,7 +148,7 @@ def _tabulate(t, U, G, bounds, corners):
     for j, (lo, hi) in enumerate(bounds):
         if not (math.isfinite(lo) and math.isfinite(hi)):
             continue
-        for i in np.flatnonzero(_jumps(U, j, lo, hi)):
+        for i in np.flatnonzero(bang_jumps(U, j, lo, hi)):
             g0, g1 = G[i, j], G[i + 1, j]
             w = g0 / (g0 - g1) if g0 != g1 and g0 * g1 < 0 else 0.5
             jumps.append((i, j, float(t[i] + w * (t[i + 1] - t[i]))))
