@@ -237,6 +237,20 @@ def test_a_refinement_the_time_limit_ends_says_so(tmp_path, monkeypatch):
     assert "ended 'time_limit' (the run's time limit)" in res.message and "raise the time limit" in res.message
 
 
+@pytest.mark.ipopt
+def test_a_level_that_cannot_fit_in_the_time_left_is_not_started(tmp_path, monkeypatch):
+    """unseen19 f4: only a level's solve saw the time limit, not its build (165 control points:
+    48 s of a 30 s limit) nor its verification: a 90 s limit took 137 s. A level is not started
+    when less time is left than the level before took."""
+    from ocdsl.solve import ipopt
+
+    monkeypatch.setattr(ipopt, "seconds_left", lambda: 1e-3)
+    res = ocdsl.load(write(tmp_path, BRYSON_DENHAM_FLAT.replace("REFINEMENTS", "3"), "bd.yaml")).solve()
+    assert len(res.extra["refinement"]["levels"]) == 1
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert "control points was not started" in res.message and "raise the time limit" in res.message
+
+
 @pytest.mark.slow
 @pytest.mark.ipopt
 def test_flat_refinement_reaches_bryson_denham_optimum(tmp_path):

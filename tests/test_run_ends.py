@@ -71,6 +71,20 @@ def test_ipopt_max_wall_time_ends_time_limit_not_unknown_status(tmp_path):
     assert saved["status"] == "time_limit" and (tmp_path / "run" / "trajectory.csv").exists()
 
 
+def test_a_time_limit_on_the_pynumero_route_is_a_time_limit_with_its_iterate(tmp_path, monkeypatch):
+    """Pyomo's cyipopt solver raised KeyError b'Unknown status' for Ipopt's -5 (wall time), so a
+    flat B-spline level (always PyNumero) cut short by the run's time limit ended 'error'
+    without its last iterate (unseen19 f4)."""
+    from ocdsl.transcribe import pseudospectral
+
+    monkeypatch.setitem(pseudospectral.FAST, "direct_nlp", False)
+    p = write(tmp_path, BASE + "solver: {options: {max_wall_time: 1.0e-9}}\n")
+    res = run_file(p, tmp_path / "run")
+    assert res.nlp["evaluation"].startswith("PyNumero")
+    assert res.status == "time_limit" and "Unknown status" not in res.message, res.message
+    assert (tmp_path / "run" / "trajectory.csv").exists()
+
+
 def test_the_run_time_limit_is_shared_by_its_solves_and_set_from_the_command_line(tmp_path):
     """--time-limit overrides the file's solver: time_limit; a limit already spent ends the
     next solve before it starts (a run of several starts here)."""

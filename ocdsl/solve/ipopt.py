@@ -86,6 +86,12 @@ def interrupted() -> bool:
 _DEADLINE: "contextvars.ContextVar[tuple[float, float] | None]" = contextvars.ContextVar("deadline", default=None)
 
 
+def seconds_left() -> float | None:
+    """Wall-clock seconds left of the run's time limit (None without one)."""
+    deadline = _DEADLINE.get()
+    return None if deadline is None else deadline[0] - time.monotonic()
+
+
 @contextlib.contextmanager
 def time_limit(seconds: float | None):
     """Solves inside share ``seconds`` of wall-clock time (a run's mesh iterations and starts)."""
@@ -404,14 +410,8 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
             elif transcription is not None and (root := _root_of_zero(transcription)):
                 raise _BadStart("the initial guess puts a root at 0, where its derivative is infinite "
                                 f"(the NLP evaluator would stop the process): {root}. Ipopt was not started")
-            elif multipliers is not None:
-                msg, nlp = _solve_pynumero_with_multipliers(model, opts, verbose, callback, multipliers)
             else:
-                from pyomo.environ import SolverFactory   # the solver plugins: only this route needs them
-
-                solver = SolverFactory("cyipopt", intermediate_callback=callback, options=opts)
-                results, nlp = solver.solve(model, tee=verbose, return_nlp=True)
-                msg = results.solver.message
+                msg, nlp, code = _solve_pynumero(model, opts, verbose, callback, multipliers)
             if direct is None:
                 nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
                             "nonzeros": int(nlp.nnz_jacobian()),
@@ -434,7 +434,8 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     if status == "time_limit":
         wall = opts.get("max_wall_time")
         given = f" (this solve had {float(wall):.3g} s: the run's solver: time_limit, or max_wall_time)" if wall else ""
-        msg = f"a time limit was reached{given}; the last iterate is written (Ipopt: {msg})"
+        said = "" if msg == "Unknown status" else f" (Ipopt: {msg})"     # cyipopt has no words for -5
+        msg = f"a time limit was reached{given}; the last iterate is written{said}"
     if status in ("max_iter", "diverged", "time_limit", "error"):
         from .diagnose import diverging
 
@@ -495,7 +496,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
                       multipliers: Multipliers | None, transcription=None):
     """Ipopt on a ``DirectNLP`` (cyipopt.Problem), starting from the model's values and, when
     given, the multipliers; the solution, duals and bound multipliers are loaded into the
-    model as ``_solve_pynumero_with_multipliers`` does. Returns (Ipopt's status message, the
+    model as ``_solve_pynumero`` does. Returns (Ipopt's status message, the
     NLP's sizes, Ipopt's status code); a start where the NLP is not finite is refused with
     :class:`_BadStart` before Ipopt runs, and an infeasible end names the constraints left
     unmet (ocdsl/solve/diagnose.py)."""
@@ -552,25 +553,32 @@ def pynumero_nlp(model):
     return PyomoNLP(model)
 
 
-def _solve_pynumero_with_multipliers(model, opts: dict[str, Any], verbose: bool, callback: Callable,
-                                     multipliers: Multipliers):
+def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callable,
+                    multipliers: Multipliers | None = None):
     """What Pyomo's cyipopt solver does (pynumero ``algorithms/solvers/cyipopt_solver.py``,
     ``PyomoCyIpoptSolver.solve``: PyomoNLP -> CyIpoptNLP -> options -> solve -> load the
     primals, duals and bound multipliers into the model), except that cyipopt's ``solve``
-    gets ``lagrange``, ``zl`` and ``zu`` besides ``x0``. Returns (Ipopt's status message,
-    the PyomoNLP). Models with grey-box blocks are not handled here."""
+    gets ``lagrange``, ``zl`` and ``zu`` besides ``x0`` when ``multipliers`` are given, and
+    that every Ipopt return code comes back: Pyomo's solver raised ``KeyError: b'Unknown
+    status'`` on a solve that ran out of the run's wall-clock time (Ipopt's -5, which
+    cyipopt has no message for), so a time limit read as an error and its iterate was lost
+    (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code).
+    Models with grey-box blocks are not handled here."""
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
     nlp = pynumero_nlp(model)
     problem = CyIpoptNLP(nlp, intermediate_callback=callback)
-    factors = problem.scaling_factors()
-    if any(f is not None for f in factors):       # ocdsl/solve/scaling.py
-        obj, xs, gs = factors
-        problem.set_problem_scaling(1.0 if obj is None else obj, xs, gs)
+    obj, xs, gs = problem.scaling_factors()
+    if any(f is not None for f in (obj, xs, gs)):       # ocdsl/solve/scaling.py
+        import numpy as np
+
+        problem.set_problem_scaling(1.0 if obj is None else obj,
+                                    np.ones(len(problem.x_lb())) if xs is None else xs,
+                                    np.ones(len(problem.g_lb())) if gs is None else gs)
     for k, v in opts.items():
         problem.add_option(k, v)
-    start = _start_multipliers(multipliers, nlp.get_pyomo_constraints(), nlp.get_pyomo_variables(),
-                               problem.x_lb(), problem.x_ub())
+    start = {} if multipliers is None else _start_multipliers(
+        multipliers, nlp.get_pyomo_constraints(), nlp.get_pyomo_variables(), problem.x_lb(), problem.x_ub())
     try:
         with capture_output(sys.stdout if verbose else None, capture_fd=True):
             x, info = problem.solve(problem.x_init(), **start)
@@ -579,4 +587,4 @@ def _solve_pynumero_with_multipliers(model, opts: dict[str, Any], verbose: bool,
         nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))
     finally:
         problem.close()
-    return info["status_msg"], nlp
+    return info["status_msg"], nlp, info["status"]

@@ -356,11 +356,16 @@ def lambdify_sdc(sdc: SDC, parameters: Mapping | None = None,
     ff = sp.lambdify([list(z), list(u)], fz, modules="numpy", cse=True)
     n, m = sdc.n, sdc.m
 
+    # a Piecewise entry (sin(th)/th, (cos(th) - 1)/th with its limit at 0) becomes NumPy's
+    # select, which evaluates every branch: 0/0 in the branch not taken is not the user's
+    # business (unseen19 c24 printed a RuntimeWarning on stderr)
     def Afun(zv):
-        return np.asarray(Af(zv), dtype=float).reshape(n, n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.asarray(Af(zv), dtype=float).reshape(n, n)
 
     def Bfun(zv):
-        return np.asarray(Bf(zv), dtype=float).reshape(n, m)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.asarray(Bf(zv), dtype=float).reshape(n, m)
 
     def ffun(zv, uv):
         return np.asarray(ff(zv, uv), dtype=float).reshape(-1)

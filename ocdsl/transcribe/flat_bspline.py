@@ -183,6 +183,7 @@ class _PhaseNLP:
         self.args = [derivative_symbol(y, k) for y in self.functions
                      for k in range(self.max_order + 1)] + self.constants + [TIME]
         self._fns: dict[sp.Expr, Callable] = {}
+        self._values: dict[float, list] = {}
         self._initial_guess()
 
     # -- evaluation ---------------------------------------------------------------
@@ -191,7 +192,11 @@ class _PhaseNLP:
         return [self.offset[y] + self.scale[y] * self.block.z[j, i] for i in range(self.ph.options.n_ctrl)]
 
     def values_at(self, tau: float) -> list:
-        """Pyomo expressions for all lambdify arguments at normalised time tau."""
+        """Pyomo expressions for all lambdify arguments at normalised time tau (made once per
+        tau: every constraint and quadrature term at a point shares them)."""
+        tau = float(tau)
+        if tau in self._values:
+            return self._values[tau]
         opt = self.ph.options
         out = []
         for y in self.functions:
@@ -202,6 +207,7 @@ class _PhaseNLP:
                 out.append(expr / self.tf ** k if k else expr)
         out += [self.block.k[q] for q in range(len(self.constants))]
         out.append(self.tf * tau)
+        self._values[tau] = out
         return out
 
     def fn(self, expr: sp.Expr) -> Callable:

@@ -61,7 +61,8 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     verified: list[tuple[Result, object]] = []       # (level, its options), coarse to fine
     solved: list[tuple[float, Result, object]] = []  # (worst check / its limit, level, options)
     settled = diverging = False
-    stopped = None      # the level whose solve did not converge, when one ended the refinement
+    # what ended the refinement when a level was not solved: (words, whether the time limit did)
+    stopped: tuple[str, bool] | None = None
     for step in range(method.refinements + 1):
         if best.status in CONVERGED:
             solved.append((_worst_check(best.verification)[0], best, current.opts))
@@ -80,6 +81,15 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
             break
         t = time.perf_counter()
         nxt = current.with_options(_next_level(current.opts, method.refine_residual))
+        left = ipopt.seconds_left()
+        if left is not None and left < levels[-1]["wall_time_s"]:
+            # a level's build and verification cost more than its predecessor's (twice the
+            # points) and only its solve sees the time limit: a level that cannot fit is not
+            # started (unseen19 f4: a 90 s limit took 137 s)
+            stopped = (f"the level with {nxt.opts.n_ctrl} control points was not started ({max(left, 0.0):.3g} s "
+                       f"of the run's time limit left, the level before took {levels[-1]['wall_time_s']:.3g} s)",
+                       True)
+            break
         nlp = nxt.build()
         nxt.warm_from(current)
         info = ipopt.solve(nlp.model, {**REFINED_LEVEL_OPTIONS, **options}, verbose=verbose)
@@ -87,7 +97,9 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         attach_verification(file.problem, res, settings)
         levels.append(_level(res, nxt.opts, res.verification, time.perf_counter() - t))
         if res.status not in CONVERGED:
-            stopped = (nxt.opts.n_ctrl, res.status)
+            stopped = (f"the level with {nxt.opts.n_ctrl} control points ended '{res.status}'"
+                       + (" (the run's time limit)" if res.status == "time_limit" else ""),
+                       res.status == "time_limit")
             break
         best, current = res, nxt
     opts = current.opts
@@ -117,7 +129,8 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         said = ("no level was verified" + (" and refining made the verification worse, so it stopped"
                                            if diverging else "")
                 + f"; the level that misses least ({opts.n_ctrl} control points, worst check "
-                  f"{ratio:.3g} times its limit) is reported.{why}")
+                  f"{ratio:.3g} times its limit) is reported.{why}"
+                + (f" The run's time limit ended the refinement: {stopped[0]}." if stopped and stopped[1] else ""))
         best.message = f"{best.message}; {said}"
         best.extra.setdefault("notes", []).append(said)      # printed under the headline
     elif best.verification.get("status") == "verified" and best.status in ("optimal", "acceptable"):
@@ -125,14 +138,13 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
                   f"it changed by {_relative_change(verified[-2][0], best):.2e} from the previous verified "
                   f"level ({verified[-2][0].objective:.10g} -> {best.objective:.10g})")
         best.status = "mesh_not_converged"
-        ended = "" if stopped is None else f"the level with {stopped[0]} control points ended '{stopped[1]}'"
-        if stopped is not None and stopped[1] == "time_limit":
+        if stopped is not None and stopped[1]:
             # unseen19 f5: "did not settle within 5 refinement(s)" where the time limit ended it
-            best.message = (f"the objective did not settle to the tolerance {tol:g}: {ended} (the run's time "
-                            f"limit), {change}; raise the time limit")
+            best.message = (f"the objective did not settle to the tolerance {tol:g}: {stopped[0]}, {change}; "
+                            "raise the time limit")
         else:
             best.message = (f"the objective did not settle to the tolerance {tol:g} within {method.refinements} "
-                            f"refinement(s): {change}" + (f" ({ended})" if ended else "")
+                            f"refinement(s): {change}" + (f" ({stopped[0]})" if stopped else "")
                             + "; raise refinements or control_points")
     best.extra["starts"] = first.extra.get("starts", [])
     best.extra["refinement"] = {"tolerance": tol, "levels": levels, "objective_settled": settled,
