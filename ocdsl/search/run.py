@@ -286,8 +286,12 @@ def search_box_check(pp: ParametricProblem, x: np.ndarray, box_scale: float = 1.
     if not on:
         return None
     shown = ", ".join(f"{c['coefficient']} = {c['value']:.8g} (bound {c['bound']:g})" for c in on)
-    reason = (f"series coefficients on the search's box: {shown}; the best control of the class may "
-              "lie outside it: widen `bounds` (or `a0`) of that control's series")
+    # both causes are seen: the class's best beyond the box (unseen9 F5), and a swarm stuck
+    # against the box far from a best that lies inside it (unseen19 p4: theta_c0 = -2 on its
+    # bound, tf 3.68 against 0.824 with the class's best at theta_c0 = 0)
+    reason = (f"series coefficients on the search's box: {shown}; either the best control of the "
+              "class lies outside it (widen `bounds` or `a0` of that control's series) or the search "
+              "stopped against it (more particles or iterations, another seed)")
     return {"passed": False, "inconclusive": reason, "search_box": {"coefficients": on, "box_scale": box_scale}}
 
 
