@@ -227,6 +227,21 @@ def _hold_bang_controls(solved, pb, q: int, tol: float) -> int:
     return held
 
 
+def _state_at_bound(solved, nodes, rel: float = 1e-6) -> bool:
+    """Whether a state of ``solved`` sits on one of its finite bounds at one of the state
+    ``nodes`` (within ``rel`` of the bound's range, at least 1)."""
+    import pyomo.core as pyo
+
+    for j, x in enumerate(solved.phase.states):
+        lo, hi = solved.phase.state_bounds.get(x, (-math.inf, math.inf))
+        span = max(1.0, hi - lo) if math.isfinite(lo) and math.isfinite(hi) else max(1.0, abs(lo), abs(hi))
+        for n in nodes:
+            v = pyo.value(solved.block.X[int(n), j])
+            if (math.isfinite(lo) and v - lo <= rel * span) or (math.isfinite(hi) and hi - v <= rel * span):
+                return True
+    return False
+
+
 def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: float):
     """The converged ``tr`` solved once more with its switch breakpoints as unknowns and the
     bang controls on their two segments held (``solve_switch_times``' model), returned as
@@ -251,6 +266,13 @@ def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: fl
         qs = {int(np.argmin(np.abs(bps - f))) for f in switches.get(pb.phase.name, [])}
         qs = sorted(q for q in qs if 0 < q < len(bps) - 1
                     and min(abs(bps[q] - f) for f in switches[pb.phase.name]) <= tol)
+        # a state resting on its bound beside the switch (the moon lander's m <= 1 while it
+        # coasts from m(t0) = 1) has a bound multiplier that only the signs of the controls,
+        # once held, would pin: Ipopt gave it a share, the costates shifted, and the switching
+        # function came out with the wrong sign on the whole coast arc (certificate failed with
+        # J right to 1e-11). The fixed mesh's costates keep the signs KKT gives them.
+        lay = pb.layout
+        qs = [q for q in qs if not _state_at_bound(pb, [*lay.support[q - 1], *lay.support[q], lay.end[q]])]
         if qs:
             free[pb.phase.name] = qs
     if not free:
