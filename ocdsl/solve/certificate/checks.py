@@ -147,6 +147,12 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                  note="Hamiltonian terms vanish (trivial costates)")
     if quadrature:
         h["quadrature_uncertainty"] = quadrature
+    duration = float(t[-1] - t[0])
+    if h["passed"] is False and term_scale * duration <= tol.resolution:
+        h["inconclusive"] = (f"H's terms ({term_scale:.2g} on average over {duration:.3g} time units) are below "
+                             f"what the NLP resolves ({tol.resolution:g} in its units): its costates are "
+                             "not resolved, H is not judged")
+        h["passed"] = None
     if (h["passed"] is False and quadrature > 0 and scale > 0
             and h["max_deviation"] - quadrature <= tol.hamiltonian_max * scale
             and (expected is None or h["mean_deviation"] - quadrature <= tol.hamiltonian_mean * scale)):

@@ -28,3 +28,8 @@ class Tolerances:
     # is not one the solver resolved; a zero optimum (exact tracking: lambda = 0, L = 0)
     # otherwise compared rounding to rounding (relative 1.0, "failed")
     rounding: float = 1e-12
+    # what the NLP resolves, in the same units: Ipopt's tol (ocdsl's default 1e-8). A
+    # Hamiltonian whose terms over the whole duration stay below it is made of costates the
+    # solver never resolved (a zero-residual fit, J* = 0: every term 1e-10, H "off" by 3.4
+    # times its scale with J right to 3e-11): it is not judged, neither passed nor failed
+    resolution: float = 1e-8
