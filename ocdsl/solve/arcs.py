@@ -257,7 +257,15 @@ def final_time_spread(solutions: list[tuple[float, dict]], tolerance: float) -> 
             "error may well exceed that spread; J is not affected)")
 
 
+#: what a fixed mesh's run is checked against when nothing binds and no flight judged J
+UNJUDGED = ("no flight of the minimum principle's control judged J on this fixed mesh (it is not made "
+            "for several phases, path constraints, a control that H does not hold quadratically, or J of a "
+            "fixed t_f and parameters alone)")
+
+
 def describe(found: list[PhaseArcs], multi_phase: bool) -> str:
+    if not found:
+        return UNJUDGED
     parts = [(f"phase '{p.phase}': " if multi_phase else "") + "; ".join(p.arcs) for p in found]
     n = sum(len(p.arcs) for p in found)
     return f"{'; '.join(parts)} {'binds' if n == 1 else 'bind'} inside the phase on this fixed mesh"
@@ -281,9 +289,10 @@ def note(found: list[PhaseArcs], multi_phase: bool, check: Bisection | None) -> 
 
 
 def mismatch_message(found: list[PhaseArcs], multi_phase: bool, check: Bisection) -> str:
+    why = ("the mesh misses these arcs' junctions or the controls' switches" if found
+           else "the mesh is too coarse for the optimum")
     return (f"J = {check.objective:.10g} on this mesh but {check.describe()}: {describe(found, multi_phase)}, "
-            "and J is this mesh's optimum, not the problem's (the mesh misses these arcs' junctions or "
-            "the controls' switches). "
+            f"and J is this mesh's optimum, not the problem's ({why}). "
             "`mesh:` places the junctions and refines until the error estimate meets its tolerance "
             "(docs/mesh.md); or a finer uniform mesh")
 
