@@ -136,11 +136,37 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
         angles = periodic_controls(ph)
         if angles:     # one branch for a control that only enters through sin/cos
             Us = unwrap_angles(Us, angles, [ph.bounds_of(c) for c in ph.controls])
+        interpolation = {"kind": "lagrange-segments",
+                         "breakpoints": (t0 + (tf - t0) * lay.mesh.breakpoints).tolist()}
+        starts = segment_start_controls(pb, U, Us, angles)
+        if starts is not None:
+            interpolation["segment_starts"] = starts
         out.append(PhaseTrajectory(
             ph.name, time,
             states={s.name: X[:, j] for j, s in enumerate(ph.states)},
             controls={c.name: Us[:, j] for j, c in enumerate(ph.controls)},
             extra={"collocated": collocated},
-            control_interpolation={"kind": "lagrange-segments",
-                                   "breakpoints": (t0 + (tf - t0) * lay.mesh.breakpoints).tolist()}))
+            control_interpolation=interpolation))
     return out
+
+
+def segment_start_controls(pb: PhaseBlock, U: np.ndarray, Us: np.ndarray, angles: list[int]) -> list | None:
+    """Per segment, the controls collocated at its own start where that start is a breakpoint
+    shared with the segment before (LGL, LGR-start), else None; None when no segment has one.
+
+    The state node there is one row of the trajectory, which carries the earlier segment's
+    control (``control_on_state_nodes``): without this value the later segment's polynomial
+    was fitted through one node fewer than the NLP's, and a smooth LGL control (Dido's arc,
+    J right to 7.5e-8) missed the verification's dynamics by 5.6e-4 (unseen20)."""
+    lay = pb.layout
+    out: list = [None] * lay.mesh.segments
+    for k in range(1, lay.mesh.segments):
+        sc = lay.mesh.scheme(k)
+        if abs(float(sc.colloc[0]) + 1.0) > 1e-12:
+            continue
+        row = lay.colloc_state[k][0]
+        values = np.array(U[lay.colloc[k][0]], float)
+        for j in angles:   # the branch of the row's (unwrapped) value
+            values[j] += 2.0 * np.pi * np.round((Us[row, j] - values[j]) / (2.0 * np.pi))
+        out[k] = values.tolist()
+    return out if any(v is not None for v in out) else None

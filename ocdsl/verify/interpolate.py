@@ -128,7 +128,10 @@ class SegmentPolynomials:
 
     state_dependent = False
 
-    def __init__(self, t, U, bounds, segments=None):
+    def __init__(self, t, U, bounds, segments=None, starts=None):
+        """``starts``: per segment, the control collocated at its own start where that start is
+        a node shared with the segment before (LGL, LGR-start; ``segment_starts`` of the
+        interpolation spec), else None: the shared row carries the earlier segment's value."""
         self.t, self.U = t, U
         self.lo = np.array([b[0] for b in bounds])
         self.hi = np.array([b[1] for b in bounds])
@@ -139,9 +142,14 @@ class SegmentPolynomials:
             owner = segment_of_nodes(t, self.segments)
             for k, (a, b) in enumerate(zip(self.segments[:-1], self.segments[1:])):
                 sel = np.flatnonzero(owner == k)
-                if len(sel) == 0:
+                tk, Uk = t[sel], U[sel]
+                own = None if starts is None or k >= len(starts) else starts[k]
+                if own is not None:
+                    tk = np.concatenate([[a], tk])
+                    Uk = np.vstack([np.asarray(own, float).reshape(1, -1), Uk])
+                if len(tk) == 0:
                     raise ValueError("control interpolation: a segment holds no collocated row")
-                self.coef.append(_power_basis(a, b, t[sel], U[sel]))
+                self.coef.append(_power_basis(a, b, tk, Uk))
 
     @classmethod
     def of_segments(cls, breaks, times, values, bounds) -> "SegmentPolynomials":
@@ -384,7 +392,11 @@ def control_interpolant(traj, control_names, bounds, spec: dict | None = None):
     if len(t) == 1:   # one collocated value (a one-node phase): a constant control
         t, U = np.array([t[0], t[0] + 1.0]), np.vstack([U, U])
     if kind == "lagrange-segments":
-        return SegmentPolynomials(t, U, bounds, spec["breakpoints"])
+        starts = spec.get("segment_starts")
+        if starts is not None:      # in the order of control_names, as the rows
+            order = [list(traj.controls).index(c) for c in control_names]
+            starts = [None if v is None else [v[i] for i in order] for v in starts]
+        return SegmentPolynomials(t, U, bounds, spec["breakpoints"], starts)
     return _Tabulated(t, U, bounds, kind)
 
 
