@@ -296,3 +296,22 @@ def test_check_validates_the_study_block(tmp_path):
     p.write_text(text)
     out = subprocess.run([sys.executable, "-m", "ocdsl.cli", "check", str(p)], capture_output=True, text=True)
     assert out.returncode == 2 and "more than the limit of 100,000" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_a_plain_number_with_an_unsigned_exponent_is_a_number():
+    """YAML 1.1 (PyYAML) reads 6.678e6 and 1e-10 as text; a guess list written so was refused
+    as not numbers (unseen20). Unquoted values are numbers, quoted ones and keys stay text."""
+    from ocdsl.spec.loader import load_yaml_text
+
+    doc = load_yaml_text('a: [6.678e6, 1.0e7, 1e-10, -2E+3, "1e6", 1e, e5]\n1e5: x\n', "x.yaml").data
+    assert doc["a"] == [6.678e6, 1.0e7, 1e-10, -2000.0, "1e6", "1e", "e5"]
+    assert doc["1e5"] == "x"
+
+
+def test_a_guess_list_in_exponent_notation_compiles(tmp_path):
+    from ocdsl.api import compile_file
+
+    text = (CONFIGS / "moon_landing.yaml").read_text().replace("guess: {tf: 1.4}", "guess: {tf: 1.4, h: [1e0, 0e0]}")
+    assert "h: [1e0, 0e0]" in text
+    (tmp_path / "g.yaml").write_text(text)
+    compile_file(tmp_path / "g.yaml")

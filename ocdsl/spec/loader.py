@@ -22,6 +22,8 @@ MAX_VALUES = 10_000             # values in the document after aliases (*name) a
 MAX_DIGITS = 300                # digits of an integer (floats end at about 1e308)
 # libyaml's parser where PyYAML has it: 8x faster than the pure-Python one on a large file
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+# a plain number with an exponent whose sign YAML 1.1 requires and the writer left out
+_EXPONENT_NUMBER = re.compile(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+")
 _TAGS = {f"tag:yaml.org,2002:{t}" for t in ("str", "int", "float", "bool", "null", "seq", "map")} | {"!"}
 
 
@@ -188,6 +190,11 @@ def _convert(node: yaml.Node, path: Path_, lines: dict, issues: list, name: str,
         return out
     if isinstance(node, yaml.SequenceNode):
         return [_convert(v, path + (i,), lines, issues, name, make) for i, v in enumerate(node.value)]
+    if node.tag == "tag:yaml.org,2002:str" and not node.style and _EXPONENT_NUMBER.fullmatch(node.value):
+        # a value, unquoted: YAML 1.1 (PyYAML) reads 6.678e6 and 1e-10 as text, YAML 1.2 and
+        # every reader of the file as the numbers they are (a guess [6.678e6, 1.0e7] was refused
+        # as not numbers, unseen20); keys stay names
+        return float(node.value)
     return _scalar(node, issues, name, make)
 
 
