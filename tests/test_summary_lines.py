@@ -124,3 +124,16 @@ def test_the_starts_of_a_refined_flat_run_are_compared_with_its_first_level(tmp_
     shown = capsys.readouterr().out
     assert "4: 3 ended at the first level's objective, 1 elsewhere (151)" in shown, shown
 
+
+
+def test_an_expectation_of_zero_without_tolerances_can_pass():
+    """unseen20: `expect: {objective: 0.0}` of an exact-tracking problem (J = 4e-18) could never
+    pass: the default rtol asks for exactly 0. A zero reference takes atol 1e-6 by default."""
+    from ocdsl.run import expect_check
+
+    near = expect_check("objective", 4e-18, 0.0, None, None)
+    assert near["passed"] and near["atol"] == 1e-6 and near["rtol"] is None
+    assert not expect_check("objective", 2e-6, 0.0, None, None)["passed"]
+    # a tolerance the file gives is the file's
+    assert not expect_check("objective", 4e-18, 0.0, 1e-6, None)["passed"]
+    assert expect_check("J", 1.0 + 5e-7, 1.0, None, None)["passed"]
