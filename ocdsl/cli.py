@@ -31,16 +31,40 @@ def _compile_or_exit(fn, *args, **kwargs):
 
 
 def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
+    """NAME=VALUE pairs; VALUE a number or a constant expression of the problem language
+    (`1/9`, `2*pi`, `sqrt(2)`), as a file's parameters may be written (unseen20)."""
     out = {}
     for item in items:
         name, sep, value = item.partition("=")
         try:
-            if not sep:
+            if not sep or not name.strip():
                 raise ValueError
-            out[name.strip()] = float(value)
+            out[name.strip()] = _constant(value)
         except ValueError:
-            raise click.BadParameter(f"'{item}' is not NAME=NUMBER", param_hint="--param") from None
+            raise click.BadParameter(f"'{item}' is not NAME=NUMBER (a number or a constant expression "
+                                     "such as 1/9 or 2*pi)", param_hint="--param") from None
     return out
+
+
+def _constant(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    import math
+
+    from .spec.expr import ExprError, Scope, parse_expression
+
+    try:
+        e = parse_expression(text.strip(), Scope(names={}))
+    except (ExprError, SyntaxError, TypeError, ValueError):
+        raise ValueError(text) from None
+    if e.free_symbols:
+        raise ValueError(text)
+    value = float(e)
+    if not math.isfinite(value):
+        raise ValueError(text)
+    return value
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

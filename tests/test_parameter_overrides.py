@@ -90,3 +90,20 @@ def test_param_of_a_free_parameter_says_it_is_free(tmp_path):
     assert "not in the file" not in r.output
     assert r.output.count("Error") == 1, r.output
     assert not out.exists()
+
+
+def test_param_takes_a_constant_expression():
+    """unseen20: `--param l=1/9` was refused (only plain numbers), though a file writes its
+    parameters as expressions; what is not a constant stays one clear error."""
+    import math
+
+    import click
+    import pytest
+
+    from ocdsl.cli import _parse_params
+
+    got = _parse_params(("l=1/9", "w=2*pi", "s=sqrt(2)", "x=1e3"))
+    assert got == {"l": 1 / 9, "w": 2 * math.pi, "s": math.sqrt(2), "x": 1000.0}
+    for bad in ("l=x + 1", "l=", "=3", "l=1/0", 'l=__import__("os")'):
+        with pytest.raises(click.BadParameter, match="not NAME=NUMBER"):
+            _parse_params((bad,))
