@@ -459,8 +459,10 @@ def _scale(file: LoadedFile, tr) -> dict | None:
 
         tr.start_spread = spread(tr)       # for the hint of a failed solve (solve/failure_hints.py)
         return None
-    from .solve.scaling import apply
+    from .solve.scaling import apply, sizeless, spread
 
+    # at the start, before Ipopt moves them: what auto scaling found no size for, and the spread
+    tr.start_spread, tr.start_sizeless = spread(tr), sizeless(tr, dict(spec.variables))
     return apply(tr, spec)
 
 

@@ -62,3 +62,28 @@ def test_scaled_solve_reaches_the_unscaled_optimum(tmp_path):
     assert scaled.tf == pytest.approx(2.0, rel=1e-8) and plain.tf == pytest.approx(2.0, rel=1e-8)
     assert scaled.extra["scaling"]["main"]["x"] == 2.0e6 and "scaling" not in plain.extra
     assert scaled.verification["status"] == "verified"
+
+
+SIZELESS = """\
+name: a metre-scale state beside one with no size
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 10}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 5000, v(tf) == 0, 0 <= x <= 1.0e4]
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 4, degree: 4}
+scaling: {mode: auto}
+solver: {options: {max_iter: 1}}
+"""
+
+
+def test_a_failure_names_the_variable_auto_scaling_found_no_size_for(tmp_path):
+    """unseen20: SI orbit raising with v_r unbounded and without a guess ran 3000 iterations
+    into max_iter with no hint; auto scaling had taken v_r's size as 1 beside r's 3e7."""
+    res = load(_file(tmp_path, SIZELESS)).solve()
+    assert res.status == "max_iter"
+    assert "found no size for v" in res.message and "variables: {v: ...}" in res.message
+    assert "found no size for x" not in res.message     # x has bounds

@@ -32,7 +32,9 @@ def failure_hints(file, tr, status: str) -> str:
 
 
 def _scaling(file, tr) -> str:
-    if file.spec.scaling.mode == "auto" or tr.start_spread is None:
+    if file.spec.scaling.mode == "auto":
+        return _sizeless(file, tr)
+    if tr.start_spread is None:
         return ""
     ratio, hi, lo = tr.start_spread
     if not ratio >= BADLY_SCALED:
@@ -40,6 +42,22 @@ def _scaling(file, tr) -> str:
     return (f" The variables' typical magnitudes span {ratio:.1e} ({hi} against {lo}, from their bounds "
             "or guesses): try `scaling: {mode: auto}` (docs/problem-language.md, \"Scaling\"), or write the "
             "problem in units where they are of order 1.")
+
+
+def _sizeless(file, tr) -> str:
+    """Auto scaling divides each variable by its size from bounds or guesses; one with neither
+    is taken as 1, which beside a radius of 3e7 m is no scaling at all (unseen20: SI orbit
+    raising, v_r unbounded with no guess, 3000 iterations and no hint)."""
+    names = list(tr.start_sizeless)
+    if not names or tr.start_spread is None:
+        return ""
+    ratio, hi, _ = tr.start_spread
+    if not ratio >= BADLY_SCALED:
+        return ""
+    shown = ", ".join(names[:4]) + (" ..." if len(names) > 4 else "")
+    return (f" `scaling: {{mode: auto}}` found no size for {shown} (no finite bound, no guess but 0) and "
+            f"took 1, against {hi}'s {ratio:.1e}: give a bound or a guess of its size, or "
+            f"`scaling: {{mode: auto, variables: {{{names[0]}: ...}}}}`.")
 
 
 def _nonsmooth(file, tr) -> str:

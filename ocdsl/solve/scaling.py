@@ -57,6 +57,20 @@ def _phase_magnitudes(tr, given: dict, time: float | None):
     return out
 
 
+def sizeless(tr, given: dict) -> list[str]:
+    """The states and controls whose magnitude auto scaling could not find (no value given in
+    ``scaling.variables``, no finite bound, every starting value 0): they take 1."""
+    out = []
+    for pb, (info, datas) in zip(tr.phases, _phase_magnitudes(tr, given, None)):
+        for x in (*pb.phase.states, *pb.phase.controls):
+            if given.get(f"{pb.phase.name}.{x.name}", given.get(x.name)) is not None:
+                continue
+            d = datas[x.name]
+            if _magnitude(d[0].lb, d[0].ub) is None and _magnitude(*[v.value for v in d]) is None:
+                out.append(x.name if len(tr.phases) == 1 else f"{pb.phase.name}.{x.name}")
+    return out
+
+
 def spread(tr) -> tuple[float, str, str]:
     """(largest / smallest typical magnitude, the name of the largest, of the smallest), over
     the states, controls and free times of every phase, at the built model's start."""

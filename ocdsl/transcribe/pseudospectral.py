@@ -58,6 +58,8 @@ class Transcription:
     # the spread of the variables' typical magnitudes at the start, of an unscaled model
     # (ocdsl/solve/scaling.py ``spread``): measured before Ipopt moves them, for the hint of a failure
     start_spread: tuple | None = None
+    # with `scaling: {mode: auto}`: the variables it found no size for at the start (scaling.sizeless)
+    start_sizeless: tuple = ()
 
 
 def _bound(v: float):
