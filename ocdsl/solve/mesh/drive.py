@@ -83,6 +83,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from .. import ipopt
     from .. import warm_start as ws
     from ..failure_hints import failure_hints
+    from .restart import restart, warm_cap
 
     from ...run import _better, _start_record, recover_from_infeasibility
 
@@ -128,6 +129,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         budget.notes.append("symbolic steps off (mesh: {symbolic: false}): no boundary controls, "
                             "state-constrained arcs located from the control polynomials only")
     noted = 0            # budget notes already printed
+    first_iterations = None   # Ipopt's iterations on the first mesh (warm_cap)
     from ...progress import Stage
 
     stage = Stage("mesh refinement", spec.max_iterations, enabled=progress, at_most=True, interval=0.0)
@@ -157,8 +159,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             mult = ws.apply(snapshot, tr) if snapshot is not None else None
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[mesh {it}]")
-            info = ipopt.solve(tr.model, options, verbose=verbose, progress=bar, multipliers=mult,
-                               transcription=tr)
+            capped = warm_cap(options, first_iterations) if it > 1 else None
+            info = ipopt.solve(tr.model, options if capped is None else {**options, "max_iter": capped},
+                               verbose=verbose, progress=bar, multipliers=mult, transcription=tr)
             if it == 1 and n_starts > 1:
                 # ``starts:`` with ``mesh:``: the starts on the first mesh, refinement from the best
                 start_records.append(_start_record(0, seed, info))
@@ -175,22 +178,28 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         # trial models of this iteration (switches.py) start from the best start's guess
                         rebuild = functools.partial(rebuild, guesses=g)
                         reg = getattr(tr.model, "mesh_regularisation", None)
+        first_iterations = info.iterations if it == 1 else first_iterations
+        from_guess = False      # this mesh solved from the file's guess (restart.py)
         if it > 1 and info.status not in GOOD and info.status not in ("time_limit", "interrupted"):
-            # a refined mesh that does not solve from the mesh before (a poor solution warm-starts
-            # a poor solve): once more from the file's guess, as the first mesh started (unseen8:
-            # a pendulum's third mesh ended infeasible after two multi-swing solutions)
-            with timer.measure("build"):
-                g0 = {ph.name: make_guess(problem, ph, given.get(ph.name)) for ph in problem.phases}
-                cold = rebuild(meshes, guesses=g0, collect=True)
-                ws.prepare(cold.model)
-            with timer.measure("solve"):
-                retry = ipopt.solve(cold.model, options, verbose=verbose, transcription=cold,
-                                    progress=ipopt.Progress(progress, f"[mesh {it}, from the guess]"))
-            if retry.status in GOOD:
-                retry.message += (f" (from the file's guess: from the mesh before, Ipopt ended "
-                                  f"'{info.status}' after {info.iterations} iterations)")
-                retry.iterations += info.iterations
-                tr, info, mult = cold, retry, None
+            def cold(given=given):
+                t = rebuild(meshes, guesses={ph.name: make_guess(problem, ph, given.get(ph.name))
+                                             for ph in problem.phases}, collect=True)
+                ws.prepare(t.model)
+                return t
+
+            def warm():
+                t = rebuild(meshes, collect=True)
+                ws.prepare(t.model)
+                return t, (ws.apply(snapshot, t) if snapshot is not None else None)
+
+            def solve_again(t, m, label):
+                return ipopt.solve(t.model, options, verbose=verbose, transcription=t, multipliers=m,
+                                   progress=ipopt.Progress(progress, label))
+
+            redone = restart(it, info, capped, cold=cold, warm=warm, solve=solve_again, timer=timer)
+            if redone is not None:
+                tr, info, mult = redone
+                from_guess = mult is None
                 reg = getattr(tr.model, "mesh_regularisation", None)
         if it == 1 and info.status == "infeasible":
             # as a single solve: one more start from seeded random controls, else the
@@ -281,7 +290,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         max_err = max(local_err, term.error)
         rec = {"iteration": it, "status": info.status, "objective": info.objective,
                "ipopt_iterations": info.iterations, "nlp": dict(info.nlp), "time_s": None,
-               "warm_start": "multipliers" if mult is not None else ("primal" if it > 1 else "none"),
+               "warm_start": "multipliers" if mult is not None else ("primal" if it > 1 and not from_guess else "none"),
                "max_error": max_err, "terminal_error": term.error, "terminal_where": term.where,
                "terminal_flown": term.flown,
                "where": ({"phase": worst.phase, "segment": worst.segment, "t": [worst.t_start, worst.t_end],

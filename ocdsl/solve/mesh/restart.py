@@ -1,0 +1,53 @@
+"""A refined mesh that does not solve from the mesh before: solved once more from the file's
+guess, as the first mesh started (a poor solution warm-starts a poor solve; unseen8: a
+pendulum's third mesh ended infeasible after two multi-swing solutions).
+
+A warm-started solve is capped at a few times the first mesh's cold solve (``warm_cap``): the
+hanging chain's meshes 1-4 were spurious zigzags (J 4.79-4.95 against 5.068), and mesh 5 took
+2,516 Ipopt iterations (2.3 s of a 3.5 s run) to leave the last one's warm start; from the
+file's guess it took 89. Where neither start solves within the cap, the warm start runs again
+without it, as before the cap."""
+from __future__ import annotations
+
+from typing import Callable
+
+from .outcome import GOOD
+
+#: a refined mesh's warm-started solve may take this many times the first mesh's iterations
+#: (at least WARM_CAP_MIN) before the file's guess is tried
+WARM_CAP_FACTOR, WARM_CAP_MIN = 4, 200
+
+
+def warm_cap(options: dict, first_iterations: int | None) -> int | None:
+    """The max_iter of a refined mesh's warm-started solve; None to leave the file's: no first
+    solve to measure by, or the file's own max_iter at or below the cap."""
+    if first_iterations is None:
+        return None
+    cap = max(WARM_CAP_MIN, WARM_CAP_FACTOR * int(first_iterations))
+    given = options.get("max_iter")
+    return None if given is not None and int(given) <= cap else cap
+
+
+def restart(it: int, info, capped: int | None, *, cold: Callable, warm: Callable, solve: Callable, timer):
+    """``info``: the failed solve of mesh ``it`` (``capped``: its max_iter when warm_cap set it).
+    ``cold()`` builds the model from the file's guess, ``warm()`` (model, multipliers) from the
+    mesh before, ``solve(model, multipliers, label)`` solves one. Returns (model, SolveInfo,
+    multipliers) to replace the failed solve, or None to keep it."""
+    with timer.measure("build"):
+        model = cold()
+    with timer.measure("solve"):
+        retry = solve(model, None, f"[mesh {it}, from the guess]")
+    if retry.status in GOOD:
+        cut = f", the {capped} a warm start may take" if capped is not None and info.status == "max_iter" else ""
+        retry.message += (f" (from the file's guess: from the mesh before, Ipopt ended '{info.status}' after "
+                          f"{info.iterations} iterations{cut})")
+        retry.iterations += info.iterations
+        return model, retry, None
+    if capped is None or info.status != "max_iter":
+        return None
+    with timer.measure("build"):
+        model, multipliers = warm()
+    with timer.measure("solve"):
+        again = solve(model, multipliers, f"[mesh {it}, warm, uncapped]")
+    again.iterations += info.iterations + retry.iterations
+    return model, again, multipliers
