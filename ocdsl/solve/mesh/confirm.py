@@ -109,7 +109,8 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
             status = "mesh_not_converged"
             message = (f"the mesh refinement met its tolerance on one mesh only ({message}), but J = "
                        f"{bisected.objective:.10g} there and {bisected.describe()}: the error estimate does not "
-                       "see what moves J (a chattering control, docs/mesh.md). Tighten the tolerance, or raise "
+                       "see what moves J (a chattering control, or a path constraint the bisected mesh meets only at "
+                       "its nodes, docs/mesh.md). Tighten the tolerance, or raise "
                        "max_iterations")
         else:
             why = (f"every mesh within tolerance holds {unchanged[0]} unchanged, where it binds" if unchanged
