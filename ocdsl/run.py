@@ -186,8 +186,9 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
 
 def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verbose=False,
                     progress=False) -> list[str]:
-    """A converged single solve whose inequalities bind inside a phase: its J is that mesh's
-    optimum, which the verification (a feasibility check) cannot judge; so the problem is
+    """A converged single solve whose inequalities bind inside a phase, or whose J no flight of
+    the minimum principle's control judged: its J is that mesh's optimum, which the
+    verification (a feasibility check) cannot judge; so the problem is
     solved once more with every segment bisected, from this solution (and bisected again where
     the first difference does not decide), and where J does not agree (``solve.arcs.Bisection``)
     ``result`` becomes ``mesh_not_converged``. A bang-bang switch held on a breakpoint where
