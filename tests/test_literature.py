@@ -28,6 +28,8 @@ MATCHED = {
     # from a new user's trial (unseen4), closed forms checked below
     "zermelo": False, "lqr_terminal_weight": False, "min_energy_free_velocity": False,
     "brachistochrone_to_line": False,
+    # written from the docs in the sixth session of 2026-12-06
+    "min_time_energy": False,
 }
 # not verified: adaptive refinement stops at max_iterations (largest estimated error 2e-5),
 # J settles at 7.910916, 4.5e-5 above the published 7.91055654 (expect fails at rtol 1e-6)
@@ -278,6 +280,20 @@ def test_min_energy_free_velocity_reference():
     x_T = quad(lambda t: quad(lambda s: c * (T - s), 0, t)[0], 0, T)[0]
     J = quad(lambda t: (c * (T - t)) ** 2 / 2, 0, T)[0]
     assert x_T == pytest.approx(d, rel=1e-12) and J == pytest.approx(0.1875, rel=1e-12)
+
+
+def test_min_time_energy_reference():
+    """J(tf) = tf + 1/(2 tf) for the constant control 1/tf: least at 1/sqrt(2), J* = sqrt(2); the
+    constant control is the minimum principle's (u = -lambda, lambda constant), and at the free
+    t_f H = u^2/2 - u^2 = -1 = -dPhi/dtf holds there."""
+    from scipy.optimize import minimize_scalar
+
+    best = minimize_scalar(lambda tf: tf + 1 / (2 * tf), bounds=(0.1, 10), method="bounded",
+                           options={"xatol": 1e-12})
+    assert best.x == pytest.approx(1 / math.sqrt(2), rel=1e-6)
+    assert best.fun == pytest.approx(math.sqrt(2), rel=1e-12)
+    u = 1 / best.x
+    assert u ** 2 / 2 - u ** 2 == pytest.approx(-1.0, rel=1e-6)
 
 
 def test_brachistochrone_to_line_reference():
