@@ -571,3 +571,33 @@ def test_a_hamiltonian_that_the_nlp_resolves_is_still_judged(energy):
     _, res = energy
     h = res.certificate["hamiltonian"]
     assert h["term_scale"] > 1e-3 and h["passed"] is True and "inconclusive" not in h
+
+
+DURATION_AS_PARAMETER = """name: minimum-time double integrator, the duration a parameter
+parameters:
+  T: {value: 3.0, free: true, bounds: [0.1, 10]}
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: T*v, v: T*u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [-1 <= u <= 1, x(t0) == 1, v(t0) == 0.3, x(tf) == 0, v(tf) == 0]
+  objective: minimize T
+method: {transcription: LGL, segments: 3, degree: 4, mesh: {tolerance: 1.0e-8}}
+"""
+
+
+def test_an_lgl_node_shared_at_a_switch_is_not_judged_by_its_switching_sign(tmp_path):
+    """unseen20 p17: T* = 0.3 + 2 sqrt(1.045) right to 1e-11 on two LGL segments with the
+    switch on their breakpoint; the node there holds the left arc's bound, tied to that
+    segment's one-sided limit, with dH/du of the other sign, and the certificate failed
+    (switching 4 of 5, then H). That node's sign is not judged: inconclusive."""
+    from ocdsl.result import certificate_verdict
+
+    (tmp_path / "p.yaml").write_text(DURATION_AS_PARAMETER)
+    res = run_file(tmp_path / "p.yaml", None)
+    assert res.status == "optimal" and res.verified
+    assert res.parameters["T"] == pytest.approx(0.3 + 2 * np.sqrt(1.045), rel=1e-9)
+    cert = res.certificate
+    assert cert["switching"]["passed"] and certificate_verdict(cert) == "inconclusive", cert.get("failed")

@@ -25,7 +25,8 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                 include_symbolic: bool = False,
                 path_constraints: Sequence[tuple] | None = None,
                 multipliers: Mapping[str, Any] | None = None,
-                state_bounds: Mapping[str, Sequence[float | None]] | None = None) -> dict[str, Any]:
+                state_bounds: Mapping[str, Sequence[float | None]] | None = None,
+                shared_nodes: Sequence[float] = ()) -> dict[str, Any]:
     """Check the first-order optimality conditions of a collocated solution.
 
     Parameters
@@ -54,6 +55,10 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     state_bounds : state name -> (lower, upper), the states' variable bounds. A state held
         at its bound over an arc (two nodes or more in a row) makes a failed Hamiltonian
         check inconclusive: there the NLP's costates are not unique.
+    shared_nodes : times of control nodes two segments share (LGL's breakpoints). Where the
+        bound changes across one, its control is tied to its segment's one-sided limit
+        (mesh refinement's ``junction_control: limit``), not chosen by the minimum
+        principle, so its switching sign is not judged (a weakly active node).
 
     Returns
     -------
@@ -204,6 +209,12 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         change[:-1] |= side[:-1, j] != side[1:, j]
         change[1:] |= side[1:, j] != side[:-1, j]
         at_switch = change & (np.abs(S) <= tol.switch_node * float(np.max(np.abs(S))))
+        if len(shared_nodes):
+            # unseen20 p17: an exact bang-bang answer on two LGL segments, the switch on their
+            # breakpoint, whose node there held the left arc's bound with dH/du of the other sign
+            span = max(float(t[-1] - t[0]), 1e-300)
+            on_shared = np.min(np.abs(t[:, None] - np.asarray(shared_nodes, float)[None, :]), axis=1) <= 1e-9 * span
+            at_switch |= change & on_shared
         weak = sat & ((np.abs(S) <= tol.stationarity * cscale) | (np.abs(S) <= u_floor) | at_switch)
         strict = sat & ~weak & (side[:, j] * S < 0)
         agree = int(strict.sum() + weak.sum())
