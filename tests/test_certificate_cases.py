@@ -601,3 +601,29 @@ def test_an_lgl_node_shared_at_a_switch_is_not_judged_by_its_switching_sign(tmp_
     assert res.parameters["T"] == pytest.approx(0.3 + 2 * np.sqrt(1.045), rel=1e-9)
     cert = res.certificate
     assert cert["switching"]["passed"] and certificate_verdict(cert) == "inconclusive", cert.get("failed")
+
+
+def test_an_lgr_start_breakpoint_row_is_the_later_segments_own_node(tmp_path):
+    """LGR-start collocates each segment at its start and not at its end; the row on a
+    breakpoint carried the earlier segment's control and costate extrapolated there, and the
+    certificate judged that pair: Dido's arc on LGR-start 4 x 4 (J right to 9.4e-7) failed its
+    stationarity (unseen20 p6). The row is now the later segment's own node."""
+    from ocdsl.result import certificate_verdict
+
+    dido = """name: Dido's arc
+model:
+  states: [y]
+  controls: [u]
+  dynamics: {y: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [y(t0) == 0, y(tf) == 0, integral(sqrt(1 + u**2)) == 1.2, -10 <= u <= 10]
+  objective: maximize integral(y)
+  guess: {y: 0.1, u: 0}
+method: {transcription: LGR-start, segments: 4, degree: 4}
+"""
+    (tmp_path / "d.yaml").write_text(dido)
+    res = run_file(tmp_path / "d.yaml", None)
+    assert res.objective == pytest.approx(0.19938507545382392, rel=2e-6) and res.verified
+    assert certificate_verdict(res.certificate) == "passed", res.certificate.get("failed")
+    assert res.phases[0].control_interpolation["breakpoint_rows"] == "later"

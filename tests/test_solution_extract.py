@@ -7,7 +7,7 @@ from ocdsl.api import compile_file
 from ocdsl.transcribe.guess import make_guess
 from ocdsl.transcribe.mesh import Mesh
 from ocdsl.transcribe.pseudospectral import build
-from ocdsl.transcribe.solution import control_on_state_nodes, extract
+from ocdsl.transcribe.solution import control_on_state_nodes, extract, later_owns_breakpoint
 
 
 @pytest.mark.parametrize("scheme", ["LG", "LGR", "LGL", "LGR-start"])
@@ -26,15 +26,20 @@ def test_controls_on_state_nodes_are_each_segments_polynomial(configs, scheme):
         a, b = mesh.breakpoints[k], mesh.breakpoints[k + 1]
         s_c = lay.s_colloc[lay.colloc[k]]
         nodes = list(lay.support[k]) + [lay.end[k]]
-        first = 0 if k == 0 else 1        # a shared start is the previous segment's end
+        # a shared start is the previous segment's end, unless only this segment collocates
+        # there (LGR-start): then it is this one's own node, and not the previous one's end
+        first = 0 if k == 0 or later_owns_breakpoint(mesh, k) else 1
+        if k + 1 < mesh.segments and later_owns_breakpoint(mesh, k + 1):
+            nodes = [n for n in nodes if n != lay.end[k]]
         for n in nodes[first:]:
             for j in range(U.shape[1]):
                 poly = np.polynomial.Polynomial.fit(s_c, U[lay.colloc[k], j], len(s_c) - 1, domain=[a, b])
                 assert got[n, j] == pytest.approx(poly(lay.s_state[n]), abs=1e-9), (k, n, j)
     # where a state node is a collocation node, the value is the control there exactly
     for k in range(mesh.segments):
-        assert np.array_equal(got[lay.colloc_state[k][1:] if k else lay.colloc_state[k]],
-                              U[lay.colloc[k][1:] if k else lay.colloc[k]])
+        own = k == 0 or later_owns_breakpoint(mesh, k)
+        assert np.array_equal(got[lay.colloc_state[k] if own else lay.colloc_state[k][1:]],
+                              U[lay.colloc[k] if own else lay.colloc[k][1:]])
 
 
 def test_extract_reads_the_variables(configs):

@@ -17,7 +17,9 @@ def control_on_state_nodes(pb: PhaseBlock, U: np.ndarray) -> np.ndarray:
     """Controls (given at collocation nodes) on the state nodes, by each segment's polynomial.
 
     Where a state node is a collocation node the value is exact; elsewhere (segment starts
-    for LGR, both ends for LG) it is the segment's interpolating polynomial extrapolated.
+    for LGR, both ends for LG) it is the segment's interpolating polynomial extrapolated. A
+    node two segments share is the earlier one's end, unless only the later one collocates
+    there (LGR-start): then it is the later one's start.
     Segments of one degree share one interpolation matrix, taken at the scheme's own
     reference points, so the work is one matrix product per degree.
     """
@@ -40,6 +42,11 @@ def control_on_state_nodes(pb: PhaseBlock, U: np.ndarray) -> np.ndarray:
         vals = np.einsum("tc,kcj->ktj", L, U[np.array([lay.colloc[k] for k in ks])])
         keep = targets != targets[:, :1]   # a shared start belongs to the previous segment's end
         keep[np.asarray(ks) == 0, 0] = True
+        # ... where that segment has a node there (LGL, LGR); LGR-start has none at its end, and
+        # its row there was the earlier polynomial extrapolated, control and costate alike (the
+        # certificate judged that pair: unseen20 p6, stationarity failed with J right)
+        keep[[k > 0 and later_owns_breakpoint(lay.mesh, k) for k in ks], 0] = True
+        keep[[k + 1 < lay.mesh.segments and later_owns_breakpoint(lay.mesh, k + 1) for k in ks], -1] = False
         out[targets[keep]] = vals[keep]
     return out
 
@@ -141,6 +148,8 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
         starts = segment_start_controls(pb, U, Us, angles)
         if starts is not None:
             interpolation["segment_starts"] = starts
+        if any(later_owns_breakpoint(lay.mesh, k) for k in range(1, lay.mesh.segments)):
+            interpolation["breakpoint_rows"] = "later"    # LGR-start: a row on a breakpoint is the later segment's
         out.append(PhaseTrajectory(
             ph.name, time,
             states={s.name: X[:, j] for j, s in enumerate(ph.states)},
@@ -148,6 +157,14 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
             extra={"collocated": collocated},
             control_interpolation=interpolation))
     return out
+
+
+def later_owns_breakpoint(mesh, k: int) -> bool:
+    """Whether the state node where segment ``k`` starts is a collocation node of segment k
+    only (its scheme collocates at -1, the segment before has no node at +1: LGR-start)."""
+    own = abs(float(mesh.scheme(k).colloc[0]) + 1.0) <= 1e-12
+    before = abs(float(mesh.scheme(k - 1).colloc[-1]) - 1.0) <= 1e-12
+    return own and not before
 
 
 def segment_start_controls(pb: PhaseBlock, U: np.ndarray, Us: np.ndarray, angles: list[int]) -> list | None:
@@ -162,8 +179,8 @@ def segment_start_controls(pb: PhaseBlock, U: np.ndarray, Us: np.ndarray, angles
     out: list = [None] * lay.mesh.segments
     for k in range(1, lay.mesh.segments):
         sc = lay.mesh.scheme(k)
-        if abs(float(sc.colloc[0]) + 1.0) > 1e-12:
-            continue
+        if abs(float(sc.colloc[0]) + 1.0) > 1e-12 or later_owns_breakpoint(lay.mesh, k):
+            continue        # no node there, or the row is this segment's own (breakpoint_rows)
         row = lay.colloc_state[k][0]
         values = np.array(U[lay.colloc[k][0]], float)
         for j in angles:   # the branch of the row's (unwrapped) value

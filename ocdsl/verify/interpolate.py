@@ -26,7 +26,7 @@ import numpy as np
 KINDS = ("lagrange-segments", "cubic", "linear", "previous", "series")
 
 
-def segment_of_nodes(t, segments) -> np.ndarray:
+def segment_of_nodes(t, segments, later: bool = False) -> np.ndarray:
     """The segment owning each node: ``segments[k] < t <= segments[k+1]`` (the first segment
     also owns ``t == segments[0]``).
 
@@ -36,12 +36,17 @@ def segment_of_nodes(t, segments) -> np.ndarray:
     control). Fitting the later segment's polynomial through it as well would mix the two
     segments' controls, which for a bang-bang control switching on a boundary puts a
     polynomial through both bounds (the double integrator's 2e-2 "re-integration error").
+    With ``later`` it is the start of the segment after it (LGR-start, whose segments
+    collocate at their start only: the row there is the later segment's own node).
     """
     t = np.asarray(t, float)
     seg = np.asarray(segments, float)
     # a node computed as a + (tau + 1) (b - a) / 2 with tau = 1 may land an ulp past b
     eps = 1e-9 * max(float(seg[-1] - seg[0]), 1e-300)
-    k = np.searchsorted(seg, t - eps, side="left") - 1
+    if later:       # LGR-start: a node on an interior boundary is the start of the segment after it
+        k = np.searchsorted(seg, t + eps, side="right") - 1
+    else:
+        k = np.searchsorted(seg, t - eps, side="left") - 1
     return np.clip(k, 0, len(seg) - 2)
 
 
@@ -128,10 +133,12 @@ class SegmentPolynomials:
 
     state_dependent = False
 
-    def __init__(self, t, U, bounds, segments=None, starts=None):
+    def __init__(self, t, U, bounds, segments=None, starts=None, later: bool = False):
         """``starts``: per segment, the control collocated at its own start where that start is
         a node shared with the segment before (LGL, LGR-start; ``segment_starts`` of the
-        interpolation spec), else None: the shared row carries the earlier segment's value."""
+        interpolation spec), else None: the shared row carries the earlier segment's value.
+        ``later``: a row on a breakpoint is the later segment's (``breakpoint_rows: later``,
+        LGR-start, whose segments collocate at their start and not at their end)."""
         self.t, self.U = t, U
         self.lo = np.array([b[0] for b in bounds])
         self.hi = np.array([b[1] for b in bounds])
@@ -139,7 +146,7 @@ class SegmentPolynomials:
         self._pieces: dict[int, object] = {}
         if self.segments is not None:
             self.coef = []   # per segment: (centre, half-width, power-basis coefficients)
-            owner = segment_of_nodes(t, self.segments)
+            owner = segment_of_nodes(t, self.segments, later)
             for k, (a, b) in enumerate(zip(self.segments[:-1], self.segments[1:])):
                 sel = np.flatnonzero(owner == k)
                 tk, Uk = t[sel], U[sel]
@@ -396,7 +403,8 @@ def control_interpolant(traj, control_names, bounds, spec: dict | None = None):
         if starts is not None:      # in the order of control_names, as the rows
             order = [list(traj.controls).index(c) for c in control_names]
             starts = [None if v is None else [v[i] for i in order] for v in starts]
-        return SegmentPolynomials(t, U, bounds, spec["breakpoints"], starts)
+        return SegmentPolynomials(t, U, bounds, spec["breakpoints"], starts,
+                                  later=spec.get("breakpoint_rows") == "later")
     return _Tabulated(t, U, bounds, kind)
 
 
