@@ -610,18 +610,8 @@ def test_an_lgr_start_breakpoint_row_is_the_later_segments_own_node(tmp_path):
     stationarity (unseen20 p6). The row is now the later segment's own node."""
     from ocdsl.result import certificate_verdict
 
-    dido = """name: Dido's arc
-model:
-  states: [y]
-  controls: [u]
-  dynamics: {y: u}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [y(t0) == 0, y(tf) == 0, integral(sqrt(1 + u**2)) == 1.2, -10 <= u <= 10]
-  objective: maximize integral(y)
-  guess: {y: 0.1, u: 0}
-method: {transcription: LGR-start, segments: 4, degree: 4}
-"""
+    dido = (DATA / "dido_arc.yaml").read_text().replace(
+        "transcription: LGR, segments: 8, degree: 5", "transcription: LGR-start, segments: 4, degree: 4")
     (tmp_path / "d.yaml").write_text(dido)
     res = run_file(tmp_path / "d.yaml", None)
     assert res.objective == pytest.approx(0.19938507545382392, rel=2e-6) and res.verified

@@ -448,18 +448,6 @@ def test_a_flight_that_misses_while_every_piece_holds_does_not_say_refine():
     assert "refine the mesh" in _summary([flight], [], settings, [near, flight])
 
 
-DIDO = """name: Dido's arc
-model:
-  states: [y]
-  controls: [u]
-  dynamics: {y: u}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [y(t0) == 0, y(tf) == 0, integral(sqrt(1 + u**2)) == 1.2, -10 <= u <= 10]
-  objective: maximize integral(y)
-  guess: {y: 0.1, u: 0}
-method: {transcription: SCHEME, segments: 8, degree: 5}
-"""
 
 
 @pytest.mark.parametrize("scheme", ["LGL", "LGR-start"])
@@ -473,7 +461,8 @@ def test_a_segment_whose_start_is_a_shared_node_keeps_its_own_control_there(tmp_
     from ocdsl.result import Result
 
     path = tmp_path / "dido.yaml"
-    path.write_text(DIDO.replace("SCHEME", scheme))
+    path.write_text((Path(__file__).parent / "data" / "dido_arc.yaml").read_text().replace(
+        "transcription: LGR,", f"transcription: {scheme},"))
     res = run_file(path, tmp_path / "run")
     assert res.objective == pytest.approx(0.19938507545382392, rel=1e-6)
     assert res.verification["status"] == "verified", res.verification.get("summary")
