@@ -73,19 +73,12 @@ def _degenerate_rows(result: Result) -> dict | None:
                                       "remove the condition the others imply"}}
 
 
-def _shared_control_nodes(result: Result, traj) -> list[float]:
-    """The interior breakpoints (times) of a phase whose segments collocate the control at
-    both ends (LGL): there two segments' nodes meet on one trajectory row."""
+def _shared_control_nodes(traj) -> list[float]:
+    """The breakpoints (times) where two segments both collocate the control (LGL): those
+    whose later segment's own start value the run recorded (``segment_starts``)."""
     spec = traj.control_interpolation or {}
-    method = result.method or {}
-    scheme = method.get("transcription")
-    meshes = method.get("meshes") or {}
-    mesh = meshes.get(traj.name) if isinstance(meshes, dict) else None
-    if isinstance(mesh, dict):
-        scheme = mesh.get("transcription", scheme)
-    if scheme != "LGL" or spec.get("kind") != "lagrange-segments":
-        return []
-    return [float(b) for b in spec.get("breakpoints", [])[1:-1]]
+    bps = spec.get("breakpoints") or []
+    return [float(bps[k]) for k, v in enumerate(spec.get("segment_starts") or []) if v is not None and k < len(bps)]
 
 
 def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
@@ -145,7 +138,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
         bounds = {c.name: tuple(None if not math.isfinite(b) else b for b in ph.control_bounds.get(c, (-math.inf, math.inf)))
                   for c in ph.controls}
         kw["state_bounds"] = {x.name: ph.bounds_of(x) for x in ph.states}
-        kw["shared_nodes"] = _shared_control_nodes(result, traj)
+        kw["shared_nodes"] = _shared_control_nodes(traj)
         # path constraints with their multipliers (costates.path_multipliers): H_aug
         mus = {f"mu_{k}": traj.extra.get(f"mu_{k}") for k in range(len(ph.path))}
         if ph.path and all(v is not None for v in mus.values()):

@@ -227,19 +227,15 @@ def _hold_bang_controls(solved, pb, q: int, tol: float) -> int:
     return held
 
 
-def _state_at_bound(solved, nodes, rel: float = 1e-6) -> bool:
-    """Whether a state of ``solved`` sits on one of its finite bounds at one of the state
-    ``nodes`` (within ``rel`` of the bound's range, at least 1)."""
-    import pyomo.core as pyo
+def _state_at_bound(pb, nodes) -> bool:
+    """Whether a state of the solved phase ``pb`` sits on one of its bounds at one of the
+    state ``nodes`` (``segments.activity``, as the estimate judges it)."""
+    from ...transcribe.solution import node_values
+    from .segments import activity
 
-    for j, x in enumerate(solved.phase.states):
-        lo, hi = solved.phase.state_bounds.get(x, (-math.inf, math.inf))
-        span = max(1.0, hi - lo) if math.isfinite(lo) and math.isfinite(hi) else max(1.0, abs(lo), abs(hi))
-        for n in nodes:
-            v = pyo.value(solved.block.X[int(n), j])
-            if (math.isfinite(lo) and v - lo <= rel * span) or (math.isfinite(hi) and hi - v <= rel * span):
-                return True
-    return False
+    X, _ = node_values(pb)
+    idx = np.asarray(nodes, int)
+    return any(activity(X[idx, j], *pb.phase.bounds_of(x)[:2], 1e-6).any() for j, x in enumerate(pb.phase.states))
 
 
 def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: float):
