@@ -159,17 +159,21 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
     return out
 
 
+def _collocates_at(mesh, k: int, tau: float) -> bool:
+    """Whether segment ``k`` collocates at its start (``tau`` = -1) or its end (+1)."""
+    colloc = mesh.scheme(k).colloc
+    return abs(float(colloc[0] if tau < 0 else colloc[-1]) - tau) <= 1e-12
+
+
 def later_owns_breakpoint(mesh, k: int) -> bool:
     """Whether the state node where segment ``k`` starts is a collocation node of segment k
-    only (its scheme collocates at -1, the segment before has no node at +1: LGR-start)."""
-    own = abs(float(mesh.scheme(k).colloc[0]) + 1.0) <= 1e-12
-    before = abs(float(mesh.scheme(k - 1).colloc[-1]) - 1.0) <= 1e-12
-    return own and not before
+    only (it collocates at its start, the segment before not at its end: LGR-start)."""
+    return _collocates_at(mesh, k, -1.0) and not _collocates_at(mesh, k - 1, 1.0)
 
 
 def segment_start_controls(pb: PhaseBlock, U: np.ndarray, Us: np.ndarray, angles: list[int]) -> list | None:
-    """Per segment, the controls collocated at its own start where that start is a breakpoint
-    shared with the segment before (LGL, LGR-start), else None; None when no segment has one.
+    """Per segment, the controls collocated at its own start where the segment before
+    collocates there too (LGL), else None; None when no segment has one.
 
     The state node there is one row of the trajectory, which carries the earlier segment's
     control (``control_on_state_nodes``): without this value the later segment's polynomial
@@ -178,9 +182,8 @@ def segment_start_controls(pb: PhaseBlock, U: np.ndarray, Us: np.ndarray, angles
     lay = pb.layout
     out: list = [None] * lay.mesh.segments
     for k in range(1, lay.mesh.segments):
-        sc = lay.mesh.scheme(k)
-        if abs(float(sc.colloc[0]) + 1.0) > 1e-12 or later_owns_breakpoint(lay.mesh, k):
-            continue        # no node there, or the row is this segment's own (breakpoint_rows)
+        if not (_collocates_at(lay.mesh, k, -1.0) and _collocates_at(lay.mesh, k - 1, 1.0)):
+            continue        # one node there at most: the row is it (breakpoint_rows for LGR-start)
         row = lay.colloc_state[k][0]
         values = np.array(U[lay.colloc[k][0]], float)
         for j in angles:   # the branch of the row's (unwrapped) value
