@@ -55,3 +55,12 @@ def test_rejects_bad_arguments():
     with pytest.raises(ValueError, match="outside"):
         basis_matrix(3, 6, [1.2])
     assert not basis_matrix(2, 5, [0.3], deriv=3).any()
+
+
+def test_the_cached_derivative_operator_is_read_only():
+    """It is shared by every later call with the same basis: a caller must not be able to
+    change what the next one gets."""
+    from ocdsl.transcribe.bspline import _derivative_operator
+
+    op = _derivative_operator(3, 6, 1, 0.0, 1.0)
+    assert not op.flags.writeable and _derivative_operator(3, 6, 1, 0.0, 1.0) is op

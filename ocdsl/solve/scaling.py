@@ -29,9 +29,9 @@ def _magnitude(*values) -> float | None:
     return max(finite) if finite else None
 
 
-def _phase_magnitudes(tr, given: dict, time: float | None):
+def _phase_magnitudes(tr, given: dict, time: float | None, default: float | None = 1.0):
     """Per phase: ({state, control, free t0/tf: its typical magnitude}, {name: its Pyomo
-    variables}), by the rules of the module's docstring."""
+    variables}), by the rules of the module's docstring; ``default`` where none is found."""
     import pyomo.core as pyo
 
     out = []
@@ -46,12 +46,12 @@ def _phase_magnitudes(tr, given: dict, time: float | None):
                 s = given.get(f"{ph.name}.{name}", given.get(name))
                 if s is None:
                     s = _magnitude(datas[name][0].lb, datas[name][0].ub) or \
-                        _magnitude(*[d.value for d in datas[name]]) or 1.0
+                        _magnitude(*[d.value for d in datas[name]]) or default
                 info[name] = s
         for which in ("t0", "tf"):
             comp = getattr(b, which)
             if isinstance(comp, pyo.Var):
-                info[which] = time or _magnitude(comp.lb, comp.ub) or _magnitude(comp.value) or 1.0
+                info[which] = time or _magnitude(comp.lb, comp.ub) or _magnitude(comp.value) or default
                 datas[which] = [comp]
         out.append((info, datas))
     return out
@@ -61,13 +61,9 @@ def sizeless(tr, given: dict) -> list[str]:
     """The states and controls whose magnitude auto scaling could not find (no value given in
     ``scaling.variables``, no finite bound, every starting value 0): they take 1."""
     out = []
-    for pb, (info, datas) in zip(tr.phases, _phase_magnitudes(tr, given, None)):
-        for x in (*pb.phase.states, *pb.phase.controls):
-            if given.get(f"{pb.phase.name}.{x.name}", given.get(x.name)) is not None:
-                continue
-            d = datas[x.name]
-            if _magnitude(d[0].lb, d[0].ub) is None and _magnitude(*[v.value for v in d]) is None:
-                out.append(x.name if len(tr.phases) == 1 else f"{pb.phase.name}.{x.name}")
+    for pb, (info, _) in zip(tr.phases, _phase_magnitudes(tr, given, None, default=None)):
+        out += [x.name if len(tr.phases) == 1 else f"{pb.phase.name}.{x.name}"
+                for x in (*pb.phase.states, *pb.phase.controls) if info[x.name] is None]
     return out
 
 

@@ -88,8 +88,9 @@ def _derivative_operator(degree: int, n_ctrl: int, deriv: int, a: float, b: floa
             if d2 > 0:
                 new[:, i + 1] -= q * coeff[:, i] / d2
         coeff = new
-    coeff.T.flags.writeable = False
-    return coeff.T
+    operator = coeff.T
+    operator.flags.writeable = False       # cached: shared by every caller
+    return operator
 
 
 def basis_matrix(degree: int, n_ctrl: int, x, deriv: int = 0,
