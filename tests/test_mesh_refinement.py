@@ -316,6 +316,35 @@ def test_refine_never_returns_the_same_mesh_silently():
     assert forced.segments == 3
 
 
+def test_bracket_at_a_segment_end_refines_the_rest_too():
+    """A state's activity change between a segment's first node and the segment before (a
+    state sagging below its bound at a breakpoint of a boundary arc: configs/mesh_goddard.yaml)
+    cuts that bracket and raises the degree of the rest of the segment by the smooth rule,
+    which cutting the bracket alone left at degree 3 with its error (a sliver a mesh, seven
+    meshes). A control's switch there keeps the bracket rule only (the switch moves' case)."""
+    from ocdsl.solve.mesh import estimate, refine as mr
+    from ocdsl.spec.schema import MeshSpec
+    from ocdsl.transcribe.mesh import Mesh
+
+    spec = MeshSpec(tolerance=1e-7)
+    mesh = Mesh("LGR", np.array([0.0, 0.36, 0.49, 1.0]), (3, 3, 3))
+    first_node = 0.36 + 0.13 * 0.155
+    bad = dict(segment=1, t_start=0.36, t_end=0.49, degree=3, error=1.6e-5, discrepancy=1.6e-5,
+               violation=0.0, state="v", nonsmooth=True, switches=[(0.36, first_node)])
+    ok = [estimate.SegmentError("main", k, *ab, 3, 1e-10, 1e-10, 0.0, "v", False)
+          for k, ab in ((0, (0.0, 0.36)), (2, (0.49, 1.0)))]
+
+    def refined(**extra):
+        new = mr.refine(mesh, [ok[0], estimate.SegmentError("main", **bad, **extra), ok[1]], spec, features=[])
+        return [(float(a), float(b), N) for a, b, N in zip(new.breakpoints, new.breakpoints[1:], new.degrees)]
+
+    state = refined()
+    rest = [sg for sg in state if sg[0] >= first_node - 1e-12 and sg[1] <= 0.49 + 1e-12]
+    assert rest and all(N > 3 for _, _, N in rest), state
+    control = refined(control_switch=True)
+    assert [N for a, b, N in control if 0.36 <= a and b <= 0.49] == [spec.min_degree] * 3, control
+
+
 def test_same_mesh_stops_with_a_message(configs, monkeypatch):
     from ocdsl.solve.mesh import drive
 

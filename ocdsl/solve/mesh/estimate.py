@@ -28,6 +28,7 @@ class SegmentError:
     # (``segment_ends``: the terminal conditions judged piece by piece)
     x_end: np.ndarray | None = None
     q_increment: np.ndarray | None = None
+    control_switch: bool = False  # a control's activity changes in ``switches`` (not only states' or paths')
 
 
 _FLIGHTS: dict = {}      # id(phase) -> (phase, free parameter names, PhaseFunctions): one per run
@@ -265,17 +266,17 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
             prev_node = lay.colloc[k - 1][-1]
             prev_s = lay.s_colloc[prev_node]
         switches = []
+        control_switch = False
         for pattern_idx, pattern in enumerate(act):
             for i in range(1, len(pattern)):
                 if pattern[i] != pattern[i - 1]:
                     switches.append((float(s_nodes[i - 1]), float(s_nodes[i])))
-        if not switches and len(s_nodes) and prev_s is not None and act:
-            pass
+                    control_switch = control_switch or pattern_idx < nu
         switches = sorted(set(switches))
         err = max(disc, viol, integral_err)
         out.append(SegmentError(ph.name, k, ta, tb, sc.degree, err, disc, viol, which,
                                 bool(switches), switches, smoothed, integral_err,
-                                np.array(x_int[-1], float), q_inc))
+                                np.array(x_int[-1], float), q_inc, control_switch))
     return out
 
 
