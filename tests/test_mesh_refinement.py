@@ -845,3 +845,42 @@ def test_an_infeasible_first_mesh_is_bisected_before_the_problem_is_called_infea
     tau = 1.5 * (1 - 1 / 1.1)
     assert res.ok and res.objective == pytest.approx(4 * 1.1**2 / (3 * tau), rel=1e-6)
     assert any("was infeasible, the problem is not" in n for n in res.extra["notes"])
+
+
+QUADRUPLE_INTEGRATOR = """name: quadruple integrator, rest to rest
+model:
+  states: [x, v, a, j]
+  controls: [u]
+  dynamics: {x: v, v: a, a: j, j: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 1, v(t0) == 0, a(t0) == 0, j(t0) == 0, x(tf) == 0, v(tf) == 0, a(tf) == 0, j(tf) == 0]
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 1, degree: 3, mesh: {tolerance: 1.0e-7}}
+"""
+
+
+def test_a_first_mesh_without_freedom_is_bisected_not_the_end_of_the_refinement(tmp_path):
+    """unseen21 U1/U2: many fixed end states on a coarse start mesh leave the NLP more equality
+    constraints than unknowns (Ipopt: 'too few degrees of freedom', it does not start) or as
+    many (its one feasible point); either ended the refinement with 'error'. The first mesh is
+    bisected until it has freedom. x'''' = u from x = 1 to rest at 0 in t = 1 on one LGR
+    segment of degree 3 (19 unknowns, 20 equations): J* = (7!/3!)^2 / 7 = 100800."""
+    (tmp_path / "q.yaml").write_text(QUADRUPLE_INTEGRATOR)
+    res = run_file(tmp_path / "q.yaml", None)
+    assert res.ok and res.objective == pytest.approx(100800, rel=1e-7)
+    assert any("left the objective no freedom: bisected" in n for n in res.extra["notes"])
+
+
+def test_a_square_first_mesh_is_bisected_not_the_end_of_the_refinement(tmp_path):
+    """unseen21 U1: a quaternion slew (7 states, 14 end values) on LGR 2 x 3 is a square NLP:
+    Ipopt found its one feasible point (tf 3.81 for T* = 2) and the run ended 'error'. That
+    point is the NLP's optimum (no longer 'error'), but it leaves J no freedom: the first mesh
+    is bisected and the refinement goes on to T* = 2."""
+    from ocdsl.solve import ipopt
+
+    assert ipopt.STATUS_MAP[ipopt.SQUARE] == "optimal"
+    (tmp_path / "q.yaml").write_text((DATA / "quaternion_slew_square_start.yaml").read_text())
+    res = run_file(tmp_path / "q.yaml", None)
+    assert res.ok and res.tf == pytest.approx(2.0, rel=1e-7)
+    assert any("left the objective no freedom: bisected" in n for n in res.extra["notes"])

@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+SQUARE = "Feasible point for square problem found."
 STATUS_MAP = {
     # Ipopt's status messages (cyipopt) -> ocdsl statuses
     "Algorithm terminated successfully at a locally optimal point, satisfying the convergence tolerances (can be specified by options).": "optimal",
@@ -26,7 +27,15 @@ STATUS_MAP = {
     "false, i.e., the user code requested a premature termination of the optimization.": "interrupted",
     "Problem may be infeasible.": "infeasible",
     "Algorithm converged to a point of local infeasibility. Problem may be infeasible.": "infeasible",
+    # as many equations as free unknowns and no inequalities: Ipopt solves the equations and
+    # its one feasible point, within the bounds, is the NLP's optimum (a quaternion slew on a
+    # first mesh of 2 x 3 with every end state fixed, unseen21 U1: it had ended the refinement)
+    SQUARE: "optimal",
 }
+# Ipopt's message when the equality constraints outnumber the free unknowns (it does not start)
+TOO_FEW_FREEDOMS = "Problem has too few degrees of freedom"
+TOO_FEW_HINT = (": the NLP has more equality constraints than free unknowns; a mesh this coarse cannot meet "
+                "the boundary conditions (more segments or a higher degree)")
 
 # mumps_permuting_scaling 0 (MUMPS ICNTL(6) = 0, no maximum-weight matching): with Ipopt's
 # default (7, automatic) MUMPS computes its scaling once, in the analysis phase (ICNTL(8)
@@ -428,6 +437,10 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     # Ipopt's message, possibly followed by a diagnosis (an infeasible end's unmet constraints)
     status = next((v for k, v in STATUS_MAP.items() if msg.startswith(k)), None) or STATUS_CODES.get(code, "error")
+    if msg.startswith(TOO_FEW_FREEDOMS) and TOO_FEW_HINT not in msg:
+        msg = msg.rstrip(".") + TOO_FEW_HINT
+    elif msg.startswith(SQUARE):
+        msg += " (as many equations as free unknowns: its one feasible point is the NLP's optimum)"
     if interrupted() and status in ("interrupted", "error"):
         status = "interrupted"
         msg = f"interrupted (Ctrl-C) at iteration {history[-1][0] if history else 0}; the last iterate is written"

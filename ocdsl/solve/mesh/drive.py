@@ -201,6 +201,29 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 tr, info, mult = redone
                 from_guess = mult is None
                 reg = getattr(tr.model, "mesh_regularisation", None)
+
+        def bisect_first(tr, info, meshes, what, failing, times):
+            """The first mesh bisected up to ``times`` times while ``failing(info)``: the first
+            that is not replaces it (with a note), else the message says how far it went."""
+            size = (f"{next(iter(meshes.values())).segments} segments" if len(meshes) == 1 else
+                    ", ".join(f"{k}: {m.segments} segments" for k, m in meshes.items()))
+            trial = meshes
+            for bisections in range(1, times + 1):
+                trial = {k: m.bisected() for k, m in trial.items()}
+                t_fine = rebuild(trial, collect=True)
+                ws.prepare(t_fine.model)
+                retry = ipopt.solve(t_fine.model, options, verbose=verbose, transcription=t_fine,
+                                    progress=ipopt.Progress(progress, f"[mesh 1 bisected {bisections}x]"))
+                retry.iterations += info.iterations
+                if retry.status in GOOD and not failing(retry):
+                    notes.append(f"the first mesh ({size}) {what}: bisected {bisections} time(s), it "
+                                 "solved (a finer start mesh avoids the detour)")
+                    return t_fine, retry, trial
+                if not failing(retry):
+                    break
+            info.message += f"; the first mesh ({size}) bisected {bisections} time(s) too (times {2 ** bisections}): no better"
+            return tr, info, meshes
+
         if it == 1 and info.status == "infeasible":
             # as a single solve: one more start from seeded random controls, else the
             # conditions that cannot hold together named (run.recover_from_infeasibility)
@@ -222,25 +245,18 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # the first mesh's polynomials may be what cannot meet the conditions, not the problem
             # (unseen16: v <= 1.1 rest to rest on LG 3 x 3, 'infeasible' blaming x(t0) == 0):
             # bisected, twice at most, before the problem is called infeasible
-            first_size = (f"{next(iter(meshes.values())).segments} segments" if len(meshes) == 1 else
-                          ", ".join(f"{k}: {m.segments} segments" for k, m in meshes.items()))
-            for bisections in (1, 2):
-                if info.status != "infeasible":
-                    break
-                finer = {k: m.bisected() for k, m in meshes.items()}
-                t_fine = rebuild(finer, collect=True)
-                ws.prepare(t_fine.model)
-                retry = ipopt.solve(t_fine.model, options, verbose=verbose, transcription=t_fine,
-                                    progress=ipopt.Progress(progress, f"[mesh 1 bisected {bisections}x]"))
-                retry.iterations += info.iterations
-                if retry.status in GOOD:
-                    notes.append(f"the first mesh ({first_size}) was infeasible, the "
-                                 f"problem is not: bisected {bisections} time(s), it solved (a finer start mesh "
-                                 "avoids the detour)")
-                    tr, info, meshes = t_fine, retry, finer
-                    reg = getattr(tr.model, "mesh_regularisation", None)
-                elif bisections == 2:
-                    info.message += f"; infeasible on the first mesh bisected twice too ({first_size}, times 4)"
+            if info.status == "infeasible":
+                tr, info, meshes = bisect_first(tr, info, meshes, "was infeasible, the problem is not",
+                                                lambda i: i.status == "infeasible", 2)
+                reg = getattr(tr.model, "mesh_regularisation", None)
+        if it == 1 and info.message.startswith((ipopt.TOO_FEW_FREEDOMS, ipopt.SQUARE)):
+            # as many equality constraints as unknowns or more: the boundary conditions of many
+            # states leave a coarse start mesh no freedom (unseen21 U2: 8 masses, 32 end values,
+            # on 2 x 3; U1: a quaternion slew's one feasible point on 2 x 3, tf 3.81 for 2, from
+            # which the next mesh took 20,000 iterations); each bisection adds every control's nodes
+            unfree = lambda i: i.message.startswith((ipopt.TOO_FEW_FREEDOMS, ipopt.SQUARE))  # noqa: E731
+            tr, info, meshes = bisect_first(tr, info, meshes, "left the objective no freedom", unfree, 4)
+            reg = getattr(tr.model, "mesh_regularisation", None)
         reg_value = None
         if reg is not None and info.objective is not None:
             # the objective of the problem itself: the regularisation term taken out
