@@ -57,6 +57,40 @@ def integral_to_end(t, y) -> np.ndarray:
     return np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
 
 
+def segment_integral_to_end(t, y, breakpoints) -> np.ndarray | None:
+    """``int_{t_k}^{t_N} y`` at every node with, on each segment between ``breakpoints``, the
+    polynomial through that segment's nodes (the collocation's own interpolant: spectrally
+    accurate on smooth data where PCHIP is second order at extrema), or None when a segment
+    holds fewer than two nodes or a node lies outside the breakpoints. A node on a
+    breakpoint is fitted by both segments."""
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    b = np.asarray(breakpoints, float)
+    if len(b) < 2 or len(t) < 2:
+        return None
+    span = b[-1] - b[0]
+    eps = 1e-9 * max(abs(span), 1e-300)
+    if t[0] < b[0] - eps or t[-1] > b[-1] + eps:
+        return None
+    whole = np.zeros(len(b) - 1)              # each segment's integral
+    to_seg_end = np.full(len(t), np.nan)      # from a node to its segment's end
+    owner = np.clip(np.searchsorted(b, t - eps, side="right") - 1, 0, len(b) - 2)
+    for k in range(len(b) - 1):
+        inside = (t >= b[k] - eps) & (t <= b[k + 1] + eps)
+        if int(inside.sum()) < 2:
+            return None
+        half = 0.5 * (b[k + 1] - b[k])
+        x = (t[inside] - b[k]) / half - 1.0
+        coef = np.polynomial.legendre.legfit(x, y[inside], int(inside.sum()) - 1)
+        prim = np.polynomial.legendre.legint(coef)
+        end = np.polynomial.legendre.legval(1.0, prim)
+        whole[k] = half * (end - np.polynomial.legendre.legval(-1.0, prim))
+        mine = owner == k
+        to_seg_end[mine] = half * (end - np.polynomial.legendre.legval((t[mine] - b[k]) / half - 1.0, prim))
+    later = np.concatenate([np.cumsum(whole[::-1])[::-1][1:], [0.0]])   # segments after k
+    return to_seg_end + later[owner]
+
+
 def interpolate(t, Y, tt) -> np.ndarray:
     """The PCHIP interpolant through the rows ``(t, Y)`` (Y (N, k)) at ``tt`` (P,) -> (P, k),
     held at the end values outside [t[0], t[-1]]."""
