@@ -884,3 +884,13 @@ def test_a_square_first_mesh_is_bisected_not_the_end_of_the_refinement(tmp_path)
     res = run_file(tmp_path / "q.yaml", None)
     assert res.ok and res.tf == pytest.approx(2.0, rel=1e-7)
     assert any("left the objective no freedom: bisected" in n for n in res.extra["notes"])
+
+
+def test_the_path_bound_hint_quotes_a_chained_constraint_once(tmp_path):
+    """unseen21 U3: `-(1 + t) <= u <= 1 + t` is two rows of one text; the hint quoted it twice."""
+    from ocdsl.solve.mesh.outcome import _path_bound_hint
+
+    text = QUADRUPLE_INTEGRATOR.replace("constraints: [", "constraints: [-(1 + t) <= u <= 1 + t, ")
+    (tmp_path / "p.yaml").write_text(text)
+    hint = _path_bound_hint(compile_file(tmp_path / "p.yaml").problem)
+    assert hint.count("-(1 + t) <= u <= 1 + t") == 1, hint

@@ -19,7 +19,8 @@ def _path_bound_hint(problem) -> str:
                 continue
             e = sp.sympify(ph.substitute(c.expr))
             used = e.free_symbols & controls
-            if len(used) == 1 and not (sp.diff(e, next(iter(used))).free_symbols & used):
+            if (len(used) == 1 and not (sp.diff(e, next(iter(used))).free_symbols & used)
+                    and c.text not in texts):       # a chained `lo <= g <= hi` is two rows of one text
                 texts.append(c.text)
     if not texts:
         return ""
