@@ -223,3 +223,23 @@ def test_a_phase_with_both_ends_free_runs_forward(tmp_path):
     res = loaded.solve()
     assert res.status == "optimal" and res.verified
     assert res.objective == pytest.approx(2.0, rel=1e-6)
+
+
+def test_tf_in_the_dynamics_says_what_to_write_instead(tmp_path):
+    """unseen21 U4: `x: u/tf` said "unknown name 'tf' (did you mean 't'?)" although the docs list
+    tf among the names; it now says where tf is not a name and what to write there."""
+    text = """name: tf in the dynamics
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u/tf}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, x(tf) == 1, -1 <= u <= 1, 0.5 <= tf <= 5]
+  objective: minimize integral(u**2)
+"""
+    with pytest.raises(SpecError) as e:
+        load(write(tmp_path, text))
+    issue = e.value.issues[0]
+    assert issue.line == 5 and "final time is not a name in a model's dynamics" in str(issue)
+    assert "did you mean" not in str(issue) and "free parameter T" in str(issue)

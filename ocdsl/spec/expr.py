@@ -37,6 +37,13 @@ MAX_TEXT = 20_000
 MAX_NESTING = 64
 MAX_MAGNITUDE = 300        # a constant beyond 1e300 is refused before SymPy computes it
 
+# t0 and tf where they are not names (a model's dynamics and path constraints): what to write
+# instead (unseen21 U4: `x: u/tf` said "did you mean 't'?")
+_TIME_ENDS = {n: (f" (the phase's {'initial' if n == 't0' else 'final'} time is not a name in a model's dynamics, "
+                  "path constraints or integrands; to use it there, write the phase over t in [0, 1] with "
+                  "its duration a free parameter T and the dynamics times T, e.g. `x: T*u`)")
+              for n in ("t0", "tf")}
+
 
 @dataclass
 class Scope:
@@ -249,7 +256,8 @@ class _Builder:
             raise self.fail(f"'{node.id}' is a function and needs arguments")
         # every unknown name of the expression in one message (unseen12 F6: `uu + q + zz`
         # took three runs, one name each)
-        unknown = [(n, f"'{n}'{did_you_mean(n, self.scope.names)}") for n in self._unknown_names() or [node.id]]
+        unknown = [(n, f"'{n}'{_TIME_ENDS[n] if n in _TIME_ENDS else did_you_mean(n, self.scope.names)}")
+                   for n in self._unknown_names() or [node.id]]
         raise UnknownNames(unknown, self.text)
 
     def _unknown_names(self) -> list[str]:
