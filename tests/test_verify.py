@@ -474,3 +474,18 @@ def test_a_segment_whose_start_is_a_shared_node_keeps_its_own_control_there(tmp_
     # and from the run folder, as `ocdsl verify` and the report read it
     back = Result.read(tmp_path / "run")
     assert back.phases[0].control_interpolation == spec
+
+
+def test_a_state_that_is_zero_at_the_optimum_is_measured_against_the_nlps_resolution():
+    """unseen21 FA2b: rest-to-rest in the plane z = 0 of a 3-D model, `starts: 4`: J = 12 exact,
+    but the perturbed starts leave z and vz at 1e-16 (a single start keeps them exactly 0),
+    and against the old floor of 1e-12 that rounding was 1.7e-4 'relative': not verified,
+    exit 1. A state within the NLP's resolution (1e-8) of zero is measured against it."""
+    from ocdsl.api import run_file
+    from ocdsl.verify.checks import RESOLUTION, state_scale
+
+    assert state_scale(np.array([[1e-16, 1.0], [-5e-17, 3.0]]))[0] == RESOLUTION
+    res = run_file(Path(__file__).parent / "data" / "planar_motion_zero_axis_starts.yaml", None)
+    assert res.objective == pytest.approx(12.0, rel=1e-9) and res.verified, res.verification
+    z = res.phases[0].states["z"]
+    assert 0 < np.max(np.abs(z)) < 1e-12          # the case: noise, not exactly 0
