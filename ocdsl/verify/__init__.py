@@ -400,6 +400,12 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
             if active and abs(_d_dtf(c.expr, ph, run, problem, point)) * duration > tol * sc:
                 moving = True
                 break
+            if c.lower == c.upper and _arrives_with_zero_rate(c.expr, ph, run, problem, tol):
+                # met at second order (h' = -sqrt(h) + u reaches h = 0 with rate 0): ending
+                # earlier misses it all the same, so the first-order test does not apply
+                # (unseen21 FA4: Torricelli's tank, tf exact, "stopped short of the optimum")
+                moving = True
+                break
         if moving or _held_at_the_end(ph, run, tol):
             continue
         g = _d_dtf(obj.expr, ph, run, problem, point)
@@ -408,6 +414,23 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
         checks.append(row("free final time", ph.name, abs(g) * duration / j_scale, tol,
                           f"dJ/dtf = {g:.6g} at tf = {T:.10g}",
                           "objective stationary in tf (no active constraint moves with it)"))
+
+
+def _arrives_with_zero_rate(expr, ph, run, problem, tol: float) -> bool:
+    """A condition on this phase's x(t_f) whose states were still moving over the last
+    twentieth of the phase (beyond ``tol`` of their scale): reached at t_f, not rested on.
+    With zero rate there it holds only at t_f (to second order), unlike a state that rests
+    on its value (Goddard's m = 0.6 while coasting: ending earlier or later keeps it)."""
+    duration = float(run.t[-1] - run.t[0])
+    tail = run.t >= run.t[-1] - 0.05 * duration
+    for s in expr.free_symbols:
+        bv = problem.boundary_values.get(s)
+        if bv is None or bv.phase != ph.name or bv.which != "tf" or bv.var not in ph.states:
+            continue
+        j = list(ph.states).index(bv.var)
+        if np.max(np.abs(run.X[tail, j] - run.X[-1, j])) > tol * run.scale_x[j]:
+            return True
+    return False
 
 
 def _held_at_the_end(ph, run, tol: float) -> bool:
