@@ -418,9 +418,17 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
 
 def _arrives_with_zero_rate(expr, ph, run, problem, tol: float) -> bool:
     """A condition on this phase's x(t_f) whose states were still moving over the last
-    twentieth of the phase (beyond ``tol`` of their scale): reached at t_f, not rested on.
-    With zero rate there it holds only at t_f (to second order), unlike a state that rests
-    on its value (Goddard's m = 0.6 while coasting: ending earlier or later keeps it)."""
+    twentieth of the phase (beyond ``tol`` of their scale), with every control on a bound at
+    t_f: reached at t_f, not rested on, and no control left to correct the second-order miss
+    of ending earlier. With an interior control that miss costs second order only, and J must
+    still be stationary in t_f; a state that rests on its value (Goddard's m = 0.6 while
+    coasting) keeps the check too."""
+    T = float(run.t[-1])
+    u_end = controls_at(run.uf, np.array([T]), run.X[-1:])[0] if len(ph.controls) else []
+    for (lo, hi), u in zip(bounds_of(ph, [c.name for c in ph.controls], "controls"), u_end):
+        size = tol * max(1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0)
+        if not (abs(u - lo) <= size or abs(hi - u) <= size):
+            return False
     duration = float(run.t[-1] - run.t[0])
     tail = run.t >= run.t[-1] - 0.05 * duration
     for s in expr.free_symbols:
