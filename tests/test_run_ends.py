@@ -398,3 +398,30 @@ def test_a_published_value_matched_by_a_failed_solves_last_iterate_is_no_pass(tm
     assert check["passed"] is False and check["not_a_solution"] is True
     assert not res.expect[0]["passed"]
 
+
+
+LOOP = """name: minimum-time periodic loop
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, v(t0) == 1, x(tf) == x(t0), v(tf) == v(t0), 1 <= tf <= 10]
+  objective: minimize tf
+"""
+
+
+def test_a_failed_solve_names_a_state_whose_level_nothing_fixes(tmp_path):
+    """unseen21 FA8: x enters only through x(tf) == x(t0); every shift of it is a solution and
+    Ipopt wandered to max_iter on 13 of 17 meshes with no hint. The hint names x and the fix;
+    fixing one end (or any use of x elsewhere) removes it."""
+    from ocdsl.api import compile_file
+    from ocdsl.solve.failure_hints import failure_hints
+
+    (tmp_path / "loop.yaml").write_text(LOOP)
+    hint = failure_hints(compile_file(tmp_path / "loop.yaml"), None, "max_iter")
+    assert "Nothing fixes the level of x" in hint and "x(t0) == 0" in hint and " v" not in hint.split(":")[0]
+    for fixed in ("v(t0) == 1, x(t0) == 0", "v(t0) == 1, x >= -10"):
+        (tmp_path / "anchored.yaml").write_text(LOOP.replace("v(t0) == 1", fixed))
+        assert "Nothing fixes" not in failure_hints(compile_file(tmp_path / "anchored.yaml"), None, "max_iter")

@@ -23,7 +23,7 @@ def failure_hints(file, tr, status: str) -> str:
     if status not in FAILED:
         return ""
     out = ""
-    for hint in (_scaling, _nonsmooth, _unbounded_controls):
+    for hint in (_scaling, _nonsmooth, _unbounded_controls, _unanchored_states):
         try:
             out += hint(file, tr)
         except Exception:  # a hint must never lose the run
@@ -106,3 +106,31 @@ def _unbounded_controls(file, tr) -> str:
                     f"growing (the last iterate: tf - t0 = {tf - t0:.3g}); is a bound on a control missing "
                     f"(e.g. -1 <= {free[0]} <= 1)?")
     return ""
+
+
+def _unanchored_states(file, tr) -> str:
+    """A state that nothing anchors: no bound, in no right-hand side, integrand or path
+    constraint, and every boundary condition unchanged when both its ends shift together
+    (`x(tf) == x(t0)` only). Every shift of it is then another solution, the NLP's KKT matrix
+    is singular along it, and Ipopt may wander to max_iter (unseen21 FA8: a periodic loop,
+    13 of 17 meshes; with `x(t0) == 0` it solved at once)."""
+    problem = file.problem
+    shift = sp.Symbol("ocdsl_shift")
+    out = []
+    for ph in problem.phases:
+        used = set().union(*(sp.sympify(e).free_symbols for e in ph.rhs()))
+        used |= set().union(*(ph.substitute(e).free_symbols for e in ph.integrals.values()), set())
+        used |= set().union(*(ph.substitute(c.expr).free_symbols for c in ph.path), set())
+        for x in ph.states:
+            if x in used or any(math.isfinite(b) for b in ph.bounds_of(x)):
+                continue
+            ends = {s for s, bv in problem.boundary_values.items() if bv.phase == ph.name and bv.var == x}
+            exprs = [c.expr for c in problem.boundary] + ([problem.objective.expr] if problem.objective else [])
+            moved = {s: s + shift for s in ends}
+            if ends and all(sp.simplify(e.subs(moved) - e) == 0 for e in exprs if e.free_symbols & ends):
+                out.append(x.name if len(problem.phases) == 1 else f"{ph.name}.{x.name}")
+    if not out:
+        return ""
+    return (f" Nothing fixes the level of {', '.join(out)}: no bound, no condition on one end alone, and it "
+            "enters no right-hand side, integrand or path constraint, so every shift of it is another "
+            f"solution and the NLP is singular along it; fix one end (e.g. {out[0].split('.')[-1]}(t0) == 0).")
