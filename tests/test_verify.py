@@ -502,3 +502,30 @@ def test_a_final_condition_reached_with_zero_rate_does_not_ask_j_to_be_stationar
     res = run_file(Path(__file__).parent / "data" / "torricelli_tank.yaml", None)
     assert res.tf == pytest.approx(2.0, rel=1e-7) and res.verified, res.verification.get("summary")
     assert not [c for c in res.verification["checks"] if c["name"] == "free final time"]
+
+
+SQUARE_ROOT_AT_THE_START = """name: a square root at the start
+model:
+  states: [y]
+  controls: [u]
+  dynamics: {y: sqrt(y)*u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [0 <= u <= 1, 0 <= y <= 1, y(t0) == 0]
+  objective: maximize y(tf)
+  guess: {y: [0, 0.25], u: 1}
+method: {transcription: LGR, segments: 4, degree: 3}
+"""
+
+
+def test_a_flight_held_at_a_non_lipschitz_start_says_so(tmp_path):
+    """unseen21 FA5: y' = sqrt(y) u from y = 0 has y = 0 as a solution besides t^2/4; the
+    integrator keeps y at 0, and the message blamed the mesh or the problem's sensitivity.
+    It now names the held state and what to do (start it a little off)."""
+    from ocdsl.api import run_file
+
+    (tmp_path / "p.yaml").write_text(SQUARE_ROOT_AT_THE_START)
+    res = run_file(tmp_path / "p.yaml", None)
+    assert not res.verified and res.objective > 0.2         # the rows left y = 0
+    summary = res.verification["summary"]
+    assert "keeps y at 0 over the whole phase" in summary and "y(t0) == 1e-09" in summary, summary

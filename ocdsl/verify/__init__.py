@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -197,6 +197,7 @@ class _PhaseRun:
     local_end: np.ndarray
     uf: Any
     end_rate: np.ndarray | None = None     # d/dt of [states; integrals] at t_f (local pass)
+    notes: list[str] = field(default_factory=list)   # advice that replaces a failed check's hint
 
 
 def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[list[dict], list[str]]:
@@ -210,6 +211,7 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
             else result.phases[0]
         runs[ph.name] = _verify_phase(ph, traj, declared_interpolation(traj, result.method), params,
                                       settings, checks, tables)
+        notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n for n in runs[ph.name].notes]
         names_u = [c.name for c in ph.controls]
         if names_u and settings.open_loop:     # collocation advice; a feedback law may chatter
             tr, Ur = control_rows(traj, names_u)
@@ -222,6 +224,7 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
 
 def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> _PhaseRun:
     tol = settings.tolerance
+    stuck_note = ""
     names_x = [s.name for s in ph.states]
     names_u = [c.name for c in ph.controls]
     t_all = np.asarray(traj.time, float)
@@ -262,6 +265,17 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
             v, where = worst(eg, names_x, t)
             checks.append(row("dynamics from x(t0)", pname, v, tol, where,
                               f"{', '.join(sorted(glob.methods))}, {glob.steps} steps"))
+            # a flight that never leaves a state's start value (rate exactly 0 there) while the
+            # rows leave it: y' = sqrt(y) sin(theta) from y = 0 has y = 0 as a solution too, and
+            # the integrator takes it (unseen21 FA5: a brachistochrone from rest at y = 0)
+            stuck = [(n, float(X[0, j])) for j, n in enumerate(names_x)
+                     if np.all(glob.Y[:, j] == glob.Y[0, j]) and np.max(np.abs(X[:, j] - X[0, j])) > tol * scale_x[j]]
+            if stuck and v > tol:
+                held = ", ".join(f"{n} at {x0:.6g}" for n, x0 in stuck)
+                stuck_note = (f"the flight from x(t0) keeps {held} over the whole phase while the rows leave "
+                              "them: their rates there are 0, and where the dynamics are not Lipschitz (a square "
+                              "root at 0) another solution leaves; start a little off (e.g. "
+                              f"{stuck[-1][0]}(t0) == {stuck[-1][1] + 1e-9 * max(1.0, abs(stuck[-1][1])):.9g})")
         table = {"t": glob.t}
         for j, n in enumerate(names_x):
             table[n] = glob.Y[:, j]
@@ -303,7 +317,10 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
         checks.append(row("path constraints", pname, v, tol, where, detail))
     end_rate = funcs.augmented_point(float(t[-1]), local.Y[-1],
                                      controls_at(uf, t[-1:], local.Y[-1:, :funcs.n])[0])
-    return _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf, end_rate)
+    run = _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf, end_rate)
+    if stuck_note:
+        run.notes.append(stuck_note)
+    return run
 
 
 def _control_bounds_check(ph, traj, names_u, ubounds, tol, checks) -> None:
