@@ -671,3 +671,19 @@ def test_a_final_time_ipopt_left_just_inside_its_bound_is_held_by_it():
     assert 0 < 5 - res.tf < 1e-5 * 5
     h = res.certificate["hamiltonian"]
     assert h["expected"] is None and h["passed"] is True, h
+
+
+def test_a_bang_bang_mesh_answer_with_its_switch_on_a_breakpoint_is_not_failed_on_h_mean(tmp_path):
+    """unseen21 FA3: a quaternion slew about one axis (T* = 2, bang-bang) by `mesh:` on LGL
+    ends on 2 x 7 with the switch on the breakpoint, tf right to 1e-10, every switching sign
+    right, H's mean -1.00284 against -1 (the mean limit 0.2 %): certificate failed. With
+    every switch on a breakpoint the NLP's costates are a family: H is not judged."""
+    from ocdsl.result import certificate_verdict
+
+    text = (DATA / "quaternion_slew_square_start.yaml").read_text()
+    (tmp_path / "q.yaml").write_text(text.replace("transcription: LGR", "transcription: LGL"))
+    res = run_file(tmp_path / "q.yaml", None)
+    assert res.tf == pytest.approx(2.0, rel=1e-8) and res.verified
+    cert = res.certificate
+    assert cert["switching"]["passed"] and certificate_verdict(cert) == "inconclusive", cert.get("failed")
+    assert "switches on mesh breakpoints" in cert["hamiltonian"]["inconclusive"]
