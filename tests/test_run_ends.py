@@ -425,3 +425,17 @@ def test_a_failed_solve_names_a_state_whose_level_nothing_fixes(tmp_path):
     for fixed in ("v(t0) == 1, x(t0) == 0", "v(t0) == 1, x >= -10"):
         (tmp_path / "anchored.yaml").write_text(LOOP.replace("v(t0) == 1", fixed))
         assert "Nothing fixes" not in failure_hints(compile_file(tmp_path / "anchored.yaml"), None, "max_iter")
+
+
+def test_ipopts_output_file_keeps_the_first_solve_and_numbers_the_later_ones(tmp_path, monkeypatch):
+    """Ipopt truncates its output_file per solve; a run's later solves (the bisection check)
+    overwrote the first's log, and the bench read a bisected mesh's 2,560 variables as
+    Goddard's 644. The first solve keeps the name, later ones are numbered."""
+    from ocdsl.solve import ipopt
+
+    monkeypatch.setattr(ipopt, "_SOLVES_WITH_OUTPUT_FILE", [0])
+    log = str(tmp_path / "ipopt.txt")
+    assert ipopt._numbered_output_file({"tol": 1e-8}) == {"tol": 1e-8}
+    first = ipopt._numbered_output_file({"output_file": log})
+    second = ipopt._numbered_output_file({"output_file": log})
+    assert first["output_file"] == log and second["output_file"] == str(tmp_path / "ipopt.2.txt")

@@ -29,7 +29,8 @@ def options(path: str | Path) -> dict:
 
 
 def parse(path: str | Path) -> dict[str, float]:
-    """Ipopt's sizes, iterations and times; the last solve in the file counts."""
+    """Ipopt's sizes, iterations and times; the last solve in the file counts (ocdsl numbers
+    the files of a run's later solves, ``ocdsl.solve.ipopt._numbered_output_file``)."""
     try:
         text = Path(path).read_text()
     except OSError:

@@ -12,6 +12,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 SQUARE = "Feasible point for square problem found."
@@ -312,6 +313,27 @@ def _component_map():
     return ComponentMap()
 
 
+_SOLVES_WITH_OUTPUT_FILE = [0]
+
+
+def _numbered_output_file(options: dict[str, Any]) -> dict[str, Any]:
+    """The options with Ipopt's ``output_file`` kept for the process's first solve and
+    numbered for the later ones (``ipopt.txt``, ``ipopt.2.txt``, ...): Ipopt truncates the
+    file per solve (this build has no ``file_append``), so a run's later solves (the
+    bisection check, the certificate's, a mesh's next iterations) overwrote the first one's
+    log; the bench read the bisected mesh's sizes and iterations as the run's (Goddard: 2,560
+    variables against its 644)."""
+    name = options.get("output_file")
+    if not name:
+        return options
+    _SOLVES_WITH_OUTPUT_FILE[0] += 1
+    n = _SOLVES_WITH_OUTPUT_FILE[0]
+    if n == 1:
+        return options
+    path = Path(str(name))
+    return {**options, "output_file": str(path.with_name(f"{path.stem}.{n}{path.suffix}"))}
+
+
 def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
           progress: Progress | None = None, on_iteration: Callable | None = None,
           multipliers: Multipliers | None = None, transcription=None) -> SolveInfo:
@@ -360,7 +382,8 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
             out["max_wall_time"] = min(float(out.get("max_wall_time", left)), left)
         return out
 
-    opts = limited(options_with(DEFAULT_OPTIONS, options or {}))
+    options = _numbered_output_file(options or {})
+    opts = limited(options_with(DEFAULT_OPTIONS, options))
     try:
         if multipliers is None:
             return _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
