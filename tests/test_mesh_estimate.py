@@ -353,11 +353,11 @@ def test_a_warm_start_that_runs_long_gives_way_to_the_files_guess(configs, monke
     the last one's warm start Ipopt took 2,516 iterations on mesh 5 (2.3 s of a 3.5 s run, 2,829
     in all). A warm start is capped at a few times the first mesh's iterations, and mesh 5 is
     then solved from the file's guess: the same meshes and optimum, 1,066 iterations in all."""
-    from ocdsl.solve.mesh import drive
+    from ocdsl.solve.mesh import restart
     from ocdsl.solve.mesh.restart import WARM_CAP_FACTOR, WARM_CAP_MIN
 
     # the zigzags' own restart (the next test) would start those meshes from the guess at once
-    monkeypatch.setattr(drive, "_exploits_quadrature", lambda *a: False)
+    monkeypatch.setattr(restart, "exploits_quadrature", lambda *a: False)
     res = _solve(configs, "mesh_hanging_chain.yaml")
     assert res.status == "optimal" and res.objective == pytest.approx(5.068480110993, rel=1e-7)
     history = res.extra["mesh_history"]

@@ -83,7 +83,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from .. import ipopt
     from .. import warm_start as ws
     from ..failure_hints import failure_hints
-    from .restart import restart, warm_cap
+    from .restart import bisect_first, exploits_quadrature, restart, warm_cap
 
     from ...run import _better, _start_record, recover_from_infeasibility
 
@@ -202,27 +202,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 from_guess = mult is None
                 reg = getattr(tr.model, "mesh_regularisation", None)
 
-        def bisect_first(tr, info, meshes, what, failing, times):
-            """The first mesh bisected up to ``times`` times while ``failing(info)``: the first
-            that is not replaces it (with a note), else the message says how far it went."""
-            size = (f"{next(iter(meshes.values())).segments} segments" if len(meshes) == 1 else
-                    ", ".join(f"{k}: {m.segments} segments" for k, m in meshes.items()))
-            trial = meshes
-            for bisections in range(1, times + 1):
-                trial = {k: m.bisected() for k, m in trial.items()}
-                t_fine = rebuild(trial, collect=True)
-                ws.prepare(t_fine.model)
-                retry = ipopt.solve(t_fine.model, options, verbose=verbose, transcription=t_fine,
-                                    progress=ipopt.Progress(progress, f"[mesh 1 bisected {bisections}x]"))
-                retry.iterations += info.iterations
-                if retry.status in GOOD and not failing(retry):
-                    notes.append(f"the first mesh ({size}) {what}: bisected {bisections} time(s), it "
-                                 "solved (a finer start mesh avoids the detour)")
-                    return t_fine, retry, trial
-                if not failing(retry):
-                    break
-            info.message += f"; the first mesh ({size}) bisected {bisections} time(s) too (times {2 ** bisections}): no better"
-            return tr, info, meshes
+
+        def first_solve(ms, bisections):
+            """The first mesh's model on meshes ``ms`` (bisected ``bisections`` times), solved."""
+            t = rebuild(ms, collect=True)
+            ws.prepare(t.model)
+            return t, ipopt.solve(t.model, options, verbose=verbose, transcription=t,
+                                  progress=ipopt.Progress(progress, f"[mesh 1 bisected {bisections}x]"))
 
         if it == 1 and info.status == "infeasible":
             # as a single solve: one more start from seeded random controls, else the
@@ -246,8 +232,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # (unseen16: v <= 1.1 rest to rest on LG 3 x 3, 'infeasible' blaming x(t0) == 0):
             # bisected, twice at most, before the problem is called infeasible
             if info.status == "infeasible":
-                tr, info, meshes = bisect_first(tr, info, meshes, "was infeasible, the problem is not",
-                                                lambda i: i.status == "infeasible", 2)
+                tr, info, meshes = bisect_first(first_solve, tr, info, meshes, "was infeasible, the problem is not",
+                                                lambda i: i.status == "infeasible", 2, notes)
                 reg = getattr(tr.model, "mesh_regularisation", None)
         if it == 1 and info.message.startswith((ipopt.TOO_FEW_FREEDOMS, ipopt.SQUARE)):
             # as many equality constraints as unknowns or more: the boundary conditions of many
@@ -255,7 +241,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # on 2 x 3; U1: a quaternion slew's one feasible point on 2 x 3, tf 3.81 for 2, from
             # which the next mesh took 20,000 iterations); each bisection adds every control's nodes
             unfree = lambda i: i.message.startswith((ipopt.TOO_FEW_FREEDOMS, ipopt.SQUARE))  # noqa: E731
-            tr, info, meshes = bisect_first(tr, info, meshes, "left the objective no freedom", unfree, 4)
+            tr, info, meshes = bisect_first(first_solve, tr, info, meshes, "left the objective no freedom", unfree, 4,
+                                            notes)
             reg = getattr(tr.model, "mesh_regularisation", None)
         reg_value = None
         if reg is not None and info.objective is not None:
@@ -509,7 +496,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 break
             previous = {pb.phase.name: dense_trajectory(pb) for pb in tr.phases}
             snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
-            if _exploits_quadrature(tr, term, worst, max_err):
+            if exploits_quadrature(tr, term, worst, max_err):
                 # a control zigzagging from node to node where an integral's quadrature is what
                 # misses most: the NLP exploits the quadrature (sqrt(1 + u^2) "shortened" by a
                 # zigzag), and a next mesh started from that point found the same kind of
@@ -626,20 +613,4 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.wall_time_s = timer.breakdown()
     stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result
-
-
-def _exploits_quadrature(tr, term, worst, max_err: float) -> bool:
-    """Some control zigzags from node to node and the largest error is an integral's: its
-    quadrature against its flight (a segment's), or a condition on it flown from x(t0)."""
-    from .segments import solution_arrays, zigzag
-
-    on_integral = (term.error >= max_err and "integral(" in term.where) or (
-        worst is not None and worst.error >= max_err and str(worst.state).startswith("integral("))
-    if not on_integral:
-        return False
-    for pb in tr.phases:
-        U = solution_arrays(pb)[1]
-        if any(zigzag(U[:, j]) for j in range(U.shape[1])):
-            return True
-    return False
 

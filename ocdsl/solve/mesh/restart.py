@@ -6,7 +6,11 @@ A warm-started solve is capped at a few times the first mesh's cold solve (``war
 hanging chain's meshes 1-4 were spurious zigzags (J 4.79-4.95 against 5.068), and mesh 5 took
 2,516 Ipopt iterations (2.3 s of a 3.5 s run) to leave the last one's warm start; from the
 file's guess it took 89. Where neither start solves within the cap, the warm start runs again
-without it, as before the cap."""
+without it, as before the cap. A mesh whose zigzag exploits an integral's quadrature is no warm
+start at all (``exploits_quadrature``).
+
+A first mesh that cannot solve for want of nodes (infeasible where the problem is not, or no
+freedom left by many end values) is bisected before the run gives up (``bisect_first``)."""
 from __future__ import annotations
 
 from typing import Callable
@@ -51,3 +55,41 @@ def restart(it: int, info, capped: int | None, *, cold: Callable, warm: Callable
         again = solve(model, multipliers, f"[mesh {it}, warm, uncapped]")
     again.iterations += info.iterations + retry.iterations
     return model, again, multipliers
+
+
+def bisect_first(solve: Callable, tr, info, meshes: dict, what: str, failing: Callable, times: int,
+                 notes: list):
+    """The first mesh bisected up to ``times`` times while ``failing(info)``; ``solve(meshes,
+    bisections)`` -> (transcription, info). The first bisection that solves replaces it, with
+    a note; otherwise the message says how far it went and the first solve stands."""
+    size = (f"{next(iter(meshes.values())).segments} segments" if len(meshes) == 1 else
+            ", ".join(f"{k}: {m.segments} segments" for k, m in meshes.items()))
+    trial = meshes
+    for bisections in range(1, times + 1):
+        trial = {k: m.bisected() for k, m in trial.items()}
+        t_fine, retry = solve(trial, bisections)
+        retry.iterations += info.iterations
+        if retry.status in GOOD and not failing(retry):
+            notes.append(f"the first mesh ({size}) {what}: bisected {bisections} time(s), it "
+                         "solved (a finer start mesh avoids the detour)")
+            return t_fine, retry, trial
+        if not failing(retry):
+            break
+    info.message += f"; the first mesh ({size}) bisected {bisections} time(s) too (times {2 ** bisections}): no better"
+    return tr, info, meshes
+
+
+def exploits_quadrature(tr, term, worst, max_err: float) -> bool:
+    """Some control zigzags from node to node and the largest error is an integral's: its
+    quadrature against its flight (a segment's), or a condition on it flown from x(t0)."""
+    from .segments import solution_arrays, zigzag
+
+    on_integral = (term.error >= max_err and "integral(" in term.where) or (
+        worst is not None and worst.error >= max_err and str(worst.state).startswith("integral("))
+    if not on_integral:
+        return False
+    for pb in tr.phases:
+        U = solution_arrays(pb)[1]
+        if any(zigzag(U[:, j]) for j in range(U.shape[1])):
+            return True
+    return False
