@@ -380,3 +380,20 @@ def test_a_mesh_whose_zigzag_exploits_an_integrals_quadrature_is_no_warm_start(c
     assert "zigzags" in history[0].get("next_mesh_from_guess", "")
     assert len(history) <= 5
 
+
+
+def test_the_zigzag_restart_from_the_guess_is_used_at_most_twice():
+    """unseen20 p14 (the catenary on LGR-start, `mesh:` from 3 segments): every mesh from the
+    4th to the 7th zigzagged where the length's quadrature missed and was restarted from the
+    guess, so none kept the warm start that had converged it before the rule (10 meshes, J
+    1.3e-4 low, mesh_not_converged). Two restarts at most: optimal, verified, J to 1e-8."""
+    from ocdsl.api import run_file
+    from ocdsl.solve.mesh.drive import GUESS_RESTARTS
+
+    from pathlib import Path
+
+    res = run_file(Path(__file__).parent / "data" / "catenary_lgr_start_mesh.yaml", None)
+    assert res.status == "optimal" and res.verified, res.message
+    assert res.objective == pytest.approx(5.068480110993, rel=1e-7)
+    restarts = [h for h in res.extra["mesh_history"] if h.get("next_mesh_from_guess")]
+    assert 0 < len(restarts) <= GUESS_RESTARTS

@@ -31,6 +31,11 @@ from .budget import Budget
 AMPLIFICATION = 1e6
 
 
+# meshes started from the file's guess because the one before zigzagged where an integral's
+# quadrature missed (restart.exploits_quadrature): the hanging chain needed two; every mesh
+# restarted (a catenary on LGR-start, unseen20 p14, from 3 segments) lost the warm start that
+# had converged it (10 meshes, J 1.3e-4 low, where it had converged to 1.9e-8)
+GUESS_RESTARTS = 2
 # two refinements that multiply the NLP by this much, to at least GROWTH_FLOOR variables, while
 # the error falls by less than ten times end the refinement (``solve_adaptive``); small meshes
 # grow fast on their way (Goddard: 14 -> 72 variables in its first two refinements, then
@@ -111,6 +116,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     status, message = None, ""
     stalled = ""         # why the refinement stopped before max_iterations without converging
     growth: list = []    # (NLP variables, largest error) of each refined (not coarsened) mesh
+    guess_restarts = 0   # meshes started from the file's guess because the one before zigzagged
     last = None
     solved_before = None   # (meshes, largest error) of the previous iteration that missed the tolerance
     converged = []       # iterations within tolerance with every located switch on a breakpoint
@@ -496,13 +502,14 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 break
             previous = {pb.phase.name: dense_trajectory(pb) for pb in tr.phases}
             snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
-            if exploits_quadrature(tr, term, worst, max_err):
+            if guess_restarts < GUESS_RESTARTS and exploits_quadrature(tr, term, worst, max_err):
                 # a control zigzagging from node to node where an integral's quadrature is what
                 # misses most: the NLP exploits the quadrature (sqrt(1 + u^2) "shortened" by a
                 # zigzag), and a next mesh started from that point found the same kind of
                 # optimum (the hanging chain: 4.94, 4.95, 4.83, 4.79 for 5.068 on meshes 1-4,
                 # then 753 Ipopt iterations to leave it). It starts from the file's guess.
                 previous, snapshot = given, None
+                guess_restarts += 1
                 rec["next_mesh_from_guess"] = "the control zigzags where an integral's quadrature misses"
             try:
                 # terminal conditions missed while every segment meets the tolerance: the segment
