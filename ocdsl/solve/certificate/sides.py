@@ -46,6 +46,13 @@ def _side(U, bounds, frac):
     return side
 
 
+def switch_pairs(side_j) -> list[tuple[int, int]]:
+    """(a, b): consecutive saturated nodes of one control on opposite bounds, a bang switch
+    between them."""
+    idx = np.flatnonzero(side_j != 0)
+    return [(int(a), int(b)) for a, b in zip(idx[:-1], idx[1:]) if side_j[a] != side_j[b]]
+
+
 def _switches(t, side_j, S_j):
     """Switches between consecutive saturated nodes on opposite bounds."""
     idx = np.flatnonzero(side_j != 0)
@@ -54,9 +61,7 @@ def _switches(t, side_j, S_j):
         s = "+" if side_j[k] > 0 else "-"
         if not seq or seq[-1] != s:
             seq.append(s)
-    for a, b in zip(idx[:-1], idx[1:]):
-        if side_j[a] == side_j[b]:
-            continue
+    for a, b in switch_pairs(side_j):
         tz = None
         for k in range(a, b):   # first zero crossing of the switching function
             s0, s1 = S_j[k], S_j[k + 1]
