@@ -289,8 +289,9 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
             # rows leave it: y' = sqrt(y) sin(theta) from y = 0 has y = 0 as a solution too, and
             # the integrator takes it (unseen21 FA5: a brachistochrone from rest at y = 0)
             stuck = [(n, float(X[0, j])) for j, n in enumerate(names_x)
-                     if np.all(glob.Y[:, j] == glob.Y[0, j]) and np.max(np.abs(X[:, j] - X[0, j])) > tol * scale_x[j]]
-            if stuck and v > tol:
+                     if np.all(glob.Y[:, j] == glob.Y[0, j]) and np.max(np.abs(X[:, j] - X[0, j])) > tol * scale_x[j]
+                     ] if v > tol else []
+            if stuck:
                 held = ", ".join(f"{n} at {x0:.6g}" for n, x0 in stuck)
                 stuck_note = (f"the flight from x(t0) keeps {held} over the whole phase while the rows leave "
                               "them: their rates there are 0, and where the dynamics are not Lipschitz (a square "
@@ -430,6 +431,7 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
         if min(T - lo, hi - T) <= tol * duration:
             continue                              # at a bound: its multiplier is unknown
         moving = False
+        pinned = _controls_on_bounds_at_end(ph, run, tol)   # none left to correct a miss at t_f
         for c in problem.boundary:
             v = evaluate(c.expr, point)
             sc = sensitivity_scale(c.expr, point, scales)
@@ -437,7 +439,7 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
             if active and abs(_d_dtf(c.expr, ph, run, problem, point)) * duration > tol * sc:
                 moving = True
                 break
-            if c.lower == c.upper and _arrives_with_zero_rate(c.expr, ph, run, problem, tol):
+            if pinned and c.lower == c.upper and _arrives_with_zero_rate(c.expr, ph, run, problem, tol):
                 # met at second order (h' = -sqrt(h) + u reaches h = 0 with rate 0): ending
                 # earlier misses it all the same, so the first-order test does not apply
                 # (unseen21 FA4: Torricelli's tank, tf exact, "stopped short of the optimum")
@@ -453,19 +455,24 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
                           "objective stationary in tf (no active constraint moves with it)"))
 
 
-def _arrives_with_zero_rate(expr, ph, run, problem, tol: float) -> bool:
-    """A condition on this phase's x(t_f) whose states were still moving over the last
-    twentieth of the phase (beyond ``tol`` of their scale), with every control on a bound at
-    t_f: reached at t_f, not rested on, and no control left to correct the second-order miss
-    of ending earlier. With an interior control that miss costs second order only, and J must
-    still be stationary in t_f; a state that rests on its value (Goddard's m = 0.6 while
-    coasting) keeps the check too."""
+def _controls_on_bounds_at_end(ph, run, tol: float) -> bool:
+    """Every control of the phase on one of its bounds at t_f (within ``tol`` of the bound's
+    size): none is left to correct the second-order miss of a condition reached with rate 0
+    (``_arrives_with_zero_rate``). With an interior control that miss costs second order only,
+    and J must still be stationary in t_f."""
     T = float(run.t[-1])
     u_end = controls_at(run.uf, np.array([T]), run.X[-1:])[0] if len(ph.controls) else []
     for (lo, hi), u in zip(bounds_of(ph, [c.name for c in ph.controls], "controls"), u_end):
         size = tol * max(1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0)
         if not (abs(u - lo) <= size or abs(hi - u) <= size):
             return False
+    return True
+
+
+def _arrives_with_zero_rate(expr, ph, run, problem, tol: float) -> bool:
+    """A condition on this phase's x(t_f) whose states were still moving over the last
+    twentieth of the phase (beyond ``tol`` of their scale): reached at t_f, not rested on (a
+    state that rests on its value, Goddard's m = 0.6 while coasting, keeps the check)."""
     duration = float(run.t[-1] - run.t[0])
     tail = run.t >= run.t[-1] - 0.05 * duration
     for s in expr.free_symbols:
