@@ -397,3 +397,23 @@ def test_the_zigzag_restart_from_the_guess_is_used_at_most_twice():
     assert res.objective == pytest.approx(5.068480110993, rel=1e-7)
     restarts = [h for h in res.extra["mesh_history"] if h.get("next_mesh_from_guess")]
     assert 0 < len(restarts) <= GUESS_RESTARTS
+
+
+@pytest.mark.parametrize("name,segments,tolerance", [("mesh_hang_glider.yaml", 10, 1e-6),
+                                                     ("mesh_moon_landing.yaml", 12, 1e-6),
+                                                     ("mesh_goddard.yaml", 12, 1e-7)])
+def test_flights_at_the_tolerance_rtol_measure_what_rtol_1e12_does(configs, name, segments, tolerance):
+    """The estimate's and the terminal check's flights integrate at ``flight_rtol(tolerance)``
+    (1e-4 of the mesh tolerance) instead of 1e-12: each segment's error and the flown end
+    move by less than a hundredth of the tolerance they are compared with."""
+    from ocdsl.solve.mesh import estimate
+
+    pb = _solved(configs, name, segments)
+    rtol = estimate.flight_rtol(tolerance)
+    assert 1e-12 <= rtol <= 1e-10
+    fine = estimate.estimate_errors(pb, {}, active_tol=1e-9)
+    coarse = estimate.estimate_errors(pb, {}, active_tol=1e-9, rtol=rtol)
+    for a, b in zip(fine, coarse):
+        assert abs(a.error - b.error) <= 1e-2 * tolerance, (a.segment, a.error, b.error)
+    end, end_coarse = estimate.phase_end(pb, {}), estimate.phase_end(pb, {}, rtol)
+    assert np.all(np.abs(end.x_end - end_coarse.x_end) / end.x_scale <= 1e-2 * tolerance)

@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.polynomial import legendre as npleg
 
+from ocdsl.transcribe import nodes
 from ocdsl.transcribe.nodes import (
     SCHEME_NAMES,
     Scheme,
@@ -331,3 +332,18 @@ def test_rule_functions_validate():
         legendre_gauss_lobatto(1)
     with pytest.raises(ValueError, match="'left' or 'right'"):
         legendre_gauss_radau(3, end="start")
+
+
+@pytest.mark.parametrize("rule", [nodes.legendre_gauss, nodes.legendre_gauss_radau, nodes.legendre_gauss_lobatto])
+def test_memoised_rules_hand_out_copies(rule):
+    """The rules are memoised (mesh refinement asks for the same few hundreds of times): a
+    caller that writes into what it got must not change what the next caller gets."""
+    x, w = rule(5)
+    x_again, w_again = rule(5)
+    x[:] = 0.0
+    w[:] = 0.0
+    x3, w3 = rule(5)
+    assert np.array_equal(x3, x_again) and np.array_equal(w3, w_again)
+    assert abs(w3.sum() - 2.0) < 1e-14
+    with pytest.raises(ValueError):
+        rule(True)

@@ -52,9 +52,13 @@ class Transcription:
     # the transcription whose symbolic problem defines the NLP: itself, or for a reused
     # model's per-point view (ocdsl/solve/reuse.py) the built one, whose constants are Params
     defining: "Transcription | None" = None
-    # the objective expression as built: one changed later (mesh refinement's regularisation
-    # adds a term) is no longer the symbolic problem's, so direct_nlp declines the model
+    # the objective expression as built: one changed later is no longer the symbolic
+    # problem's, so direct_nlp declines the model unless the change is ``penalty``'s
     built_objective: Any = None
+    # a sum of squared differences of variables added to the built objective (mesh
+    # refinement's regularisation): (the objective expression it made, [(coef, var_a,
+    # var_b), ...]), the term being sum coef (a - b)^2 in the minimised sense
+    penalty: tuple | None = None
     # the spread of the variables' typical magnitudes at the start, of an unscaled model
     # (ocdsl/solve/scaling.py ``spread``): measured before Ipopt moves them, for the hint of a failure
     start_spread: tuple | None = None

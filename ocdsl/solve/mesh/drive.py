@@ -12,7 +12,7 @@ from ...progress import say
 from ...result import PhaseTrajectory, Result
 from ..arcs import free_final_times
 from .coarsen import coarsen, nlp_size
-from .estimate import estimate_errors, flight_amplification, phase_end, segment_ends
+from .estimate import estimate_errors, flight_amplification, flight_rtol, phase_end, segment_ends
 from .junction import limit_junction_controls
 from .flown import beaten_meshes, refuted_corners, with_breakpoints
 from .locate import locate_features, locate_switches, misplaced
@@ -258,12 +258,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         with timer.measure("mesh"):
             params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
             errors = {pb.phase.name: estimate_errors(pb, params, active_tol=max(1e-9, 0.1 * spec.tolerance),
+                                                     rtol=flight_rtol(spec.tolerance),
                                                      smooth_above=spec.tolerance if spec.smooth_control else None)
                       if info.status in GOOD else []
                       for pb in tr.phases}
             term = TerminalError(math.inf, "")
             if info.status in GOOD:
-                ends = {pb.phase.name: phase_end(pb, params) for pb in tr.phases}
+                ends = {pb.phase.name: phase_end(pb, params, flight_rtol(spec.tolerance)) for pb in tr.phases}
                 term = terminal_error(problem, ends, params)
                 if term.error > spec.tolerance:
                     # the open-loop flight of unstable dynamics measures its own amplification,

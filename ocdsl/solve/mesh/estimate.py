@@ -31,6 +31,14 @@ class SegmentError:
     control_switch: bool = False  # a control's activity changes in ``switches`` (not only states' or paths')
 
 
+def flight_rtol(tolerance: float) -> float:
+    """The integrator tolerance of the estimate's and the terminal check's flights for a mesh
+    tolerance: four orders below what they measure, within [1e-12, 1e-10]. At 1e-12 for
+    every tolerance these flights were a third of a mesh run (hang glider, tolerance 1e-6:
+    DOP853's steps grow as rtol^(-1/8))."""
+    return min(1e-10, max(1e-12, 1e-4 * tolerance))
+
+
 _FLIGHTS: dict = {}      # id(phase) -> (phase, free parameter names, PhaseFunctions): one per run
 
 

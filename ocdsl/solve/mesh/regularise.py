@@ -54,7 +54,7 @@ def regularise(tr, regions: dict, weight: float):
 
     if not weight or not any(regions.values()):
         return None
-    terms = []
+    pairs = []                  # (ds, u_{i+1}, u_i)
     for pb in tr.phases:
         iv = regions.get(pb.phase.name) or []
         lay, b = pb.layout, pb.block
@@ -64,13 +64,16 @@ def regularise(tr, regions: dict, weight: float):
         for i in range(lay.n_colloc - 1):
             if inside[i] and inside[i + 1] and sc[i + 1] > sc[i]:
                 for j in range(nu):
-                    terms.append((b.U[i + 1, j] - b.U[i, j]) ** 2 / float(sc[i + 1] - sc[i]))
-    if not terms:
+                    pairs.append((float(sc[i + 1] - sc[i]), b.U[i + 1, j], b.U[i, j]))
+    if not pairs:
         return None
     m = tr.model
-    m.mesh_regularisation = pyo.Expression(expr=weight * sum(terms))
+    m.mesh_regularisation = pyo.Expression(expr=weight * sum((a - b) ** 2 / ds for ds, a, b in pairs))
     sign = 1.0 if m.objective.sense == pyo.minimize else -1.0
     m.objective.expr = m.objective.expr + sign * m.mesh_regularisation
+    # the same term as data, for the NumPy evaluation of the NLP (transcribe/direct_nlp): the
+    # PyNumero route it otherwise takes writes and loads each mesh's NL file
+    tr.penalty = (m.objective.expr, [(weight / ds, a, b) for ds, a, b in pairs])
     return m.mesh_regularisation
 
 

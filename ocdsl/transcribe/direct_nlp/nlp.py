@@ -12,7 +12,7 @@ class DirectNLP:
     """The NLP of a Transcription as cyipopt's problem object (objective, gradient,
     constraints, jacobian, jacobianstructure, hessian, hessianstructure)."""
 
-    def __init__(self, tr, compiled, extra_rows=()):
+    def __init__(self, tr, compiled, extra_rows=(), penalty=()):
         import pyomo.core as pyo
         from pyomo.core.base.var import VarData
 
@@ -58,6 +58,13 @@ class DirectNLP:
         self.gu = np.concatenate([np.asarray(c["gu"], float), [r[3] for r in extra_rows]])
         base = len(c["rows"])
         self._extra_lin = [(base + i, y, coef) for i, r in enumerate(extra_rows) for y, coef in r[1]]
+        # the objective's added sum coef (y_a - y_b)^2 (Transcription.penalty)
+        where = {id(e): i for i, e in enumerate(entries)} if penalty else {}
+        if any(id(a) not in where or id(b) not in where for _, a, b in penalty):
+            raise Unsupported("a penalised variable is not in the NLP's rows")
+        self._pen_c = np.array([c for c, _, _ in penalty], float)
+        self._pen_a = np.array([where[id(a)] for _, a, _ in penalty], int)
+        self._pen_b = np.array([where[id(b)] for _, _, b in penalty], int)
         self.boundary_base = c["boundary_base"]
         self._assemble()
         self._cache_x = None
@@ -75,8 +82,11 @@ class DirectNLP:
         objs = list(tr.model.component_data_objects(pyo.Objective, active=True))
         if len(objs) != 1 or objs[0] is not tr.model.objective:
             return None, "the model's objective was replaced"
+        penalty = ()
         if tr.model.objective.expr is not tr.built_objective:
-            return None, "the objective was changed after the build"
+            if tr.penalty is None or tr.model.objective.expr is not tr.penalty[0]:
+                return None, "the objective was changed after the build"
+            penalty = tr.penalty[1]
         if any(pb.free_breakpoints for pb in tr.phases):
             return None, "breakpoints are unknowns of this NLP"
         try:
@@ -96,7 +106,7 @@ class DirectNLP:
             extra_rows = [_linear_row(c, compiled) for c in extra]
             if any(r is None for r in extra_rows):
                 return None, "a nonlinear constraint was added to the built model"
-            return cls(tr, compiled, extra_rows), ""
+            return cls(tr, compiled, extra_rows, penalty), ""
         except Unsupported as e:
             tr._direct_nlp = str(e)
             return None, str(e)
@@ -232,9 +242,20 @@ class DirectNLP:
         off_h += len(s.hess)
         self._w_scalar = off_w
         off_w += s.n_out
+        # the penalty's constant second derivatives 2c, 2c, -2c at (a, a), (b, b), (a, b), in
+        # a region of the Hessian buffer nothing overwrites, weighted by the objective factor
+        P = len(self._pen_c)
+        pen_h = off_h
+        if P:
+            for k, (ya, yb) in enumerate(((self._pen_a, self._pen_a), (self._pen_b, self._pen_b),
+                                          (self._pen_a, self._pen_b))):
+                hr.append(ya); hc.append(yb); hsrc.append(off_h + k * P + np.arange(P))
+                hmu.append(np.full(P, self._w_scalar))
+            off_h += 3 * P
         # buffers the evaluations write into (no concatenation per call); _eval_first's own
         # and the Hessian's, so that a Hessian never overwrites the values and first derivatives
         self._vbuf, self._jbuf, self._hbuf, self._wbuf = (np.zeros(k) for k in (off_v, off_j, off_h, off_w))
+        self._hbuf[pen_h: pen_h + 3 * P] = np.concatenate([2 * self._pen_c, 2 * self._pen_c, -2 * self._pen_c])
 
         cat = lambda parts, dtype=float: (np.concatenate(parts).astype(dtype) if parts  # noqa: E731
                                           else np.zeros(0, dtype))
@@ -344,13 +365,22 @@ class DirectNLP:
     def objective(self, x):
         self._set(x)
         self._eval_first()
-        return _finite(float(self._vals[self._s_val]), "objective")
+        value = float(self._vals[self._s_val])
+        if len(self._pen_c):
+            value += float(self._pen_c @ (self.y[self._pen_a] - self.y[self._pen_b]) ** 2)
+        return _finite(value, "objective")
 
     def gradient(self, x):
         self._set(x)
         self._eval_first()
-        return _finite(np.bincount(self._gcol, weights=self._gcoef * self._firsts[self._gsrc], minlength=self.n),
-                       "objective gradient")
+        grad = np.bincount(self._gcol, weights=self._gcoef * self._firsts[self._gsrc], minlength=self.n)
+        if len(self._pen_c):
+            slope = 2 * self._pen_c * (self.y[self._pen_a] - self.y[self._pen_b])
+            for ys, sign in ((self._pen_a, 1.0), (self._pen_b, -1.0)):
+                cols = self.xmap[ys]
+                free = cols >= 0
+                grad += np.bincount(cols[free], weights=sign * slope[free], minlength=self.n)
+        return _finite(grad, "objective gradient")
 
     def constraints(self, x):
         return _finite(self.constraint_values(x), "constraints")
