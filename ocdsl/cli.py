@@ -218,7 +218,8 @@ def _summary(result, out: Path) -> None:
                   "refinement cut short, so not a converged result)")
     elif result.objective is not None and result.status == "feasible":
         # a parametric search's answer: feasible in its control class, no optimality conditions
-        t.add_row("objective", f"{result.objective:.10g} (feasible: the best the search found)")
+        t.add_row("objective", f"{result.objective:.10g} (feasible: inside the tolerances in the search's "
+                  "control class, no optimality conditions behind it)")
     elif result.objective is not None and result.iterations:
         t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
     for law in result.extra.get("laws", []):       # a controller file: each law's closed loop
