@@ -396,3 +396,67 @@ def test_spec_other_errors():
         parse_pareto({**base, "window": {"p": {"range": [0, "__import__('os')"]}}})
     s = parse_pareto({**base, "method": "epsilon", "epsilon": {"objective": "b", "values": {"from": 1, "to": 2, "num": 3}}})
     assert s.epsilon.values == [1.0, 1.5, 2.0]
+
+
+def test_objectives_equal_to_rounding_are_ties():
+    """unseen22 FA2: one solution solved four times, J differing in its last bits, was flagged
+    dominated by itself; a difference above rounding still dominates."""
+    J = 0.44444444312112863
+    same = [[3.0000000029774436, J], [3.0000000029774436, np.nextafter(J, 0)],
+            [3.0000000029774436, np.nextafter(np.nextafter(J, 0), 0)]]
+    assert P.nondominated(same).all()
+    assert list(P.nondominated(same + [[3.0000000029774436, J * (1 - 1e-9)]])) == [False, False, False, True]
+
+
+EPSILON_FRONT = """name: Energy-time front
+parameters: {eps: 2.0}
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= 3, tf <= eps]
+  objective: minimize integral(u**2)
+  guess: {tf: 2}
+method: {transcription: LGR, segments: 2, degree: 4}
+pareto:
+  method: epsilon
+  solver: nlp
+  objectives:
+    energy: integral(u ** 2)
+    time: tf
+  epsilon: {objective: time, values: {from: 1, to: 3, num: 3}, parameter: eps, chains: 1}
+"""
+
+
+@pytest.mark.parametrize("old,new,words", [
+    # FC2: reported with the NLP's value (integral(u**2)), 50 % off
+    ("energy: integral(u ** 2)", "energy: integral(2*u**2)", "the first Pareto objective is the one the NLP minimises"),
+    # a traceback once: the others are read from final times and durations
+    ("time: tf", "time: x(tf) + tf", "read from the phases' final times and durations"),
+    ("method: {transcription: LGR, segments: 2, degree: 4}",
+     "method: {transcription: flat-bspline, flat_outputs: [x], degree: 5, control_points: 8}", "pseudospectral collocation"),
+])
+def test_what_the_epsilon_nlp_solver_cannot_report_is_refused_at_check_time(tmp_path, old, new, words):
+    path = tmp_path / "front.yaml"
+    path.write_text(EPSILON_FRONT.replace(old, new))
+    assert new in path.read_text()
+    with pytest.raises(Exception) as err:
+        load_pareto(path)
+    assert "front.yaml:" in str(err.value) and words in str(err.value), str(err.value)
+
+
+@pytest.mark.ipopt
+def test_epsilon_front_first_objective_as_written_is_the_nlps(tmp_path):
+    """The minimum-energy rest-to-rest transfer: integral(u**2) = 12 / T**3 on the front."""
+    path = tmp_path / "front.yaml"
+    path.write_text(EPSILON_FRONT)
+    load_pareto(path)
+    run_pareto(path, tmp_path / "run")
+    rows = (tmp_path / "run" / "pareto.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    for row in rows[1:]:
+        cells = dict(zip(head, row.split(",")))
+        T = float(cells["time"])
+        assert abs(float(cells["energy"]) - 12 / T ** 3) <= 1e-6 * 12 / T ** 3

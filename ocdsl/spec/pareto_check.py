@@ -34,6 +34,13 @@ def check_sections(path: str | Path, located: Located, solver: str, method: str 
                                            "only; with solver: nlp use method epsilon (the epsilon-constraint "
                                            "method traces the same front, its non-convex parts included)")])
         loaded = _Compiler(Path(path), located, validate(located), {}).compile()
+        transcription = getattr(loaded.method, "transcription", None)
+        if transcription not in ("LG", "LGR", "LGR-start", "LGL"):
+            # unseen22: a flat-bspline file ended in AttributeError ('segments') after `check` said ok
+            raise SpecError([located.issue(("method", "transcription"), f"solver: nlp solves every Pareto point by "
+                                           f"pseudospectral collocation (LG, LGR, LGR-start or LGL); "
+                                           f"`transcription: {transcription}` is not one: run its points with "
+                                           f"`ocdsl study`, or use a pseudospectral method here")])
         if getattr(loaded.method, "mesh", None) is not None:
             # every point is solved on the file's uniform mesh (unseen19 q5: `mesh:` ignored in
             # silence, three of four points unverified, the message then advising `mesh:`)
@@ -41,6 +48,8 @@ def check_sections(path: str | Path, located: Located, solver: str, method: str 
                                            "file's uniform mesh (segments x degree); `mesh:` is not applied to "
                                            "the points: remove it and choose segments that resolve them, or run "
                                            "single points with `ocdsl run` and `mesh:`")])
+        if method == "epsilon":
+            _epsilon_objectives(located, loaded)
         if method == "enumerate":
             free = [f"{ph.name}.{c}" if len(loaded.problem.phases) > 1 else str(c)
                     for ph in loaded.problem.phases for c in ph.controls if len(set(ph.bounds_of(c)[:2])) != 1]
@@ -56,6 +65,43 @@ def check_sections(path: str | Path, located: Located, solver: str, method: str 
     stand_in, lines = _stand_in(doc, located)
     synthetic = Located(located.file, stand_in, lines, located._text)
     _Compiler(Path(path), synthetic, validate(synthetic), {}).compile()
+
+
+def _epsilon_objectives(located: Located, loaded) -> None:
+    """What solver nlp's epsilon method can report: the NLP minimises the file's objective,
+    so the first Pareto objective is that one, as written in ``problem: objective:``; the
+    others are read from the phases' final times and durations. An integral written as the
+    first objective but differing from the file's was reported with the file's value (unseen22
+    FC2: integral(2*u**2) printed as integral(u**2), 50 % off, exit 0), and an integral among
+    the others ended in a traceback."""
+    from ..study.pareto_nlp import evaluate
+
+    objectives = (located.data.get("pareto") or {}).get("objectives") or {}
+    texts = {k: (o.get("expr") if isinstance(o, dict) else o) for k, o in objectives.items()}
+    problem = located.data.get("problem") or {}
+    written = problem.get("objective") if isinstance(problem, dict) else None
+    if not texts or not isinstance(written, str):
+        return
+    own = re.sub(r"^\s*(minimize|maximize)\s+", "", written.strip())
+    first, first_text = next(iter(texts.items()))
+    if "".join(str(first_text).split()) not in ("".join(own.split()), "objective"):
+        raise SpecError([located.issue(("pareto", "objectives", first),
+                                       f"with solver: nlp the first Pareto objective is the one the NLP "
+                                       f"minimises, the file's objective `{own}`; `{first}: {first_text}` "
+                                       f"differs: write it as the file's objective (or `{first}: objective`)")])
+    phases = [ph.name for ph in loaded.problem.phases]
+    names = {"objective": 1.0, "tf": 1.0, "duration": 1.0} | {f"{p}.{w}": 1.0 for p in phases
+                                                               for w in ("tf", "duration")}
+    for key, text in list(texts.items())[1:]:
+        try:
+            evaluate(str(text), names)
+        except (ValueError, SyntaxError):
+            raise SpecError([located.issue(("pareto", "objectives", key),
+                                           f"with solver: nlp the objectives after the first are read from the "
+                                           f"phases' final times and durations (tf, phase.duration, numbers, + - "
+                                           f"* /); `{key}: {text}` is not: make it the file's objective and the "
+                                           f"first Pareto objective, and bound the other by the epsilon "
+                                           f"parameter")]) from None
 
 
 def _stand_in(doc: dict[str, Any], located: Located) -> tuple[dict, dict]:

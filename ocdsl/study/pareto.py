@@ -97,14 +97,20 @@ class ParetoPoint:
 # ---------------------------------------------------------------------------------------
 # Dominance and de-duplication
 # ---------------------------------------------------------------------------------------
+# objectives that differ by rounding only are ties: four solves of one solution whose J differed
+# in the last bit were flagged dominated by one another (unseen22 FA2)
+ROUNDING = 1e-12
+
+
 def nondominated(values: Sequence[Sequence[float]], senses: Sequence[str] | None = None,
                  tol: float = 0.0) -> np.ndarray:
     """Mask of the non-dominated rows of ``values`` (n points x m objectives).
 
     Row j dominates row i when it is no worse in every objective and better by more than
-    ``tol`` in at least one. ``senses`` are ``"minimize"`` (default) or ``"maximize"``.
-    Non-finite rows are never Pareto and never dominate. Equal rows do not dominate each
-    other (de-duplicate first if they are the same solution).
+    ``tol`` (plus ``ROUNDING`` of the larger magnitude) in at least one. ``senses`` are
+    ``"minimize"`` (default) or ``"maximize"``. Non-finite rows are never Pareto and never
+    dominate. Equal rows do not dominate each other (de-duplicate first if they are the
+    same solution).
     """
     F = np.asarray(values, float)
     if F.ndim != 2:
@@ -119,8 +125,9 @@ def nondominated(values: Sequence[Sequence[float]], senses: Sequence[str] | None
         if not finite[i]:
             continue
         others = F[finite]
-        no_worse = np.all(others <= F[i] + tol, axis=1)
-        better = np.any(others < F[i] - tol, axis=1)
+        margin = tol + ROUNDING * np.maximum(np.abs(others), np.abs(F[i]))
+        no_worse = np.all(others <= F[i] + margin, axis=1)
+        better = np.any(others < F[i] - margin, axis=1)
         if np.any(no_worse & better):
             mask[i] = False
     return mask
