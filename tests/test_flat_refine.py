@@ -279,3 +279,41 @@ def test_no_verified_level_reports_the_one_that_misses_least_and_stops_when_wors
     kept = levels[ratios.index(min(ratios))]
     assert res.tf == kept["tf"] and abs(res.tf - 2.0) < 0.02
     assert any("collocation points only" in n for n in res.extra["notes"])
+
+
+SMALL_J = """name: Scalar LQ in small units
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u}
+problem:
+  time: {t0: 0, tf: 5}
+  constraints: [x(t0) == 0.01]
+  objective: minimize integral((x**2 + u**2)/2)
+method:
+  transcription: flat-bspline
+  flat_outputs: [x]
+  degree: 3
+  control_points: 5
+  collocation_points: 5
+"""
+
+
+@pytest.mark.ipopt
+@pytest.mark.parametrize("tolerance", [None, 1e-6])
+def test_objectives_below_one_are_compared_relatively(tmp_path, tolerance):
+    """unseen22 FC3: levels were compared relative to max(1, |J|), absolutely below 1: with J*
+    = x0**2 tanh(5) / 2 = 5.0e-5 five control points (1.6e-3 above it) were confirmed and
+    `optimal`, and `tolerance: 1e-6` stopped 5.3e-6 above it."""
+    import math
+
+    from ocdsl.api import run_file
+
+    path = tmp_path / "small.yaml"
+    path.write_text(SMALL_J + (f"  tolerance: {tolerance}\n" if tolerance else ""))
+    res = run_file(path, tmp_path / "run")
+    best = 1e-4 * math.tanh(5.0) / 2
+    if tolerance is None:
+        assert res.status == "mesh_not_converged" and res.objective > best * (1 + 1e-3)
+    else:
+        assert res.status == "optimal" and abs(res.objective - best) <= tolerance * best
