@@ -156,13 +156,48 @@ def test_unwrapped_angle_is_continuous_inside_its_bounds():
     a = np.linspace(2.5, 3.8, 50)
     wrapped = np.angle(np.exp(1j * a))          # atan2's branch: jumps from pi to -pi
     assert np.max(np.abs(np.diff(wrapped))) > 6
+    x1, y1 = sp.symbols("x_d1 y_d1")
+    angle = sp.atan2(y1, x1)                    # the flat map of a heading
     ph = SimpleNamespace(control_bounds={beta: (0.0, 2 * np.pi)})
-    assert np.allclose(_unwrapped(ph, beta, wrapped), a)
+    assert np.allclose(_unwrapped(ph, beta, wrapped, angle), a)
     ph = SimpleNamespace(control_bounds={})
-    assert np.allclose(_unwrapped(ph, beta, wrapped), a)
+    assert np.allclose(_unwrapped(ph, beta, wrapped, angle), a)
     # starting on the negative side of the cut (seed 2, strategy 1: -3.14 then 3.1 .. 2.1)
     b = np.concatenate([[-3.14], np.linspace(3.1, 2.1, 20)])
-    assert np.allclose(_unwrapped(ph, beta, b), np.concatenate([[-3.14 + 2 * np.pi], b[1:]]))
+    assert np.allclose(_unwrapped(ph, beta, b, angle), np.concatenate([[-3.14 + 2 * np.pi], b[1:]]))
+    # a control that is no angle is exported as it is, however far it steps (unseen22 FA1:
+    # u = the fourth derivative of p, 840 - 10080 t + ..., made into a wrong column)
+    steep = 840 - 10080 * np.linspace(0, 1, 41)
+    assert np.array_equal(_unwrapped(ph, beta, steep, sp.Symbol("p_d4")), steep)
+
+
+QUADRUPLE_INTEGRATOR = """name: Rest to rest through the fourth derivative
+model:
+  states: [p, v, a, j]
+  controls: [u]
+  dynamics: {p: v, v: a, a: j, j: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [p(t0) == 0, v(t0) == 0, a(t0) == 0, j(t0) == 0, p(tf) == 1, v(tf) == 0, a(tf) == 0, j(tf) == 0]
+  objective: minimize integral(u**2)
+method: {transcription: flat-bspline, flat_outputs: [p], degree: 7, control_points: 14, collocation_points: 14}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_fourth_derivative_control_is_exported_as_it_is(tmp_path):
+    """The minimum-energy rest-to-rest quadruple integrator: a degree-7 polynomial, J = 100800
+    exactly and u = 840 - 10080 t + 25200 t^2 - 16800 t^3 (its Gramian); the exported column
+    follows it and the answer verifies."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "q.yaml"
+    path.write_text(QUADRUPLE_INTEGRATOR)
+    res = run_file(path, tmp_path / "run")
+    assert res.status == "optimal" and res.verified, res.verification.get("summary")
+    assert abs(res.objective - 100800) <= 1e-6 * 100800
+    t, u = res.phases[0].time, res.phases[0].controls["u"]
+    assert np.max(np.abs(u - (840 - 10080 * t + 25200 * t ** 2 - 16800 * t ** 3))) <= 1e-4 * 840
 
 
 BRYSON_DENHAM_FLAT = """

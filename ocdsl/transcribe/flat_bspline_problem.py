@@ -388,7 +388,8 @@ def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
         t0 = float(pyo.value(mp.t0[ph.name]))
         traj = PhaseTrajectory(ph.name, num["t"] + t0,
                                {s.name: num[s.name] for s in ph.states},
-                               {c.name: _unwrapped(ph, c, num[c.name]) for c in ph.controls},
+                               {c.name: _unwrapped(ph, c, num[c.name], mp.flatmaps[ph.name].controls.get(c))
+                                for c in ph.controls},
                                extra={k: v for k, v in num.items() if k.startswith("residual_")},
                                control_interpolation={"kind": "cubic"})
         dense[ph.name] = max([float(np.max(np.abs(v))) for v in traj.extra.values()] or [0.0])
@@ -437,12 +438,17 @@ def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
     return result
 
 
-def _unwrapped(ph, control, values: np.ndarray) -> np.ndarray:
+def _unwrapped(ph, control, values: np.ndarray, expr) -> np.ndarray:
     """An angle from the flat map's atan2 jumps by 2 pi where it crosses the branch cut;
     the exported control is made continuous (the cubic through the rows must not cross the
     jump), shifted by a multiple of 2 pi into the control's bounds, or, unbounded, so that
-    most of it lies in [-pi, pi] (atan2's range)."""
+    most of it lies in [-pi, pi] (atan2's range). Only such a control (``expr``, its flat
+    map, has an atan2): the fourth derivative of a flat output stepping by more than pi
+    between rows was "unwrapped" into a wrong column, and a right answer failed its
+    verification (unseen22 FA1)."""
     values = np.asarray(values, float)
+    if expr is None or not sp.sympify(expr).has(sp.atan2):
+        return values
     if len(values) < 2 or not np.all(np.isfinite(values)) or np.max(np.abs(np.diff(values))) < np.pi:
         return values
     out = np.unwrap(values)
