@@ -107,3 +107,26 @@ def test_param_takes_a_constant_expression():
     for bad in ("l=x + 1", "l=", "=3", "l=1/0", 'l=__import__("os")'):
         with pytest.raises(click.BadParameter, match="not NAME=NUMBER"):
             _parse_params((bad,))
+
+
+def test_a_param_that_divides_the_dynamics_by_zero_is_an_input_error(tmp_path):
+    """unseen22: `--param l=0` on a pendulum's controller file ended 'solver error' with
+    KeyError: 'ComplexInfinity' from the laws' generated code; now one line at the dynamics."""
+    path = tmp_path / "pendulum.yaml"
+    path.write_text("""name: pendulum
+model:
+  states: [th, w]
+  controls: [u]
+  parameters: {g: 9.81, l: 1.0}
+  dynamics: {th: w, w: g/l*sin(th) + u}
+controller:
+  type: [lqr, sdre]
+  Q: [1, 1]
+  R: [1]
+  simulate: {x0: {th: 0.5, w: 0}, horizon: 5, step: 0.01}
+""")
+    compile_file(path)
+    out = tmp_path / "run"
+    res = CliRunner().invoke(main, ["run", str(path), "--param", "l=0", "--out", str(out)])
+    assert res.exit_code == 2 and "pendulum.yaml:6" in res.output and "not finite" in res.output, res.output
+    assert "Traceback" not in res.output and not out.exists()

@@ -186,6 +186,13 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             self.issue(("controller", "states" if controller.states else "auxiliary"), str(e))
             return
         n, m = len(xs), len(model.controls)
+        values = {p: v for p, v in model.parameters.items() if v is not None}
+        for state, rhs in model.dynamics.items():
+            # `--param l=0` in a pendulum: the laws' code failed with KeyError: 'ComplexInfinity'
+            if values and sp.sympify(rhs).xreplace(values).has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+                shown = ", ".join(f"{p} = {v:g}" for p, v in values.items() if p in rhs.free_symbols)
+                self.issue(("model", "dynamics", state.name), f"with {shown} the right-hand side of {state.name} "
+                                                              "is not finite (a division by zero)")
         names = ", ".join(str(s) for s in xs)
         for key, size, what in (("Q", n, f"the {n} controlled states ({names})"), ("R", m, f"the {m} controls")):
             try:
