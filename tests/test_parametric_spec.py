@@ -177,3 +177,16 @@ def test_state_bounds_and_path_constraints_are_refused_at_check_time(tmp_path, c
     with pytest.raises(SpecError) as err:
         compile_file(path)
     assert "at t0 and tf only" in str(err.value) and shown in str(err.value) and "guards" in str(err.value)
+
+
+def test_a_top_level_free_parameter_is_an_argument_of_the_search(tmp_path):
+    """unseen22 p11: a free parameter declared under the file's `parameters:` (not the
+    model's) ended 'error', "right-hand side uses undeclared symbols ['k']"; LGR takes it."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "top_level.yaml"
+    path.write_text(ZERMELO_MIXED.replace("  parameters: {V: 1.0, w: 0.5}\n", "  parameters: {V: 1.0}\n")
+                    .replace("name: Zermelo", "parameters:\n  w: {value: 0.5, free: true, bounds: [0.4, 0.5]}\nname: Zermelo"))
+    res = run_file(path, tmp_path / "run")
+    assert res.status == "feasible", res.message
+    assert 0.4 <= res.parameters["w"] <= 0.5

@@ -81,6 +81,15 @@ def build(problem, spec, integer_parameters: Iterable[str] = ()) -> ParametricPr
     if ph.t0 not in (0, 0.0):
         raise ParametricSetupError("method: parametric needs t0 = 0")
     model = ph.model
+    used = set().union(*(sp.sympify(e).free_symbols for e in model.dynamics.values())) if model.dynamics else set()
+    top_level = {s: None for s in problem.free_parameters if s in used and s not in model.parameters}
+    if top_level:
+        # a free parameter declared at the top level of the file (not under model:) is an
+        # argument of the simulation like the model's own (unseen22 p11: "right-hand side uses
+        # undeclared symbols ['k']", where LGR took it)
+        from dataclasses import replace
+
+        model = replace(model, parameters={**model.parameters, **top_level})
     states = list(model.states)
     bv = problem.boundary_values
     # ---- decision variables --------------------------------------------------------
