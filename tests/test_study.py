@@ -381,3 +381,36 @@ def test_workers_exit_when_the_study_process_is_killed(tmp_path):
     while time.time() < deadline and any(alive(p) for p in workers):
         time.sleep(0.1)
     assert not any(alive(p) for p in workers), workers
+
+
+def test_continuation_with_a_flat_method_is_refused_at_check_time(tmp_path):
+    """unseen22 s04: `check` said ok and every point after the first failed with "flat-bspline
+    does not take a warm start yet"; without continuation the same sweep is right."""
+    import pytest
+
+    from ocdsl.study.spec import StudyError, load_study
+
+    text = textwrap.dedent("""\
+        name: flat sweep
+        parameters: {d: 1.0}
+        model:
+          states: [x, v]
+          controls: [u]
+          dynamics: {x: v, v: u}
+        problem:
+          time: {t0: 0, tf: 2}
+          constraints: [x(t0) == 0, v(t0) == 0, x(tf) == d, v(tf) == 0]
+          objective: minimize integral(u**2)
+        method: {transcription: flat-bspline, flat_outputs: [x], degree: 5, control_points: 8, collocation_points: 8}
+        study:
+          sweep:
+            list: [{d: 0.5}, {d: 1.0}]
+          continuation: true
+        """)
+    path = tmp_path / "sweep.yaml"
+    path.write_text(text)
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert "sweep.yaml:15" in str(err.value) and "flat-bspline" in str(err.value)
+    path.write_text(text.replace("  continuation: true\n", ""))
+    assert len(load_study(path).points) == 2
