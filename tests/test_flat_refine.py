@@ -382,3 +382,25 @@ def test_a_refinement_that_verified_no_level_is_not_optimal(tmp_path):
     assert not any(level["verification"] == "verified" for level in res.extra["refinement"]["levels"]), \
         res.extra["refinement"]["levels"]
     assert res.status == "mesh_not_converged" and "no level was verified" in res.message
+
+
+def test_a_failed_flat_solve_names_the_maps_singularity():
+    """unseen22 f13: a unicycle whose flat map divides by x'^2 + y'^2 ended 'unrecoverable
+    error ... search direction' with no word why; the failure now names the expression and
+    the remedy (a speed bounded away from zero solves the same file)."""
+    from types import SimpleNamespace
+
+    import sympy as sp
+
+    from ocdsl.symbolic.flatness import derivative_symbol
+    from ocdsl.transcribe.flat_bspline_problem import singularity_hint
+
+    x, y, v, w, th = sp.symbols("x y v w th")
+    x1, y1 = derivative_symbol(x, 1), derivative_symbol(y, 1)
+    x2, y2 = derivative_symbol(x, 2), derivative_symbol(y, 2)
+    fm = SimpleNamespace(states={x: x, y: y, th: sp.atan2(y1, x1)},
+                         controls={v: sp.sqrt(x1 ** 2 + y1 ** 2), w: (x1 * y2 - x2 * y1) / (x1 ** 2 + y1 ** 2)})
+    hint = singularity_hint(SimpleNamespace(flatmaps={"main": fm}), SimpleNamespace(phases=[SimpleNamespace(name="main")]))
+    assert "`x_d1**2 + y_d1**2`" in hint and hint.count("x_d1**2 + y_d1**2") == 1 and "0.1 <= v" in hint
+    chain = SimpleNamespace(states={x: x, v: x1}, controls={w: x2})
+    assert singularity_hint(SimpleNamespace(flatmaps={"main": chain}), SimpleNamespace(phases=[SimpleNamespace(name="main")])) == ""

@@ -201,6 +201,19 @@ def test_branch_selection_scalar():
     assert flatten(model, ["x"], bounds={"u": (-5, 0)}).controls[u] == -sp.sqrt(xd)
 
 
+def test_without_bounds_the_principal_branch_is_taken(car):
+    """unseen22 f13/f15: with the speed unbounded the branch was a coin flip of the samples'
+    signs, and a unicycle and a car drove backwards (v = -sqrt(x'^2 + y'^2)) into 'Problem may
+    be infeasible'; without bounds the positive root is taken, every time."""
+    x, y, v, u = syms("x y v u")
+    x1, y1 = derivative_symbol(x, 1), derivative_symbol(y, 1)
+    for seed_bounds in ({}, {"delta": (-1, 1)}, {"psi": (-3, 3)}):
+        fm = flatten(car, ["x", "y"], bounds=seed_bounds)
+        assert sp.simplify(fm.controls[v] - sp.sqrt(x1 ** 2 + y1 ** 2)) == 0
+    square = Model("square", (x,), (u,), {x: u ** 2})
+    assert flatten(square, ["x"]).controls[u] == sp.sqrt(derivative_symbol(x, 1))
+
+
 # --------------------------------------------------------------------------- not flat
 def test_not_flat_leaves_differential_residual():
     """x' = u, y' = u: y is not a function of x and its derivatives (y - x is constant

@@ -246,7 +246,11 @@ class _Sampler:
 
     def _range(self, s: sp.Symbol) -> tuple[float, float]:
         lo, hi = self.bounds.get(s.name, (None, None))
-        lo = -1.0 if lo is None or not np.isfinite(lo) else float(lo)
+        free = (lo is None or not np.isfinite(lo)) and (hi is None or not np.isfinite(hi))
+        # a quantity without bounds is sampled positive: a branch such as v = +-sqrt(x'^2 +
+        # y'^2) is then the principal one (forward), where samples of both signs made it a
+        # coin flip and a unicycle drove backwards into "Problem may be infeasible" (unseen22 f13)
+        lo = (0.0 if free else -1.0) if lo is None or not np.isfinite(lo) else float(lo)
         hi = (lo + 2.0) if hi is None or not np.isfinite(hi) else float(hi)
         if hi <= lo:
             hi = lo + 1.0

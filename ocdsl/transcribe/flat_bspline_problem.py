@@ -367,8 +367,36 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
 
         with timer.measure("bisection"):
             result = confirm_objective(file, mp, result, options, verbose)
+    if result.status not in ("optimal", "acceptable", "mesh_not_converged"):
+        hint = singularity_hint(mp, problem)
+        if hint:
+            result.message = f"{result.message}. {hint}"
     result.wall_time_s = timer.breakdown()
     return result
+
+
+def singularity_hint(mp: "_Mapped", problem) -> str:
+    """Where the flat map divides by an expression in the outputs' derivatives, the NLP is
+    singular where it vanishes (a unicycle's x'^2 + y'^2, its speed squared): a failed solve
+    says which, and that bounding the quantity away from zero keeps the solver off it
+    (unseen22 f13: 'unrecoverable error ... search direction', no word why; with 0.1 <= v the
+    same file solves)."""
+    out = []
+    for ph in problem.phases:
+        fm = mp.flatmaps[ph.name]
+        for group in (fm.states, fm.controls):
+            for name, expr in group.items():
+                den = sp.denom(sp.together(expr))
+                if den.free_symbols and str(den) not in out:
+                    out.append(str(den))
+                for p in sp.sympify(expr).atoms(sp.Pow):
+                    if p.exp.is_Rational and p.exp.q == 2 and p.base.free_symbols and str(p.base) not in out:
+                        out.append(str(p.base))
+    if not out:
+        return ""
+    return (f"The flat map is singular where {' or '.join(f'`{d}`' for d in out[:3])} vanishes (its division or "
+            "square root): the solver may have run into it. Bounding the state or control that measures it "
+            "away from zero (for a speed, `0.1 <= v`) keeps the outputs off it")
 
 
 def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
