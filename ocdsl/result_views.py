@@ -211,6 +211,13 @@ def expect_comparison(check: dict[str, Any], note: str = "") -> str:
     value = check.get("value")
     if value is None or not math.isfinite(value):
         return f"{check['name']}: no value vs {check['reference']:.10g} (the run ended before it had one)"
+    bound = {"at_most": "<=", "at_least": ">="}.get(check.get("compare"))
+    if bound:
+        # a bound, not a target: "12 vs 12.5 (relative error 4e-02, rtol 1e-06) pass" read as a
+        # miss that passed (unseen22 m09)
+        slack = max((check.get("rtol") or 0.0) * abs(check["reference"]), check.get("atol") or 0.0)
+        within = f" + {slack:.2g}" if bound == "<=" and slack else f" - {slack:.2g}" if slack else ""
+        return f"{check['name']}: {value:.10g} {bound} {check['reference']:.10g}{within} ({check['compare']}){note}"
     return f"{check['name']}: {value:.10g} vs {check['reference']:.10g} ({expect_error_text(check)}){note}"
 
 

@@ -137,3 +137,16 @@ def test_an_expectation_of_zero_without_tolerances_can_pass():
     # a tolerance the file gives is the file's
     assert not expect_check("objective", 4e-18, 0.0, 1e-6, None)["passed"]
     assert expect_check("J", 1.0 + 5e-7, 1.0, None, None)["passed"]
+
+
+def test_a_bound_expectation_is_printed_as_a_bound():
+    """unseen22 m09: `compare: at_most` printed "12 vs 12.5 (relative error 4.00e-02, rtol
+    1.0e-06) pass", a miss that passed; a bound is shown as one, with its slack."""
+    from ocdsl.result_views import expect_comparison
+    from ocdsl.run import expect_check
+
+    below = expect_check("J", 12.0, 12.5, 1e-6, None, "at_most")
+    assert below["passed"] and expect_comparison(below) == "J: 12 <= 12.5 + 1.2e-05 (at_most)"
+    above = expect_check("J", 13.0, 12.5, None, 0.1, "at_least")
+    assert above["passed"] and expect_comparison(above) == "J: 13 >= 12.5 - 0.1 (at_least)"
+    assert "relative error" in expect_comparison(expect_check("J", 13.0, 12.5, None, None))
