@@ -220,6 +220,13 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     """
     timer = Timer()
     file = compile_file(path, parameters, timer)
+    if warm_start is not None and getattr(file.method, "transcription", None) == "flat-bspline":
+        # a usage error before any work (unseen22 b21: a failed run folder, exit 1)
+        from .spec.errors import Issue
+
+        raise SpecError([Issue(str(path), file.located.line(("method",)),
+                               "--warm-start: flat-bspline takes no warm start; run without it (the "
+                               "flat NLP starts from the file's guess)")])
     if out_dir is not None:
         run_folder.check_destination(out_dir, "run", force=force)
     with ExitStack() as scope:

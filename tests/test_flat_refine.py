@@ -404,3 +404,16 @@ def test_a_failed_flat_solve_names_the_maps_singularity():
     assert "`x_d1**2 + y_d1**2`" in hint and hint.count("x_d1**2 + y_d1**2") == 1 and "0.1 <= v" in hint
     chain = SimpleNamespace(states={x: x, v: x1}, controls={w: x2})
     assert singularity_hint(SimpleNamespace(flatmaps={"main": chain}), SimpleNamespace(phases=[SimpleNamespace(name="main")])) == ""
+
+
+def test_a_warm_start_for_a_flat_file_is_refused_before_any_work(tmp_path):
+    """unseen22 b21: `--warm-start` on a flat-bspline file wrote a failed run folder (exit 1)."""
+    from ocdsl.api import run_file
+    from ocdsl.spec.errors import SpecError
+
+    path = tmp_path / "small.yaml"
+    path.write_text(SMALL_J)
+    with pytest.raises(SpecError) as err:
+        run_file(path, tmp_path / "run", warm_start=tmp_path)
+    assert "small.yaml:10" in str(err.value) and "warm start" in str(err.value)
+    assert not (tmp_path / "run").exists()
