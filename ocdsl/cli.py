@@ -193,8 +193,11 @@ def _summary(result, out: Path) -> None:
     # a failed certificate fails the run (Result.ok): the headline says so, not only the last line
     cfail = (f", certificate [red]failed[/red] ({', '.join(certificate_failures(result.certificate))})"
              if certificate_verdict(result.certificate) == "failed" else "")
+    # a failed expectation fails the run too: named in the headline, not only lines below (unseen22 f05b)
+    missed = [c["name"] for c in (result.expect or []) if not c.get("passed")]
+    efail = f", expect [red]FAIL[/red] ({', '.join(missed)})" if missed else ""
     con.print(f"[bold]{result.name}[/bold]: solver [{ok}]{result.status}[/{ok}], "
-              f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}{cfail}")
+              f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}{cfail}{efail}")
     if vstatus not in ("verified", "not_applicable") and v.get("summary"):
         con.print(f"  {v['summary']}", markup=False)
     if result.status not in ("optimal",) and result.message:

@@ -150,3 +150,16 @@ def test_a_bound_expectation_is_printed_as_a_bound():
     above = expect_check("J", 13.0, 12.5, None, 0.1, "at_least")
     assert above["passed"] and expect_comparison(above) == "J: 13 >= 12.5 - 0.1 (at_least)"
     assert "relative error" in expect_comparison(expect_check("J", 13.0, 12.5, None, None))
+
+
+def test_a_failed_expectation_is_named_in_the_headline(tmp_path, capsys):
+    """unseen22 f05b: "solver optimal, verification verified" headed a run that failed (exit 1)
+    on its expect, named only lines below."""
+    from ocdsl.run import expect_check
+
+    res = Result(name="t", status="optimal", message="", objective=12.0, tf=1.0, iterations=3, nlp={},
+                 method={}, parameters={}, phases=[],
+                 expect=[expect_check("objective", 12.0, 12.1, 1e-6, None), expect_check("tf", 1.0, 1.0, 1e-6, None)])
+    _summary(res, tmp_path)
+    head = capsys.readouterr().out.splitlines()[0]
+    assert "expect FAIL (objective)" in head and "tf" not in head.split("expect")[1], head
