@@ -105,6 +105,15 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
         _check_warm_start(Path(warm_start))
     if _has_block(file, "pareto"):
         sys.exit(_run_pareto(file, out, _parse_params(params), report, quiet, force))
+    if _has_block(file, "study"):
+        # the file's study block is checked as `ocdsl check` checks it, though `run` solves the
+        # nominal problem only (unseen22 b12: check refused it, run said nothing)
+        from .study.spec import StudyError, load_study
+
+        try:
+            _compile_or_exit(load_study, file)
+        except StudyError as e:
+            raise _SpecFailure(str(e)) from None
     with interruptible():      # Ctrl-C: the last iterate is written, status interrupted, exit 130
         result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
                                   quiet=quiet, verbose=verbose, force=force, time_limit=time_limit)

@@ -414,3 +414,33 @@ def test_continuation_with_a_flat_method_is_refused_at_check_time(tmp_path):
     assert "sweep.yaml:15" in str(err.value) and "flat-bspline" in str(err.value)
     path.write_text(text.replace("  continuation: true\n", ""))
     assert len(load_study(path).points) == 2
+
+
+def test_run_refuses_a_study_block_that_check_refuses(tmp_path):
+    """unseen22 b12: `check` refused a sweep over an unknown parameter; `run` solved the
+    nominal problem and said nothing."""
+    from click.testing import CliRunner
+
+    from ocdsl.cli import main
+
+    path = tmp_path / "sweep.yaml"
+    path.write_text(textwrap.dedent("""\
+        name: sweep
+        parameters: {d: 1.0}
+        model:
+          states: [x, v]
+          controls: [u]
+          dynamics: {x: v, v: u}
+        problem:
+          time: {t0: 0, tf: 2}
+          constraints: [x(t0) == 0, v(t0) == 0, x(tf) == d, v(tf) == 0]
+          objective: minimize integral(u**2)
+        method: {transcription: LGR, segments: 2, degree: 3}
+        study:
+          sweep:
+            grid: {dd: [1, 2]}
+        """))
+    out = tmp_path / "run"
+    res = CliRunner().invoke(main, ["run", str(path), "--out", str(out)])
+    assert res.exit_code == 2 and "sweep.yaml:14" in res.output and "'dd'" in res.output, res.output
+    assert not out.exists()
