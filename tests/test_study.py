@@ -383,6 +383,24 @@ def test_workers_exit_when_the_study_process_is_killed(tmp_path):
     assert not any(alive(p) for p in workers), workers
 
 
+# a rest-to-rest transfer over a distance d; {method} and {sweep} (under `study: sweep:`) filled in
+REST_TO_REST_SWEEP = """name: sweep
+parameters: {{d: 1.0}}
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {{x: v, v: u}}
+problem:
+  time: {{t0: 0, tf: 2}}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == d, v(tf) == 0]
+  objective: minimize integral(u**2)
+method: {method}
+study:
+  sweep:
+    {sweep}
+"""
+
+
 def test_continuation_with_a_flat_method_is_refused_at_check_time(tmp_path):
     """unseen22 s04: `check` said ok and every point after the first failed with "flat-bspline
     does not take a warm start yet"; without continuation the same sweep is right."""
@@ -390,23 +408,9 @@ def test_continuation_with_a_flat_method_is_refused_at_check_time(tmp_path):
 
     from ocdsl.study.spec import StudyError, load_study
 
-    text = textwrap.dedent("""\
-        name: flat sweep
-        parameters: {d: 1.0}
-        model:
-          states: [x, v]
-          controls: [u]
-          dynamics: {x: v, v: u}
-        problem:
-          time: {t0: 0, tf: 2}
-          constraints: [x(t0) == 0, v(t0) == 0, x(tf) == d, v(tf) == 0]
-          objective: minimize integral(u**2)
-        method: {transcription: flat-bspline, flat_outputs: [x], degree: 5, control_points: 8, collocation_points: 8}
-        study:
-          sweep:
-            list: [{d: 0.5}, {d: 1.0}]
-          continuation: true
-        """)
+    text = REST_TO_REST_SWEEP.format(
+        method="{transcription: flat-bspline, flat_outputs: [x], degree: 5, control_points: 8, collocation_points: 8}",
+        sweep="list: [{d: 0.5}, {d: 1.0}]\n  continuation: true")
     path = tmp_path / "sweep.yaml"
     path.write_text(text)
     with pytest.raises(StudyError) as err:
@@ -424,22 +428,8 @@ def test_run_refuses_a_study_block_that_check_refuses(tmp_path):
     from ocdsl.cli import main
 
     path = tmp_path / "sweep.yaml"
-    path.write_text(textwrap.dedent("""\
-        name: sweep
-        parameters: {d: 1.0}
-        model:
-          states: [x, v]
-          controls: [u]
-          dynamics: {x: v, v: u}
-        problem:
-          time: {t0: 0, tf: 2}
-          constraints: [x(t0) == 0, v(t0) == 0, x(tf) == d, v(tf) == 0]
-          objective: minimize integral(u**2)
-        method: {transcription: LGR, segments: 2, degree: 3}
-        study:
-          sweep:
-            grid: {dd: [1, 2]}
-        """))
+    path.write_text(REST_TO_REST_SWEEP.format(method="{transcription: LGR, segments: 2, degree: 3}",
+                                              sweep="grid: {dd: [1, 2]}"))
     out = tmp_path / "run"
     res = CliRunner().invoke(main, ["run", str(path), "--out", str(out)])
     assert res.exit_code == 2 and "sweep.yaml:14" in res.output and "'dd'" in res.output, res.output
