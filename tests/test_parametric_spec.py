@@ -149,20 +149,24 @@ def test_refine_minimises_the_objective_not_tf(tmp_path, sense):
     assert "objective_end" in res.extra["refine"]
 
 
-def test_polish_alone_says_the_objective_was_not_minimised(tmp_path):
-    """The polish drives the terminal errors only; for an objective other than tf the run
-    says J was not minimised after it (unseen22 FC1: -x(tf) at a fixed tf, 13 % off, with
-    nothing said)."""
+def test_polish_alone_is_followed_by_a_minimisation_of_the_objective(tmp_path):
+    """The polish drives the terminal errors only; for an objective other than tf the run then
+    minimises J inside the tolerances as `refine` would (unseen22 FC1: -x(tf) at a fixed tf,
+    13 % short of its class's best, feasible, exit 0; a note about it was not enough). A tf
+    objective keeps the swarm's tf (the polish holds it), with no refinement asked."""
+    import math
+
     from ocdsl.api import run_file
 
     path = tmp_path / "polish_only.yaml"
     path.write_text(ZERMELO_MIXED.replace("  refine: {method: slsqp, target_ratio: 0.9, max_iterations: 300}\n", ""))
     res = run_file(path, tmp_path / "run")
-    assert any("objective was not minimised" in n for n in res.extra.get("notes", []))
+    assert res.extra["refine"]["automatic"] and any("minimised inside the tolerances" in n for n in res.extra["notes"])
+    assert abs(res.objective - math.sqrt(5) / 4) <= 2e-6, res.objective
     minimum_time = tmp_path / "minimum_time.yaml"
     minimum_time.write_text(path.read_text().replace("minimize tf - 0.5*x(tf)", "minimize tf"))
     res = run_file(minimum_time, tmp_path / "run_tf")
-    assert not any("objective was not minimised" in n for n in res.extra.get("notes", []))
+    assert "refine" not in res.extra and not res.extra.get("notes")
 
 
 @pytest.mark.parametrize("constraint,shown", [("y <= 1.5", "y <= 1.5"), ("x**2 + y**2 <= 4", "x**2 + y**2 <= 4")])

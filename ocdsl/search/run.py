@@ -225,9 +225,20 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         continuation = {"polished": polished, **cinfo}
         timings["continuation"] = time.perf_counter() - t0
     refined = None
-    if spec.refine.method == "slsqp":
+    refine_spec = spec.refine
+    automatic = (spec.refine.method != "slsqp" and pso_only is not None and not objective_is_tf(pp))
+    if automatic:
+        # the polish drives the terminal errors alone: from an infeasible best particle it stops
+        # at the first point inside the tolerances, whatever J is there (unseen22: -x(tf) 13 %
+        # short of the best of its class, feasible, exit 0), so J is minimised there as `refine`
+        # would (its defaults); a tf objective is the polish's own (tf stays the swarm's)
+        from ocdsl.spec.parametric import RefineSpec
+
+        refine_spec = RefineSpec(method="slsqp")
+    if refine_spec.method == "slsqp":
         t0 = time.perf_counter()
-        x_best, refined = refine_tf(pp, x_best, spec.refine, progress=progress)
+        x_best, refined = refine_tf(pp, x_best, refine_spec, progress=progress)
+        refined["automatic"] = automatic
         timings["refine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     det = pp.details(x_best)
@@ -265,21 +276,18 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
            f"{'inside' if feasible else 'NOT inside'} the tolerances (max |e|/zeta {det['ratio'].max() if len(det['ratio']) else 0:.3g})")
     params = {k: float(v) for k, v in pp.parameters.items()}
     params.update({k: float(v) for k, v in det["variables"].items()})
-    if pso_only is not None and refined is None and not objective_is_tf(pp):
-        # the polish drives the terminal errors alone: from an infeasible best particle it
-        # stops at the first point inside the tolerances, whatever J is there (unseen22 FC1:
-        # `minimize -x(tf)` 13 % above the best of its class, said `feasible`)
+    if automatic:
         extra.setdefault("notes", []).append(
-            "the least-squares polish drives the terminal errors only: the objective was not "
-            "minimised after it, and a better one inside the tolerances may exist; add "
-            "`refine: {method: slsqp}` to minimise it there")
+            "the least-squares polish drives the terminal errors only, so the objective was then "
+            "minimised inside the tolerances by SLSQP (`refine` with its defaults; set `refine:` to "
+            "change them)")
     # the search minimises the negated objective of a maximisation: the user's J is its negative
     objective = -det["objective"] if problem.objective.sense == "maximize" else det["objective"]
     return Result(name or problem.name, status, message=msg, objective=objective, tf=det["tf"],
                   iterations=res.iterations, wall_time_s=timings,
                   method=spec.model_dump(mode="json"), parameters=params, phases=[phase],
                   problem=problem.description, extra=extra, tables=tables,
-                  certificate=search_box_check(pp, x_best, spec.refine.box_scale if refined is not None else 1.0)
+                  certificate=search_box_check(pp, x_best, refine_spec.box_scale if refined is not None else 1.0)
                   if feasible else None)
 
 
