@@ -417,3 +417,35 @@ def test_a_warm_start_for_a_flat_file_is_refused_before_any_work(tmp_path):
         run_file(path, tmp_path / "run", warm_start=tmp_path)
     assert "small.yaml:10" in str(err.value) and "warm start" in str(err.value)
     assert not (tmp_path / "run").exists()
+
+
+UNICYCLE_STARTS = """name: Unicycle S-turn, four starts
+model:
+  states: [x, y, th]
+  controls: [v, w]
+  dynamics: {x: v*cos(th), y: v*sin(th), th: w}
+problem:
+  time: {t0: 0, tf: 2}
+  constraints: [x(t0) == 0, y(t0) == 0, th(t0) == 0, x(tf) == 2, y(tf) == 1, th(tf) == 0]
+  objective: minimize integral((v**2 + w**2)/2)
+  guess: {x: [0, 2], y: [0, 1], v: 1.1}
+method: {transcription: flat-bspline, flat_outputs: [x, y], degree: 4, control_points: 20, collocation_points: 20,
+         tolerance: 1.0e-6, starts: 4}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_start_that_flies_beats_a_lower_one_that_does_not(tmp_path):
+    """unseen22b f17: one start reached the optimum 1.8807441 (an LGR 20 x 8 solve of the same
+    problem), another a spurious 1.618 through the flat map's singularity v = 0 (dynamics off
+    by 2.98); ranked by J alone the spurious one was refined into levels below the optimum and
+    the run ended mesh_not_converged."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "unicycle.yaml"
+    path.write_text(UNICYCLE_STARTS)
+    res = run_file(path, tmp_path / "run")
+    assert res.status == "optimal" and res.verified, res.message
+    assert abs(res.objective - 1.880744089) <= 1e-6 * 1.880744089
+    starts = res.extra["starts"]
+    assert any(s.get("verified") is False and s["objective"] < 1.8 for s in starts if s["objective"]), starts
