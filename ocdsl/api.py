@@ -163,12 +163,19 @@ def verify_closed_loop(file, result: Result, timer: Timer) -> None:
     from .verify import VerifySettings, verify_result
     from .verify.closed_loop import closed_loop_problem
 
+    from .symbolic.sdc import _split_states
+
     spec = file.controller
     laws = [ph.name for ph in result.phases]
     with timer.measure("verify"):
+        xs, _ = _split_states(file.model, spec.auxiliary, spec.states)
+        cost = (xs, spec.matrix("Q", len(xs)), spec.matrix("R", len(file.model.controls)))
+        result.extra["reported_integrals"] = {f"{law}.cost": float(result.extra[law]["cost"]) for law in laws
+                                              if isinstance(result.extra.get(law), dict)
+                                              and result.extra[law].get("cost") is not None}
         problem = closed_loop_problem(file.model, result.parameters, laws,
                                       saturation_limits(spec.saturation, len(file.model.controls)),
-                                      spec.simulate.horizon)
+                                      spec.simulate.horizon, cost)
         result.verification = verify_result(problem, result,
                                             VerifySettings.of(file.spec.verify).closed_loop())
 

@@ -282,9 +282,30 @@ def test_closed_loop_runs_are_verified_by_their_own_step(tmp_path, step, integra
     v = Result.read(tmp_path / "run").verification
     assert res.status == "stable" and v["status"] == verdict, v.get("summary")
     names = {c["name"] for c in v["checks"]}
-    assert names == {"dynamics per piece", "control bounds"}       # no open-loop replay
+    assert names == {"dynamics per piece", "control bounds", "cost"}       # no open-loop replay
     if verdict == "failed":
         assert "simulate.step" in v["summary"] and not res.ok
+
+
+def test_a_closed_loop_cost_off_by_its_fixed_step_is_not_verified(tmp_path):
+    """unseen22 c20: explicit Euler at a step small enough that every piece meets the dynamics
+    integrated the cost itself with an O(step) error (7.9e-4 of an SDRE pendulum's J), and the
+    run said verified. The cost is now carried along the verification's pieces too; RK4 at the
+    same step integrates it to rounding."""
+    from ocdsl.api import run_file
+
+    verdicts = {}
+    for integrator in ("euler", "rk4"):
+        spec = yaml.safe_load(yaml.safe_dump(CLOSED_LOOP))
+        spec["controller"]["simulate"].update(step=0.001, integrator=integrator)
+        p = tmp_path / f"{integrator}.yaml"
+        p.write_text(yaml.safe_dump(spec))
+        run_file(p, tmp_path / integrator)
+        v = Result.read(tmp_path / integrator).verification
+        verdicts[integrator] = {c["name"]: c for c in v["checks"]}
+    euler, rk4 = verdicts["euler"], verdicts["rk4"]
+    assert euler["dynamics per piece"]["passed"] and not euler["cost"]["passed"], euler["cost"]
+    assert rk4["cost"]["passed"] and rk4["cost"]["value"] < 1e-8, rk4["cost"]
 
 
 def test_a_verification_past_its_time_budget_is_an_error_not_a_pass(di_problem):

@@ -34,7 +34,7 @@ import sympy as sp
 
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
-from .checks import (evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
+from .checks import (RESOLUTION, evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
                      state_scale, worst)
 from .admissible import project, row_values
 from .functions import PhaseFunctions, between_points, controls_at
@@ -145,6 +145,8 @@ HINTS = {
 
 
 CLOSED_LOOP_HINTS = {
+    "cost": "the cost the simulation integrated with its own step differs from its integral "
+            "along the same pieces: a smaller `simulate.step`, or `integrator: dop853`",
     "dynamics per piece": "the simulation's integrator is not accurate at its step: a smaller "
                           "`simulate.step`, or `integrator: dop853`",
     "control bounds": "a recorded control exceeds the saturation limits",
@@ -221,7 +223,26 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
                       for n in irregular_controls(tr, Ur, names_u, (result.method or {}).get("transcription"),
                                                   mesh=(result.method or {}).get("mesh") is not None)]
     _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
+    _reported_integral_checks(problem, result, runs, tol, checks)
     return checks, notes
+
+
+def _reported_integral_checks(problem, result, runs, tol, checks) -> None:
+    """Each integral a back end reports (``result.extra["reported_integrals"]``, name ->
+    value: a controller's cost from its fixed-step simulation) against the same integral
+    carried along the verification's pieces, relative to its size (floored at the NLP's
+    resolution)."""
+    reported = result.extra.get("reported_integrals") or {}
+    for ph in problem.phases:
+        run = runs.get(ph.name)
+        n = len(ph.states)
+        for k, s in enumerate(ph.integrals):
+            if s.name not in reported or run is None:
+                continue
+            flown, said = float(run.local_end[n + k]), float(reported[s.name])
+            checks.append(row("cost", ph.name, abs(said - flown) / max(abs(flown), RESOLUTION), tol,
+                              f"{s.name}: reported {said:.10g}, along the pieces {flown:.10g}",
+                              "the reported integral against the same integral flown piece by piece"))
 
 
 def _constant_state_note(err, X, scale_x, names_x, value: float, tol: float) -> dict:
