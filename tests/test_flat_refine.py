@@ -142,7 +142,7 @@ def test_refinement_budget_spent_stays_unverified(tmp_path):
     res = ocdsl.load(f).solve()
     assert len(res.extra["refinement"]["levels"]) == 1
     assert res.verification["status"] == "failed" and not res.ok
-    assert "refined to 15 control points / 15 collocation equations in 0 step(s)" in res.message
+    assert "the file's level (15 control points / 15 collocation equations) kept, no refinement step" in res.message
 
 
 def test_unwrapped_angle_is_continuous_inside_its_bounds():
@@ -449,3 +449,16 @@ def test_a_start_that_flies_beats_a_lower_one_that_does_not(tmp_path):
     assert abs(res.objective - 1.880744089) <= 1e-6 * 1.880744089
     starts = res.extra["starts"]
     assert any(s.get("verified") is False and s["objective"] < 1.8 for s in starts if s["objective"]), starts
+
+
+@pytest.mark.ipopt
+def test_a_kept_file_level_is_not_called_refined(tmp_path):
+    """unseen22 f13: "refined to 12 control points ... in 1 step(s)" of a file written with 12,
+    where the one step ended 'error'; a level reached by refining still says so."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "small.yaml"
+    path.write_text(SMALL_J + "  tolerance: 1.0e-6\n")
+    res = run_file(path, tmp_path / "run")
+    assert res.status == "optimal" and "refined to" in res.message and "step(s)" in res.message
+    assert "the file's level" not in res.message

@@ -39,7 +39,7 @@ def _level(result, opts, verification: dict, wall_s: float) -> dict:
 def refine(file, mp, first: Result, options: dict, verbose: bool,
             first_wall_s: float) -> Result:
     """Verify at the method's tolerance; while a level fails, or its objective differs from
-    the previous verified level's by more than the tolerance (relative to ``max(1, |J|)``),
+    the previous verified level's by more than the tolerance (relative to the larger |J|),
     double the knot spans of every function (and the residual equations with them) and
     solve again from the level before. A verified level is only feasible: bounds on the
     outputs hold through their control points, which is conservative, and a coarse spline
@@ -154,8 +154,14 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
     best.extra["starts"] = first.extra.get("starts", [])
     best.extra["refinement"] = {"tolerance": tol, "levels": levels, "objective_settled": settled,
                                 "wall_time_s": round(time.perf_counter() - start, 3)}
-    best.message = (f"{best.message}; refined to {opts.n_ctrl} control points / "
-                    f"{opts.n_col} {opts.residual} equations in {len(levels) - 1} step(s), "
+    size = f"{opts.n_ctrl} control points / {opts.n_col} {opts.residual} equations"
+    # the file's own level kept (every finer one failed) is no refinement (unseen22 f13: "refined
+    # to 12 control points in 1 step(s)" of a file written with 12)
+    steps = len(levels) - 1
+    done = (f"refined to {size} in {steps} step(s)" if opts != mp.opts else
+            f"the file's level ({size}) kept" + (f" after {steps} refinement step(s)" if steps else
+                                                 ", no refinement step"))
+    best.message = (f"{best.message}; {done}, "
                     f"verification {best.verification.get('status')} at {tol:g}{confirmed}")
     return best
 
