@@ -505,9 +505,13 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings, progress: bool = F
                 best[0], best[1] = float(J[0]), X[0].copy()
         return cache[key]
 
-    def objective_at(xe) -> float:
+    def tf_of(xe) -> float:
+        return float(pp.decode(xe[None, :])[1][0])
+
+    def judged(xe) -> tuple[bool, float]:
+        """(inside the zeta box, objective) of one point, from one flight."""
         R, obj = _ratios_and_objective(pp, xe[None, :], zeta)
-        return float(value_of(xe[None, :], obj)[0])
+        return bool(np.all(np.abs(R[0]) <= 1.0)), float(value_of(xe[None, :], obj)[0])
 
     target = settings.target_ratio
     restoration = {"attempts": 0, "inside": 0}
@@ -515,17 +519,18 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings, progress: bool = F
     def _restore(xe) -> bool:
         """An iterate below the best tf but outside the zeta box: drive its errors back
         inside at that tf (least squares over the coefficients, widened box)."""
-        if objective_at(xe) >= best[0] or np.all(np.abs(_error_ratios(pp, xe[None, :], zeta)[0]) <= 1.0):
+        inside, J = judged(xe)
+        if J >= best[0] or inside:
             return False
         restoration["attempts"] += 1
         xr, info = polish(pp, xe, PolishSpec(method="least_squares", max_iterations=settings.restore_iterations,
                                              fd_step=settings.fd_step),
                           stop_ratio=target, bounds=(wide_lo, wide_hi))
         n_evals[0] += info["polish_evaluations"]
-        ratio = np.abs(_error_ratios(pp, xr[None, :], zeta)[0])
-        if np.all(ratio <= 1.0) and objective_at(xr) < best[0]:
+        inside, J = judged(xr)
+        if inside and J < best[0]:
             restoration["inside"] += 1
-            best[0], best[1] = objective_at(xr), xr.copy()
+            best[0], best[1] = J, xr.copy()
             return True
         return False
 
@@ -549,11 +554,8 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings, progress: bool = F
             return ratios_and_jacobian(u)[3]
     u0 = (x[idx] - lo[idx]) / width
     box = list(zip((wide_lo[idx] - lo[idx]) / width, (wide_hi[idx] - lo[idx]) / width))
-    def tf_of(xe) -> float:
-        return float(pp.decode(xe[None, :])[1][0])
-
     tf0 = tf_of(x)
-    j0 = tf0 if by_tf else objective_at(x)
+    j0 = tf0 if by_tf else judged(x)[1]
     best: list = [j0, x.copy()]
     runs, last_best = 0, j0
     from ..progress import Stage
@@ -590,16 +592,17 @@ def refine_tf(pp: ParametricProblem, x: np.ndarray, settings, progress: bool = F
     what = "tf" if by_tf else "J"
     bar.close(f"{what} {j0:.6g} -> {best[0]:.6g}")
     dn = pp.details(xn)
-    if not _inside(dn) or objective_at(xn) > best[0]:
-        final = f"final iterate {what} {objective_at(xn):.6g}, max |e|/zeta {dn['ratio'].max():.3g}"
+    jn = dn["tf"] if by_tf else dn["objective"]
+    if not _inside(dn) or jn > best[0]:
+        final = f"final iterate {what} {jn:.6g}, max |e|/zeta {dn['ratio'].max():.3g}"
         xn, dn = best[1], pp.details(best[1])
         message = (f"{message}; {final}; kept the best iterate inside the zeta box" if best[0] < j0
                    else f"rejected ({message}; {final})")
-    summary = {"refine": message, "evaluations": n_evals[0], "tf_start": tf0, "tf_end": tf_of(xn),
+    summary = {"refine": message, "evaluations": n_evals[0], "tf_start": tf0, "tf_end": dn["tf"],
                "max_error_over_zeta": float(dn["ratio"].max()), "box_scale": settings.box_scale,
                "slsqp_runs": runs, "restorations": restoration}
     if not by_tf:
-        summary.update(objective_start=j0, objective_end=objective_at(xn))
+        summary.update(objective_start=j0, objective_end=dn["objective"])
     return xn, summary
 
 
