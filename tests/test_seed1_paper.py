@@ -201,7 +201,7 @@ def _lp_tf_min(zeta):
 
 
 def test_continuation_in_tf_reaches_the_lp_minimum(tmp_path):
-    from ocdsl.search.run import continue_tf
+    from ocdsl.search.local import continue_tf
 
     p = tmp_path / "toy.yaml"
     p.write_text(TOY)
@@ -242,7 +242,7 @@ def test_slsqp_refinement_reaches_the_lp_minimum(tmp_path):
     """The constrained refinement (min tf with every |e|/zeta <= target) lands on the LP
     bound of the toy problem from a point far above it, with the errors inside the box,
     and a widened box (box_scale) can only lower it further."""
-    from ocdsl.search.run import refine_tf
+    from ocdsl.search.local import refine_objective
     from ocdsl.spec.parametric import RefineSpec
 
     p = tmp_path / "toy.yaml"
@@ -250,17 +250,17 @@ def test_slsqp_refinement_reaches_the_lp_minimum(tmp_path):
     lf = load(p)
     pp = build(lf.problem, lf.method)
     x0 = np.array([3.0, 0.0, np.pi ** 2 / (2 * 9.0), 0.0])
-    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999))
+    x, info = refine_objective(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999))
     det = pp.details(x)
     tf_min = _lp_tf_min(1e-3)
     assert np.all(det["ratio"] <= 1.0 + 1e-6)
     assert abs(det["tf"] - tf_min) <= 1e-4 * tf_min, (det["tf"], tf_min, info)
     assert info["tf_start"] == 3.0 and info["tf_end"] == det["tf"]
-    x2, info2 = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, box_scale=2.0))
+    x2, info2 = refine_objective(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, box_scale=2.0))
     assert not info2["refine"].startswith("rejected") and info2["tf_end"] <= info["tf_end"] + 1e-9, info2
     # a start it cannot improve on (tf at its lower bound, far outside the box) is rejected
     xb = np.array([1.0, 0.0, 0.0, 0.0])
-    x3, info3 = refine_tf(pp, xb, RefineSpec(method="slsqp", max_iterations=3))
+    x3, info3 = refine_objective(pp, xb, RefineSpec(method="slsqp", max_iterations=3))
     assert np.array_equal(x3, xb) and info3["refine"].startswith("rejected")
 
 
@@ -268,7 +268,7 @@ def test_refinement_restores_an_iterate_outside_the_zeta_box(tmp_path):
     """SLSQP stopped after 2 iterations ends outside the zeta box below the best tf: least
     squares at that tf brings it back inside and SLSQP restarts from there to the LP bound;
     an iterate below the bound (1 iteration) cannot be restored and the start is kept."""
-    from ocdsl.search.run import refine_tf
+    from ocdsl.search.local import refine_objective
     from ocdsl.spec.parametric import RefineSpec
 
     p = tmp_path / "toy.yaml"
@@ -277,13 +277,13 @@ def test_refinement_restores_an_iterate_outside_the_zeta_box(tmp_path):
     pp = build(lf.problem, lf.method)
     x0 = np.array([3.0, 0.0, np.pi ** 2 / (2 * 9.0), 0.0])
     tf_min = _lp_tf_min(1e-3)
-    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=2, restarts=0))
+    x, info = refine_objective(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=2, restarts=0))
     assert info["restorations"] == {"attempts": 1, "inside": 1}
     assert np.all(pp.details(x)["ratio"] <= 1.0) and tf_min <= x[0] < 3.0
-    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=2, restarts=3))
+    x, info = refine_objective(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=2, restarts=3))
     assert info["restorations"]["inside"] >= 1 and info["slsqp_runs"] >= 2
     assert np.all(pp.details(x)["ratio"] <= 1.0) and abs(x[0] - tf_min) <= 1e-4 * tf_min, (x[0], tf_min)
-    x, info = refine_tf(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=1))
+    x, info = refine_objective(pp, x0, RefineSpec(method="slsqp", target_ratio=0.999, max_iterations=1))
     assert info["restorations"] == {"attempts": 1, "inside": 0} and np.array_equal(x, x0)
 
 

@@ -346,13 +346,14 @@ def member_run(paper_loaded, values: dict[str, float], out: str | Path) -> Resul
     """Write a class member (T and coefficients), integrated by the paper-mode fitness, as a
     paper-mode run folder: a start for :func:`refine_class` (``paper_run``) from any
     coefficients, e.g. a stored solution or a random member."""
-    from .run import _inside, solution_record
+    from .local import inside_tolerances
+    from .run import solution_record
 
     pp, x = _decision_vector(paper_loaded, values)
     det = pp.details(x)
     phase, record = solution_record(pp, x, det)
     res = single_phase_result(f"{paper_loaded.spec.name} - class member",
-                              "feasible" if _inside(det) else "infeasible", phase,
+                              "feasible" if inside_tolerances(det) else "infeasible", phase,
                               objective=det["objective"], tf=float(det["tf"]), extra=record)
     res.write(out)
     return res
@@ -361,7 +362,7 @@ def member_run(paper_loaded, values: dict[str, float], out: str | Path) -> Resul
 def shooting_check(paper_loaded, values: dict[str, float], polish_evaluations: int = 2000) -> dict[str, Any]:
     """The paper-mode decision vector of the class solution, integrated by the paper's
     fitness; least squares at fixed t_f if a terminal error is outside its zeta."""
-    from .run import polish
+    from .local import polish
 
     spec = paper_loaded.method
     pp, x = _decision_vector(paper_loaded, values)
@@ -405,7 +406,8 @@ def refine_class(paper_file: str | Path, optimal: str | Path, out: str | Path,
     import ocdsl
     from ..api import write_run
     from ..run import check_expectations
-    from .run import _inside, solution_record
+    from .local import inside_tolerances
+    from .run import solution_record
 
     t_start = _time.perf_counter()
     out = Path(out)
@@ -488,7 +490,7 @@ def refine_class(paper_file: str | Path, optimal: str | Path, out: str | Path,
     check = shooting_check(paper, values)
     pp, x, det = check["pp"], check["x"], check["details"]
     phase, solution = solution_record(pp, x, det)
-    feasible = _inside(det)
+    feasible = inside_tolerances(det)
     status = "feasible" if (feasible and hard_ok) else "infeasible"
     extra = {
         "class_mode": {"optimal": str(optimal), "start": str(paper_run or optimal), "terminal": terminal, "fit_rms_rad": fit_rms, "ridge": ridge,

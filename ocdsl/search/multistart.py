@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from ocdsl.search.problem_file import shooting_problem
-from ocdsl.search.run import polish, refine_box, refine_tf
+from ocdsl.search.local import polish, refine_box, refine_objective
 from ocdsl.spec.compile import load
 from ocdsl.spec.parametric import PolishSpec
 
@@ -52,7 +52,7 @@ def local_minima(path: str, starts: int, seed: int = 0, verbose: bool = True,
         if class_mode is not None:
             tf, how = _class_mode(lf, path, pp, xs, k, *class_mode)
         else:
-            xr, info = refine_tf(pp, xs, refine)
+            xr, info = refine_objective(pp, xs, refine)
             tf, how = float(xr[itf]), info["refine"][:50]
         if tf is not None:
             minima.append(tf)
