@@ -24,6 +24,8 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from .engine import cse
+
 _GENERATOR: list[str] = []
 _NAMESPACE = {"numpy": np, "math": math, "functools": functools}
 
@@ -33,7 +35,9 @@ def _generator_id() -> str:
         from .. import __version__
         from ..cache import fingerprint
 
-        _GENERATOR.append(fingerprint(__version__, sp.__version__, Path(__file__).read_text()))
+        from .engine import engine_id     # the families' derivatives and CSE
+
+        _GENERATOR.append(fingerprint(__version__, sp.__version__, Path(__file__).read_text(), engine_id()))
     return _GENERATOR[0]
 
 
@@ -54,7 +58,7 @@ def source(args: Sequence[sp.Symbol], exprs: Sequence, module: str = "numpy") ->
     stand = [sp.Symbol(f"_a{i}") for i in range(len(args))]     # names safe as Python identifiers
     ren = dict(zip(args, stand))
     exprs = [sp.sympify(e).xreplace(ren) for e in exprs]
-    reps, red = sp.cse(exprs, symbols=sp.numbered_symbols("_c")) if exprs else ([], [])
+    reps, red = cse(exprs) if exprs else ([], [])
     pr = _printer(module)
     lines = [f"def f({', '.join(str(s) for s in stand)}):"]
     lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]

@@ -67,8 +67,3 @@ def symbolic_conditions(model: Model, lagrange: sp.Expr | float = 0,
         costate_rhs={x: -H.diff(x) for x in model.states},
         time_dependent=TIME in H.free_symbols,
     )
-
-
-def _jacobian(M: sp.Matrix, variables: list) -> sp.Matrix:
-    """``M.jacobian(variables)``, also for no variables (a phase without controls)."""
-    return M.jacobian(variables) if variables else sp.zeros(M.rows, 0)

@@ -9,7 +9,8 @@ import sympy as sp
 
 from ocdsl.symbolic.model import TIME, Model
 
-from .conditions import _jacobian, _param_subs
+from ...symbolic.engine import jacobian
+from .conditions import _param_subs
 
 class _Numeric:
     """Lambdified f, df/dx, df/du, L, dL/du, df/dt, dL/dt of a model at fixed parameters."""
@@ -30,10 +31,10 @@ class _Numeric:
         self.n, self.m, self.p = len(x), len(u), len(path)
 
         def make():      # matrices as their flat (row-major) entries
-            d = {"f": f, "fx": f.jacobian(x), "fu": _jacobian(f, u), "L": L, "Lu": _jacobian(L, u),
-                 "ft": f.diff(TIME), "Lt": L.diff(TIME)}
+            d = {"f": f, "fx": jacobian(f, x), "fu": jacobian(f, u), "L": L, "Lu": jacobian(L, u),
+                 "ft": jacobian(f, [TIME]), "Lt": jacobian(L, [TIME])}
             if self.p:
-                d.update(g=G, gu=_jacobian(G, u), gt=G.diff(TIME))
+                d.update(g=G, gu=jacobian(G, u), gt=jacobian(G, [TIME]))
             return {k: (list(e), "numpy") for k, e in d.items()}
 
         from ...symbolic.numeric import family   # printed once, then from the disk cache

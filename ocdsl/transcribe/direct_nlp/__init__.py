@@ -26,6 +26,6 @@ function families), :mod:`.structure` (what is read from the built model), :mod:
 """
 from __future__ import annotations
 
-from .codegen import (INF, _SMOOTH, Unsupported, _check_smooth, _derivatives, _function,  # noqa: F401
-                      _generated, _source)
+from .codegen import (INF, _SMOOTH, Unsupported, _check_smooth, _function, _generated,  # noqa: F401
+                      derivatives_cse)
 from .nlp import DirectNLP  # noqa: F401

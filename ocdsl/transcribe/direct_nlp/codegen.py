@@ -1,5 +1,5 @@
 """Generated NumPy functions of the direct NLP: which functions have a smooth NumPy form,
-SymPy's first and second derivatives, the NumPy source (common subexpressions eliminated,
+their first and second derivatives (``symbolic.engine``), the NumPy source (common subexpressions eliminated,
 rows written in place), its disk cache, and the families of node functions built from them."""
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
+
+from ...symbolic.engine import derivatives_cse, engine_id
 
 INF = 1e20
 # functions whose NumPy form and SymPy derivatives agree with the ASL's everywhere they are
@@ -33,43 +35,12 @@ def _check_smooth(exprs, what: str) -> None:
             raise Unsupported(f"{what} is piecewise")
 
 
-def _derivatives(exprs, syms):
-    """Nonzero first derivatives [(output, a)], their expressions, and nonzero lower-triangle
-    second derivatives [(output, a, b)] with b <= a, their expressions. Only the symbols an
-    expression contains are tried (the others give 0): the count of ``diff`` calls grows with
-    the nonzero derivatives, not with outputs x symbols (48 states: 10.0 s against 12.6 s)."""
-    pos = {s: i for i, s in enumerate(syms)}
-    jac, jexprs, hess, hexprs = [], [], [], []
-    for o, e in enumerate(exprs):
-        e = sp.sympify(e)
-        for a in sorted(pos[s] for s in e.free_symbols if s in pos):
-            d = sp.diff(e, syms[a])
-            if d == 0:
-                continue
-            jac.append((o, a))
-            jexprs.append(d)
-            for b in sorted(pos[s] for s in d.free_symbols if s in pos and pos[s] <= a):
-                d2 = sp.diff(d, syms[b])
-                if d2 != 0:
-                    hess.append((o, a, b))
-                    hexprs.append(d2)
-    return jac, jexprs, hess, hexprs
-
-
-def _source(args, exprs) -> str | None:
-    """NumPy source of ``f(*args, _out)`` writing ``exprs`` into the rows of ``_out`` after
-    common-subexpression elimination (``sympy.lambdify(..., cse=True)``'s code, as text that
-    can be cached). Rows are assigned in place: a constant or a node array fills its row by
-    broadcasting, without a per-entry ``broadcast_to`` and ``stack`` (which took half of a
-    Hessian evaluation's time on seed 0)."""
-    return _numpy_source(args, *_cse(exprs)) if exprs else None
-
-
-def _cse(exprs):
-    return sp.cse(list(exprs), symbols=sp.numbered_symbols("_c"))
-
-
 def _numpy_source(args, reps, red) -> str:
+    """NumPy source of ``f(*args, _out)`` writing the expressions (``reps``, ``red``: their
+    common-subexpression elimination) into the rows of ``_out``, as text that can be cached.
+    Rows are assigned in place: a constant or a node array fills its row by broadcasting,
+    without a per-entry ``broadcast_to`` and ``stack`` (which took half of a Hessian
+    evaluation's time on seed 0)."""
     pr = _printer()
     lines = [f"def f({', '.join(str(a) for a in args)}, _out):"]
     lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
@@ -133,7 +104,7 @@ def _generator_id() -> str:
 
         here = Path(__file__).parent
         _GENERATOR.append(fingerprint(__version__, sp.__version__, (here / "codegen.py").read_text(),
-                                      (here / "native.py").read_text()))
+                                      (here / "native.py").read_text(), engine_id()))
     return _GENERATOR[0]
 
 
@@ -157,9 +128,8 @@ def _generated(exprs, dvars, extra=(), native: bool = False) -> dict:
     key = cache.fingerprint(_generator_id(), str(len(dvars)), str(native), sp.srepr(stand), sp.srepr(norm))
     entry = cache.read_entry("nlp", key)
     if not (isinstance(entry, dict) and entry.get("n_out") == len(norm)):
-        jac, jexprs, hess, hexprs = _derivatives(norm, stand[:len(dvars)])
+        jac, hess, parts = derivatives_cse(norm, stand[:len(dvars)])
         entry = {"n_out": len(norm), "jac": jac, "hess": hess, "c": None}
-        parts = {name: _cse(es) for name, es in (("values", norm), ("first", jexprs), ("second", hexprs)) if es}
         for name in ("values", "first", "second"):
             entry[name] = _numpy_source(stand, *parts[name]) if name in parts else None
         if native and sum(len(r) + len(e) for r, e in parts.values()) >= _native.MIN_LINES:
