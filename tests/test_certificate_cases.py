@@ -687,3 +687,97 @@ def test_a_bang_bang_mesh_answer_with_its_switch_on_a_breakpoint_is_not_failed_o
     cert = res.certificate
     assert cert["switching"]["passed"] and certificate_verdict(cert) == "inconclusive", cert.get("failed")
     assert "switches on mesh breakpoints" in cert["hamiltonian"]["inconclusive"]
+
+
+ISO_BEST = 0.43761364575662437      # tests/data/iso_saturated.yaml's closed form
+
+
+def test_a_refinement_blind_to_a_corner_is_refined_again_where_the_flight_proves_nothing():
+    """unseen23 FC2: x' = u with an area constraint; the last corner of the control lies inside
+    an LGR segment of degree 3 whose polynomials integrate exactly, so every estimate is
+    tiny and the meshes agree on J 3.0e-4 above J*. H's minimiser predicted a gain 59 times
+    the tolerance, its corrected flight came out worse, and the check passed: `optimal`,
+    verified, certificate pass. The prediction now makes the check inconclusive and the
+    refinement runs again with that control's corners kept: J* to 1e-7."""
+    res = run_file(DATA / "iso_saturated.yaml", None)
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(ISO_BEST, rel=1e-7)
+    first = res.extra["first_refinement"]
+    assert first["objective"] - ISO_BEST > 1e-4 and first["predicted_gain"] > 1e-4
+    assert any("its flight did not realise" in n for n in res.extra["notes"])
+
+
+def test_a_fixed_mesh_whose_flight_proves_nothing_is_bisected(tmp_path):
+    """unseen23 FC3: the same problem on FC2's wrong final mesh (no `mesh:`): the flight that
+    did not realise its predicted gain counted as having judged J, so the bisection check was
+    skipped: `optimal`, exit 0, J 3.0e-4 off. Now the certificate says inconclusive and the
+    bisection finds J moving by 3e-4: mesh_not_converged."""
+    text = (DATA / "iso_saturated.yaml").read_text().replace(
+        "  segments: 4\n  degree: 3\n  mesh: {tolerance: 1.0e-6, max_iterations: 14}\n",
+        "  segments: [0.0, 0.00843428544488147, 0.01686857088976294, 0.025302856334644408, 0.03373714177952588,\n"
+        "             0.04217142722440735, 0.04249592318259839, 0.75, 1.0]\n"
+        "  degree: [3, 3, 3, 3, 3, 1, 2, 3]\n")
+    (tmp_path / "fixed.yaml").write_text(text)
+    res = run_file(tmp_path / "fixed.yaml", None)
+    assert res.objective - ISO_BEST > 1e-4                                  # the case: J off
+    flown = res.certificate["flown_control"]
+    assert flown["passed"] and "not judged" in flown["inconclusive"]
+    assert "flown_control" in res.certificate["inconclusive"]
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert res.extra["bisection"]["agrees"] is False
+
+
+def test_a_refinement_with_final_conditions_flies_for_gains_near_its_own_tolerance(tmp_path):
+    """unseen23 FC4: x' = u, min integral(u^2/2 - x), x(0) = x(1) = 0, |u| <= 0.48 (J* =
+    -651/15625), LGR 5 x 3 with mesh tolerance 1e-7: a corner inside the last segment, J
+    3.1e-6 off, `optimal`. With a final condition the flight needed a predicted gain of the
+    verification's 1e-5; a mesh run now flies for its own tolerance (37 times exceeded)."""
+    text = (DATA / "iso_saturated.yaml").read_text()
+    text = text.replace("[-1.5 <= u <= 1.5, x(t0) == 0, x(tf) == 0, integral(x) == 0.27]",
+                        "[-0.48 <= u <= 0.48, x(t0) == 0, x(tf) == 0]")
+    text = text.replace("minimize integral(u**2/2)", "minimize integral(u**2/2 - x)")
+    text = text.replace("segments: 4", "segments: 5").replace("tolerance: 1.0e-6", "tolerance: 1.0e-7")
+    (tmp_path / "linear.yaml").write_text(text)
+    res = run_file(tmp_path / "linear.yaml", None)
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(-651 / 15625, abs=1e-8)
+    assert res.extra["first_refinement"]["objective"] - (-651 / 15625) > 1e-6
+
+
+def test_a_path_constraint_that_never_binds_leaves_the_flight_on(tmp_path):
+    """unseen23 FC1: the area problem with x + u <= 100 (never near its bound) turned the
+    flown control off, and the refinement ended `optimal`, verified, certificate pass with J
+    3.2e-3 off. A path constraint that never comes near its bound has a zero multiplier; the
+    flight runs (and is checked against it): J* to 1e-8, whatever the status says."""
+    text = (DATA / "iso_saturated.yaml").read_text()
+    text = text.replace("integral(x) == 0.27]", "integral(x) == 0.3, x + u <= 100]")
+    text = text.replace("segments: 4", "segments: 2").replace("tolerance: 1.0e-6", "tolerance: 1.0e-8")
+    (tmp_path / "path.yaml").write_text(text)
+    res = run_file(tmp_path / "path.yaml", None)
+    best = 0.5440524980688874
+    assert res.objective == pytest.approx(best, rel=1e-8)
+    assert res.extra["first_refinement"]["objective"] - best > 1e-3
+
+
+def test_a_flight_that_breaks_a_path_constraint_is_infeasible():
+    """The flight's feasibility covers path constraints (only those that never bind let the
+    flight run, and H's minimiser knows nothing of them)."""
+    from ocdsl.verify.fly import fly_control
+
+    problem = compile_file(DATA / "iso_saturated.yaml").problem
+    res = run_file(DATA / "iso_saturated.yaml", None)
+    traj = res.phases[0]
+    t = np.asarray(traj.time, float)
+    U = np.asarray(traj.controls["u"], float)
+    keep = np.isfinite(U)
+    t, U = t[keep], U[keep][:, None]
+    ok = fly_control(problem, res, t, U, np.zeros(0))       # the exported control, linear between rows
+    from ocdsl.symbolic.problem import Constraint
+
+    ph = problem.phases[0]
+    tight = copy.copy(ph)
+    tight.path = [Constraint(ph.states[0], -np.inf, 0.2, "x <= 0.2")]    # the solution's x peaks near 0.4
+    problem.phases = [tight]
+    broken = fly_control(problem, res, t, U, np.zeros(0))
+    assert ok.where != "x <= 0.2" and broken.where == "x <= 0.2"
+    assert broken.violation > 0.1 > 1000 * ok.violation

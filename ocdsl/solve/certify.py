@@ -172,6 +172,8 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
                 cert["failed"] = list(cert.get("failed", [])) + [name]
                 cert["passed"] = False
                 cert.pop("inconclusive", None)
+            elif check.get("inconclusive") and cert.get("passed") is not False and not cert.get("inconclusive"):
+                cert["inconclusive"] = f"{name}: {check['inconclusive']}"
         try:    # H and dH/du into the run folder: the report reads them, never recomputes them
             traj.extra.update(hamiltonian_arrays(ph.model, params, arrays, L))
         except Exception:  # noqa: BLE001  (a figure less, never a lost run)

@@ -34,8 +34,8 @@ import sympy as sp
 
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
-from .checks import (RESOLUTION, evaluate, irregular_controls, relative_violation, row, sensitivity_scale,
-                     state_scale, worst)
+from .checks import (RESOLUTION, evaluate, irregular_controls, path_scales, relative_violation, row,
+                     sensitivity_scale, state_scale, worst)
 from .admissible import project, row_values
 from .functions import PhaseFunctions, between_points, controls_at
 from .integrate import IntegrationFailure, reintegrate, time_budget
@@ -341,7 +341,7 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
     _control_bounds_check(ph, traj, names_u, ubounds, tol, checks)
     if funcs.g is not None:
         G = funcs.g(grid, Yl[:, :funcs.n], Ug)
-        gscale = _path_scales(funcs, t, X, controls_at(uf, t, X), scale_x, ubounds, G)
+        gscale = path_scales(funcs, t, X, controls_at(uf, t, X), scale_x, ubounds, G)
         err = np.column_stack([relative_violation(G[:, k], c.lower, c.upper, gscale[k])
                                for k, c in enumerate(funcs.path)])
         t_err, detail = grid, f"{len(grid)} points"
@@ -394,25 +394,6 @@ def _zero_duration_phase(ph, traj, t, X, names_x, names_u, ubounds, tol, checks)
     nq = len(ph.integrals)
     end = np.concatenate([X[0], np.zeros(nq)])
     return _PhaseRun(t, X, scale_x, np.full(nq, 1e-12), end, end, uf)
-
-
-def _path_scales(funcs, t, X, U, scale_x, ubounds, G) -> np.ndarray:
-    """Per path constraint: the larger of its range on the grid and its first-order size
-    ``sum_j |dg/dz_j| scale_j`` over the states and controls (finite differences at the rows)."""
-    g0 = funcs.g(t, X, U)
-    sens = np.zeros(g0.shape)
-    for j in range(X.shape[1]):
-        h = 1e-6 * scale_x[j]
-        Xp = X.copy()
-        Xp[:, j] += h
-        sens += np.abs(funcs.g(t, Xp, U) - g0) / h * scale_x[j]
-    for j, (lo, hi) in enumerate(ubounds):
-        su = hi - lo if math.isfinite(hi - lo) and hi > lo else max(float(np.ptp(U[:, j])), 1e-6)
-        h = 1e-6 * su
-        Up = U.copy()
-        Up[:, j] += h
-        sens += np.abs(funcs.g(t, X, Up) - g0) / h * su
-    return np.maximum.reduce([np.nanmax(sens, axis=0), np.ptp(G, axis=0), np.full(G.shape[1], 1e-12)])
 
 
 def _d_dtf(expr: sp.Expr, ph, run: _PhaseRun, problem, point) -> float:

@@ -118,3 +118,22 @@ def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcrip
             i = int(np.argmax(np.where(isolated, spike, -np.inf)))
             notes.append(f"{name} jumps at a single node (t = {tt[i + 1]:.6g}): {advice}")
     return notes
+
+
+def path_scales(funcs, t, X, U, scale_x, ubounds, G) -> np.ndarray:
+    """Per path constraint: the larger of its range on the grid and its first-order size
+    ``sum_j |dg/dz_j| scale_j`` over the states and controls (finite differences at the rows)."""
+    g0 = funcs.g(t, X, U)
+    sens = np.zeros(g0.shape)
+    for j in range(X.shape[1]):
+        h = 1e-6 * scale_x[j]
+        Xp = X.copy()
+        Xp[:, j] += h
+        sens += np.abs(funcs.g(t, Xp, U) - g0) / h * scale_x[j]
+    for j, (lo, hi) in enumerate(ubounds):
+        su = hi - lo if math.isfinite(hi - lo) and hi > lo else max(float(np.ptp(U[:, j])), 1e-6)
+        h = 1e-6 * su
+        Up = U.copy()
+        Up[:, j] += h
+        sens += np.abs(funcs.g(t, X, Up) - g0) / h * su
+    return np.maximum.reduce([np.nanmax(sens, axis=0), np.ptp(G, axis=0), np.full(G.shape[1], 1e-12)])

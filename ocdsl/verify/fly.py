@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _numbers, _PhaseRun, _points
-from .checks import evaluate, relative_violation, sensitivity_scale, state_scale
+from .checks import evaluate, path_scales, relative_violation, sensitivity_scale, state_scale
 from .functions import PhaseFunctions, controls_at
 from .integrate import _stiff, integrate_pass
 from .interpolate import bounds_of
@@ -59,7 +59,7 @@ class Flight:
     """What a control flown from the solution's x(t0) achieves."""
 
     objective: float            # the problem's objective (its own sense)
-    violation: float            # the largest relative violation of a boundary condition or state bound
+    violation: float            # the largest relative violation of a boundary condition, state bound or path constraint
     where: str                  # which one
     steps: int
     # per equality boundary condition (its index in problem.boundary): value minus target over
@@ -133,4 +133,15 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
             v = float(np.max(relative_violation(flown.Y[:, j], lo, hi, scale_x[j])))
             if not v <= worst:
                 worst, where = (v if math.isfinite(v) else math.inf), f"bound of {names_x[j]}"
+    if funcs.g is not None:
+        # path constraints along the flight, scaled as the verification scales them
+        X_fl = flown.Y[:, :len(names_x)]
+        G = funcs.g(flown.t, X_fl, controls_at(uf, flown.t, X_fl))
+        U_rows = controls_at(uf, t_rows, X_rows)
+        ubounds = bounds_of(ph, [c.name for c in ph.controls], "controls")
+        gscale = path_scales(funcs, t_rows, X_rows, U_rows, scale_x, ubounds, funcs.g(t_rows, X_rows, U_rows))
+        for k, c in enumerate(funcs.path):
+            v = float(np.max(relative_violation(G[:, k], c.lower, c.upper, gscale[k])))
+            if not v <= worst:
+                worst, where = (v if math.isfinite(v) else math.inf), c.text or str(c.expr)
     return Flight(evaluate(problem.objective.expr, point), worst, where, flown.steps, residuals)

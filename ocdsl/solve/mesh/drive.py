@@ -568,18 +568,26 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     corners = refuted_corners(result, spec.tolerance) if pinned is None and status == "optimal" else {}
     if corners:
         shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
-        say(progress, f"mesh: the control the minimum principle flies beats J = {info_c.objective:.10g}; "
-                       f"refining again with breakpoints kept at {shown} (normalised time)")
+        flown = result.certificate["flown_control"]
+        why = (f"the control the minimum principle flies beats J = {info_c.objective:.10g}"
+               if not flown.get("inconclusive") else
+               f"the control that minimises H predicts a gain of {flown['predicted_gain']:.1e} over J = "
+               f"{info_c.objective:.10g} (its flight proves nothing)")
+        say(progress, f"mesh: {why}; refining again with breakpoints kept at {shown} (normalised time)")
         again = solve_adaptive(file, timer, seed=seed, verbose=verbose, progress=progress, pinned=corners,
                                first={k: with_breakpoints(m, corners.get(k, []), spec.corner_tolerance)
                                       for k, m in meshes_c.items()},
                                start={ph.name: ph for ph in result.phases})
-        flown = result.certificate["flown_control"]
+        beat = (f"which the control the minimum principle flies beat (J = {flown['flown']:.10g})"
+                if not flown.get("inconclusive") else
+                f"where the control that minimises H predicted a gain of {flown['predicted_gain']:.1e} "
+                "that its flight did not realise")
         again.extra.setdefault("notes", []).append(
-            f"the first refinement ended at J = {flown['claimed']:.10g} (mesh iteration {it_c}), which the "
-            f"control the minimum principle flies beat (J = {flown['flown']:.10g}); refined again with "
-            f"breakpoints kept where that control reaches or leaves a bound ({shown}, normalised time)")
-        again.extra["first_refinement"] = {"objective": flown["claimed"], "flown": flown["flown"],
+            f"the first refinement ended at J = {flown['claimed']:.10g} (mesh iteration {it_c}), {beat}; "
+            f"refined again with breakpoints kept where that control reaches or leaves a bound ({shown}, "
+            "normalised time)")
+        again.extra["first_refinement"] = {"objective": flown["claimed"], "flown": flown.get("flown"),
+                                           "predicted_gain": flown.get("predicted_gain"),
                                            "iterations": len(history), "corners": corners}
         return again
     result.status = status
