@@ -143,14 +143,15 @@ def _execute(file, timer: Timer, **kwargs) -> Result:
         verify_closed_loop(file, result, timer)
         return result
     from .run import execute as run_method
-    from .solve.ipopt import interrupted
+    from .solve.ipopt import interrupted, interrupted_by
 
     result = run_method(file, timer, **kwargs)
-    if interrupted():      # Ctrl-C: the run stops here, its last iterate is the result
+    if interrupted():      # Ctrl-C or SIGTERM: the run stops here, its last iterate is the result
         result.status = "interrupted"
         if not result.message.startswith("interrupted"):
-            result.message = f"interrupted (Ctrl-C); {result.message}"
-        result.verification = {"status": "skipped", "checks": [], "summary": "the run was interrupted (Ctrl-C)"}
+            result.message = f"interrupted ({interrupted_by()}); {result.message}"
+        result.verification = {"status": "skipped", "checks": [],
+                               "summary": f"the run was interrupted ({interrupted_by()})"}
         return result
     verify(file, result, timer)
     return result
@@ -195,11 +196,43 @@ def verify(file, result: Result, timer: Timer) -> None:
 
 
 def write_run(result: Result, out: str | Path, source: Path | None, force: bool = False,
-              extra_dirs: dict[str, Path] | None = None) -> Path:
+              extra_dirs: dict[str, Path] | None = None, logs: Path | None = None) -> Path:
+    """The run folder; ``logs``: a scratch folder of Ipopt output files (``confine_output_file``)
+    whose files go in beside result.json."""
     extra = {}
     if source is not None and source.exists():
         extra["problem.yaml"] = source.read_text()
+    for log in sorted(logs.iterdir()) if logs is not None else []:
+        if log.is_file() and log.name not in ("problem.yaml", "result.json", "trajectory.csv"):
+            extra[log.name] = log.read_text(errors="replace")
     return result.write(out, extra_files=extra, force=force, extra_dirs=extra_dirs)
+
+
+def confine_output_file(file, path: str | Path, scope: ExitStack) -> Path | None:
+    """Ipopt's ``output_file`` (``solver: options``) kept inside the run: Ipopt truncates the
+    file it names, and a relative name meant the working folder, so a user's own ipopt.log
+    there (and ipopt.2.log, a later solve's numbered copy) were emptied (unseen24 V2). A
+    relative name now goes to a scratch folder whose files are written into the run folder;
+    an absolute one is the user's explicit choice, refused when that file or a numbered copy
+    of it exists (ocdsl overwrites nothing it did not write). Returns the scratch folder."""
+    options = file.spec.solver.options or {}
+    name = options.get("output_file")
+    if not name:
+        return None
+    target = Path(str(name)).expanduser()
+    if target.is_absolute():
+        taken = [p for p in [target, *target.parent.glob(f"{target.stem}.*{target.suffix}")] if p.exists()]
+        if taken:
+            from .spec.errors import Issue
+
+            raise SpecError([Issue(str(path), file.located.line(("solver", "options", "output_file")),
+                                   f"solver option output_file: {taken[0]} exists, and Ipopt would empty it "
+                                   "(ocdsl never overwrites a file it did not write): name a new file, or a "
+                                   "relative name (the log then goes into the run folder)")])
+        return None
+    scratch = Path(scope.enter_context(tempfile.TemporaryDirectory(prefix="ocdsl-ipopt-")))
+    options["output_file"] = str(scratch / target.name)
+    return scratch
 
 
 @contextmanager
@@ -237,6 +270,7 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     if out_dir is not None:
         run_folder.check_destination(out_dir, "run", force=force)
     with ExitStack() as scope:
+        logs = confine_output_file(file, path, scope)
         stages = []
         try:
             started, stages = scope.enter_context(_chain(file, out_dir, warm_start, quiet=quiet, verbose=verbose))
@@ -254,5 +288,13 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
                             problem=file.problem.description if file.problem else {},
                             extra={"traceback": traceback.format_exc(limit=6)})
         if out_dir is not None:
-            write_run(result, out_dir, Path(path), force=force, extra_dirs=chain_stages.entries(stages))
+            try:
+                write_run(result, out_dir, Path(path), force=force, extra_dirs=chain_stages.entries(stages),
+                          logs=logs)
+            except OSError as e:    # a full disk, a folder made read-only meanwhile: said, not a traceback
+                objective = f", objective {result.objective:.10g}" if result.objective is not None else ""
+                raise run_folder.FolderError(
+                    f"{out_dir}: the run folder could not be written ({e.strerror or e}); nothing of it was "
+                    f"left behind (the run ended {result.status}{objective}): free space or choose another "
+                    "--out, and run again") from None
     return result

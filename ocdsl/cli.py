@@ -97,7 +97,7 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
 
     with loading("cli run"):
         from .api import run_file
-        from .solve.ipopt import interruptible
+        from .solve.ipopt import interrupted_by, interruptible
 
     _cache_off(no_cache)
     out = Path(out) if out else Path("runs") / Path(file).stem
@@ -114,13 +114,13 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
             _compile_or_exit(load_study, file)
         except StudyError as e:
             raise _SpecFailure(str(e)) from None
-    with interruptible():      # Ctrl-C: the last iterate is written, status interrupted, exit 130
+    with interruptible():      # Ctrl-C (SIGTERM): the last iterate is written, status interrupted, exit 130 (143)
         result = _compile_or_exit(run_file, file, out, _parse_params(params), seed=seed, warm_start=warm_start,
                                   quiet=quiet, verbose=verbose, force=force, time_limit=time_limit)
     if result.status == "interrupted":
         if not quiet:
             _summary(result, out)
-        sys.exit(130)
+        sys.exit(143 if interrupted_by() == "SIGTERM" else 130)
     if report:
         _make_reports([out], None)
     if not quiet:
@@ -412,15 +412,19 @@ def schema():
               "generated code ($OCDSL_CACHE, default ~/.cache/ocdsl; see docs/architecture.md)")
 def study(file, out, workers, serial, scheduler, resume, force, quiet, no_cache):
     """Run the study: block of FILE (sweep, starts, Monte Carlo) into folder OUT."""
+    from .solve.ipopt import interrupted_by, interruptible
     from .study.run import run_study
 
     _cache_off(no_cache)
 
     try:
-        res = _compile_or_exit(run_study, file, out, workers=workers, serial=serial, scheduler=scheduler,
-                               resume=resume, quiet=quiet, force=force)
+        with interruptible():      # Ctrl-C (SIGTERM): no new point starts; the study is `interrupted`
+            res = _compile_or_exit(run_study, file, out, workers=workers, serial=serial, scheduler=scheduler,
+                                   resume=resume, quiet=quiet, force=force)
     except (ValueError, ConnectionError, OSError) as e:
         raise _SpecFailure(str(e)) from None
+    if getattr(res, "state", None) == "interrupted":
+        sys.exit(143 if interrupted_by() == "SIGTERM" else 130)
     failed = getattr(res, "failed", 0)
     sys.exit(0 if not failed else 1)
 
@@ -449,6 +453,9 @@ def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
         raise _SpecFailure(str(e)) from None
     except ReportError as e:
         raise click.ClickException(str(e)) from None
+    except OSError as e:     # a read-only or full folder: one line (unseen24 F39: a traceback)
+        where = f" in {e.filename}" if e.filename else ""
+        raise click.ClickException(f"the report could not be written{where}: {e.strerror or e}") from None
     for f in files:
         click.echo(f"wrote {f}")
 

@@ -140,6 +140,13 @@ def check_destination(dest: str | os.PathLike, kind: str, *, force: bool = False
     """Raise :class:`FolderError` unless ocdsl may write a ``kind`` folder at ``dest``."""
     dest = Path(dest)
     shown = str(dest)
+    try:
+        _writable_place(dest)
+        dest.lstat()
+    except FileNotFoundError:
+        pass
+    except OSError as e:     # a name the system refuses (too long), a folder it cannot read
+        raise FolderError(f"{shown}: {e.strerror}; choose another --out") from None
     if dest.name in ("", ".", "..") or dest.resolve() == Path(dest.resolve().anchor):
         raise FolderError(f"{shown}: an output folder must be a named folder of its own, "
                           "not '.', '..' or '/' (e.g. --out runs/NAME)")
@@ -172,6 +179,34 @@ def check_destination(dest: str | os.PathLike, kind: str, *, force: bool = False
     if marker["kind"] != kind and not force:
         raise FolderError(f"{shown} holds an earlier ocdsl {marker['kind']} folder, not a {kind}; "
                           "pass --force to replace it, or choose a new --out")
+
+
+# beside ``dest`` ocdsl writes ".NAME.ocdsl-tmp-XXXXXXXX" (``assemble``) and moves the folder it
+# replaces to ".NAME.ocdsl-old-" and 12 hex digits (``swap_into_place``)
+TEMPORARY_EXTRA_BYTES = 24
+NAME_MAX = 255
+
+
+def _writable_place(dest: Path) -> None:
+    """Raise :class:`FolderError` where the folder could not be written at all, before any
+    work: a name with no room for its temporary twin, a file among the folders above it, a
+    read-only or unwritable folder to make it in. Found after the solve, these were
+    tracebacks and the solved result was lost (unseen24: --out under a file, a 250-byte name,
+    a read-only file system, a user's file named `runs`)."""
+    name = os.fsencode(dest.name)
+    if len(name) + TEMPORARY_EXTRA_BYTES > NAME_MAX:
+        raise FolderError(f"{dest}: the folder's name is {len(name)} bytes; at most "
+                          f"{NAME_MAX - TEMPORARY_EXTRA_BYTES} (ocdsl writes it beside itself under a longer "
+                          "temporary name first): choose a shorter --out")
+    parent = dest.absolute().parent
+    while not os.path.lexists(parent) and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise FolderError(f"{dest}: {parent} is a file, not a folder; the output folder cannot be made "
+                          "under it: choose another --out")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise FolderError(f"{dest}: ocdsl cannot write in {parent} (read-only, or no permission); "
+                          "choose another --out")
 
 
 def _names(names: list[str], limit: int = 6) -> str:

@@ -189,6 +189,45 @@ def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_pat
     assert (tmp_path / "run" / "trajectory.csv").exists()
 
 
+def test_sigterm_writes_the_last_iterate_marked_interrupted_and_exits_143(tmp_path):
+    """unseen24: SIGTERM (what `timeout`, systemd and batch schedulers send) ended the process
+    with no run folder at all. It is handled as Ctrl-C is: the folder holds the last iterate."""
+    p = write(tmp_path, UNBOUNDED + "solver: {options: {max_iter: 100000000}}\n")
+    env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
+    proc = subprocess.Popen([sys.executable, "-m", "ocdsl.cli", "run", str(p), "--out", str(tmp_path / "run"),
+                             "--verbose"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    seen = []
+    for line in proc.stdout:
+        seen.append(line)
+        if line.lstrip().startswith("iter") and "objective" in line:
+            break
+    proc.send_signal(signal.SIGTERM)
+    rest, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 143, "".join(seen) + rest
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert saved["status"] == "interrupted" and "SIGTERM" in saved["message"]
+
+
+def test_ctrl_c_stops_a_serial_study(tmp_path):
+    """unseen24: Ctrl-C did not stop `ocdsl study --serial` (every point ran, exit 0). Now the
+    point in hand stops, no other starts, study.json says interrupted, exit 130."""
+    text = BASE.replace("x(tf) == 0.2", "x(tf) == d") + "parameters: {d: 0.2}\n" + \
+        "study:\n  sweep:\n    grid:\n      d: {start: 0.1, stop: 0.3, num: 200}\n"
+    p = write(tmp_path, text)
+    env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
+    proc = subprocess.Popen([sys.executable, "-m", "ocdsl.cli", "study", str(p), "--out", str(tmp_path / "st"),
+                             "--serial", "-q"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    points = tmp_path / "st" / "points"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and not (points.is_dir() and len(list(points.iterdir())) >= 2):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 130, out
+    study = json.loads((tmp_path / "st" / "study.json").read_text())
+    assert study["state"] == "interrupted" and study["counts"]["pending"] > 100, study["counts"]
+
+
 def _descendants(pid: int) -> set[int]:
     children: dict[int, list[int]] = {}
     for d in Path("/proc").iterdir():

@@ -232,3 +232,72 @@ def test_a_warm_start_that_is_not_a_run_folder_is_a_usage_error(tmp_path):
     r = _ocdsl("run", PROBLEM, "--out", tmp_path / "r", "--warm-start", mine, cwd=tmp_path)
     assert r.returncode == 2 and "not a run folder" in r.stderr, r.stderr
     assert not (tmp_path / "r").exists()
+
+
+def test_a_report_never_writes_through_a_linked_figures_folder(tmp_path):
+    """unseen24 V1: with run/figures replaced by a link to the user's own folder, `ocdsl
+    report run` replaced the user's states-0.svg and solver.pdf there (exit 0). Refused now,
+    exit 2, the user's folder byte for byte as it was."""
+    from ocdsl.report.build import make_report
+
+    run = _result("r").write(tmp_path / "run")
+    make_report(run, formats=("html",))
+    assert (run / "figures").is_dir()
+    mine = tmp_path / "paper_figs"
+    mine.mkdir()
+    (mine / "states-0.svg").write_text("my figure")
+    (mine / "keep.txt").write_text("mine")
+    before = {p.name: p.read_bytes() for p in mine.iterdir()}
+    import shutil
+
+    shutil.rmtree(run / "figures")
+    (run / "figures").symlink_to(mine)
+    r = _ocdsl("report", run)
+    assert r.returncode == 2 and "symbolic link" in r.stderr, r.stderr
+    assert {p.name: p.read_bytes() for p in mine.iterdir()} == before
+
+
+def test_an_ipopt_output_file_stays_in_the_run_folder(tmp_path):
+    """unseen24 V2: `solver: {options: {output_file: ipopt.log}}` emptied the user's ipopt.log
+    (and ipopt.2.log) in the working folder, and the run folder kept no log. A relative name
+    now goes into the run folder; an absolute one that exists is refused before any work; a
+    stray ipopt.opt in the working folder is not read."""
+    text = PROBLEM.read_text().split("expect:")[0] + "solver: {options: {output_file: ipopt.log, file_print_level: 5}}\n"
+    (tmp_path / "p.yaml").write_text(text)
+    for name in ("ipopt.log", "ipopt.2.log"):
+        (tmp_path / name).write_text("my notes")
+    (tmp_path / "ipopt.opt").write_text("max_iter 1\n")        # would stop every solve at once
+    r = _ocdsl("run", tmp_path / "p.yaml", "--out", tmp_path / "run", "-q", cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert (tmp_path / "ipopt.log").read_text() == "my notes" == (tmp_path / "ipopt.2.log").read_text()
+    assert "Ipopt" in (tmp_path / "run" / "ipopt.log").read_text()
+    assert json.loads((tmp_path / "run" / "result.json").read_text())["status"] == "optimal"
+    absolute = text.replace("output_file: ipopt.log", f"output_file: {tmp_path / 'ipopt.log'}")
+    (tmp_path / "q.yaml").write_text(absolute)
+    r = _ocdsl("run", tmp_path / "q.yaml", "--out", tmp_path / "run2", "-q", cwd=tmp_path)
+    assert r.returncode == 2 and "q.yaml:" in r.stderr and "exists" in r.stderr, r.stderr
+    assert not (tmp_path / "run2").exists() and (tmp_path / "ipopt.log").read_text() == "my notes"
+
+
+def test_an_output_folder_that_cannot_be_made_is_refused_before_the_solve(tmp_path):
+    """unseen24: --out under a file, a name with no room for its temporary twin, a user's file
+    named `runs`: each was a traceback after the solve, the result lost. Now one line, exit 2,
+    before any work; nothing written."""
+    (tmp_path / "afile").write_text("mine")
+    for out in (tmp_path / "afile" / "sub", tmp_path / ("L" * 250)):
+        r = _ocdsl("run", PROBLEM, "--out", out, "-q", cwd=tmp_path)
+        assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.startswith("Error:"), r.stderr
+    assert "is a file" in _ocdsl("run", PROBLEM, "--out", tmp_path / "afile" / "sub", cwd=tmp_path).stderr
+    assert sorted(os.listdir(tmp_path)) == ["afile"] and (tmp_path / "afile").read_text() == "mine"
+    (tmp_path / "runs").write_text("my runs")           # the default --out is runs/<stem>
+    r = _ocdsl("run", PROBLEM, "-q", cwd=tmp_path)
+    assert r.returncode == 2 and "is a file" in r.stderr and (tmp_path / "runs").read_text() == "my runs"
+
+
+def test_a_problem_file_that_is_not_a_file_is_refused(tmp_path):
+    """unseen24: `check /dev/zero` read until a MemoryError; a named pipe hung."""
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    for path in ("/dev/zero", fifo):
+        r = _ocdsl("check", path, cwd=tmp_path)
+        assert r.returncode == 2 and "not a regular file" in r.stderr, r.stderr

@@ -87,6 +87,9 @@ def bench_case(problem_file: Path, work: Path, runs: int = 3, segments: int | No
         if served:     # the server's own environment, so that its fingerprint matches
             env = {**_serve_env(serve_dir), "OCDSL_CACHE": str(cache_dir), "OCDSL_SERVE_LOG": str(served_log)}
             n = len(served_log.read_text().splitlines()) if served_log.exists() else 0
+        # ocdsl refuses to empty an existing absolute output_file: the last run's logs go first
+        for log in [log_o, *log_o.parent.glob(f"{log_o.stem}.*{log_o.suffix}")]:
+            log.unlink(missing_ok=True)
         r = _run(_ocdsl_cmd() + ["run", str(yml), "--out", str(out), "-q"], work, env)
         if served:
             lines = served_log.read_text().splitlines() if served_log.exists() else []

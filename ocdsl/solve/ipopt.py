@@ -58,19 +58,26 @@ TOO_FEW_HINT = (": the NLP has more equality constraints than free unknowns; a m
 # "desired" (three-phase Goddard: 36 iterations, acceptable), and ocdsl/verify measures a
 # constant state against 1e-3 of its size, which makes it 1e-5: exactly the default verify
 # tolerance. At 1e-9 the same run is optimal and verified, 1.25e-9 from the published value.
+# option_file_name "": Ipopt reads no ipopt.opt from the working folder (a stray one there
+# silently cut every solve to its max_iter 1: unseen24); the file's `solver: options` can
+# still name one
 DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mumps_permuting_scaling": 0,
-                   "bound_relax_factor": 1e-9}
+                   "bound_relax_factor": 1e-9, "option_file_name": ""}
 # Ipopt's ApplicationReturnStatus codes that cyipopt's messages lack ("Unknown status")
 STATUS_CODES = {-4: "time_limit", -5: "time_limit", 5: "interrupted"}
 
 _INTERRUPTED = threading.Event()
+_BY: list[str] = ["Ctrl-C"]
+_SIGNALS = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
 
 
 @contextlib.contextmanager
 def interruptible():
-    """Inside, Ctrl-C (SIGINT) stops the running solve at its next iteration, which returns
-    its last iterate with status ``interrupted``, and later solves do not start; a second
-    Ctrl-C raises KeyboardInterrupt as usual. Only in the main thread (signals go there)."""
+    """Inside, Ctrl-C (SIGINT) or SIGTERM (what `timeout`, systemd and batch schedulers send)
+    stops the running solve at its next iteration, which returns its last iterate with
+    status ``interrupted``, and later solves do not start; a second signal raises
+    KeyboardInterrupt. Before, SIGTERM ended the process with no run folder (unseen24). Only
+    in the main thread (signals go there)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -79,17 +86,25 @@ def interruptible():
     def handler(signum, frame):
         if _INTERRUPTED.is_set():
             raise KeyboardInterrupt
+        _BY[0] = _SIGNALS.get(signum, "a signal")
         _INTERRUPTED.set()
 
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = {sig: signal.signal(sig, handler) for sig in _SIGNALS}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+        _INTERRUPTED.clear()      # what was interrupted has said so; the next command starts afresh
 
 
 def interrupted() -> bool:
     return _INTERRUPTED.is_set()
+
+
+def interrupted_by() -> str:
+    """What interrupted the run: "Ctrl-C" or "SIGTERM"."""
+    return _BY[0]
 
 # the run's wall-clock deadline (time.monotonic()), set by ``time_limit``; every solve
 # gets the time left as Ipopt's max_wall_time
@@ -367,7 +382,7 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         return out
 
     if interrupted():
-        return SolveInfo("interrupted", "interrupted (Ctrl-C) before this solve", 0, None, 0.0)
+        return SolveInfo("interrupted", f"interrupted ({interrupted_by()}) before this solve", 0, None, 0.0)
     deadline = _DEADLINE.get()
     if deadline is not None and deadline[0] - time.monotonic() <= 0:
         return SolveInfo("time_limit", f"the run's time limit of {deadline[1]:g} s was reached before "
@@ -466,7 +481,7 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
         msg += " (as many equations as free unknowns: its one feasible point is the NLP's optimum)"
     if interrupted() and status in ("interrupted", "error"):
         status = "interrupted"
-        msg = f"interrupted (Ctrl-C) at iteration {history[-1][0] if history else 0}; the last iterate is written"
+        msg = f"interrupted ({interrupted_by()}) at iteration {history[-1][0] if history else 0}; the last iterate is written"
     if status == "time_limit":
         wall = opts.get("max_wall_time")
         given = f" (this solve had {float(wall):.3g} s: the run's solver: time_limit, or max_wall_time)" if wall else ""

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import re
 
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -64,10 +65,17 @@ def load_yaml(path: str | Path) -> Located:
     path = Path(path)
     name = str(path)
     try:
-        if path.is_file() and path.stat().st_size > MAX_FILE_BYTES:
+        if not stat.S_ISREG(path.stat().st_mode):
+            # a device reads for ever (/dev/zero: a MemoryError), a pipe is read once and then
+            # hangs the second reading (unseen24): problem files are files
+            raise SpecError([Issue(name, None, "not a regular file (a folder, a device or a pipe): give the "
+                                               "problem file itself (save piped text to a file first)")])
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
             raise SpecError([Issue(name, None, f"file larger than {MAX_FILE_BYTES:,} bytes "
                                    f"({path.stat().st_size:,}); a problem file is a few kB")])
-        text = path.read_text()
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise SpecError([Issue(name, None, "file not found")]) from None
     except (OSError, UnicodeDecodeError) as e:

@@ -249,9 +249,15 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
     inflight: dict[Any, str] = {}
     session = uuid.uuid4().hex[:8]
     state = "interrupted"
+    from ..solve.ipopt import interrupted
+
     try:
         progress.update(table.counts(), 0, table.best())
         while ready or inflight:
+            if interrupted():
+                # Ctrl-C or SIGTERM (``interruptible``, set by the CLI): the point in hand has
+                # stopped and been recorded; no new one starts (unseen24: `--serial` ran all 8 to the end)
+                break
             while ready and len(inflight) < ex.capacity:
                 _, pid = heapq.heappop(ready)
                 p = by_id[pid]
@@ -294,7 +300,7 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
                     heapq.heappush(ready, (order[child], child))
                 table.write("running", extra)
             progress.update(table.counts(), min(len(inflight), ex.workers), table.best())
-        state = "complete"
+        state = "interrupted" if interrupted() else "complete"
     finally:
         if inflight:
             ex.cancel(list(inflight))

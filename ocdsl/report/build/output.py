@@ -64,6 +64,15 @@ def _output_folder(out_dir: Path, names: Sequence[str]) -> None:
     ocdsl did not write (ocdsl/run_folder.py): in an ocdsl folder, a report file that exists
     must be one its marker lists (unseen12 F1: a report.html the user put in a run folder was
     replaced); in a run folder of an ocdsl from before the marker, none may exist."""
+    # a folder of the report's (figures/) that is a link: writing into it, or clearing an
+    # earlier report's figures there, would reach the user's own folder (unseen24 V1: the
+    # user's states-0.svg and solver.pdf replaced through run/figures -> ../paper_figs)
+    linked = sorted({Path(n).parts[0] for n in names
+                     if len(Path(n).parts) > 1 and (out_dir / Path(n).parts[0]).is_symlink()})
+    if linked:
+        raise ReportFolderError(f"{out_dir / linked[0]} is a symbolic link (to {os.readlink(out_dir / linked[0])}); "
+                                "ocdsl writes its report's files only into folders it made: remove the link, or "
+                                "write the report elsewhere with --out")
     marker = run_folder.read_marker(out_dir) if out_dir.is_dir() else None
     if marker is not None or (out_dir / "result.json").is_file():
         listed = set(marker.get("entries", [])) if marker else set()
