@@ -83,6 +83,15 @@ CASES = [
      "`'` is not allowed in an expression (`x'`): derivatives are written in `dynamics:`"),
     ("British spelling of minimize", ("objective: minimize tf", "objective: minimise tf"), 17,
      "`minimize EXPR` or `maximize EXPR` (did you mean 'minimize'?)"),
+    # unseen24: each passed `check` or gave a misleading message
+    ("integral inside an integral", ("objective: minimize tf", "objective: minimize integral(integral(u**2))"),
+     17, "an integral inside an integral is not allowed"),
+    ("a Python keyword as a name", ("states: [x, v]", "states: [x, lambda]"), 3, "not a valid state name"),
+    ("a YAML boolean as a name", ("states: [x, v]", "states: [x, no]"), 3, "quote the name"),
+    ("a linear solver not installed", ("method: {", "solver: {options: {linear_solver: ma57}}\nmethod: {"), 18,
+     "linear_solver ma57: its library"),
+    ("a mesh beyond any machine", ("segments: 4, degree: 3", "segments: 100000000, degree: 3"), 18,
+     "segments must be at most"),
 ]
 
 

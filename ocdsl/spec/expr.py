@@ -8,6 +8,7 @@ relations the comparisons ``<=``, ``>=``, ``==`` (chains allowed).
 from __future__ import annotations
 
 import ast
+import keyword
 import math
 import re
 from dataclasses import dataclass, field
@@ -28,7 +29,10 @@ FUNCTIONS: dict[str, tuple[Callable, int]] = {
 # functions of vectors (declared vector groups, vector expressions or [a, b, c] literals)
 VECTOR_FUNCTIONS = {"norm": 1, "dot": 2, "cross": 2}
 CONSTANTS = {"pi": sp.pi, "inf": sp.oo}
-RESERVED = set(FUNCTIONS) | set(VECTOR_FUNCTIONS) | set(CONSTANTS) | {"integral", "t", "t0", "tf", "continuous"}
+# Python's keywords too: the parser reads expressions as Python (a state `lambda` made
+# `lambda(t0)` a syntax error about lambda expressions: unseen24)
+RESERVED = (set(FUNCTIONS) | set(VECTOR_FUNCTIONS) | set(CONSTANTS) | {"integral", "t", "t0", "tf", "continuous"}
+            | set(keyword.kwlist))
 MAX_EXPONENT = 64          # larger literal exponents are almost surely typos or attacks
 MAX_TEXT = 20_000
 # Input limits (docs/problem-language.md): nesting counts calls, powers, unary minus and
@@ -402,6 +406,12 @@ class _Builder:
                 raise self.fail("integral(...) is not allowed here")
             if len(node.args) != 1:
                 raise self.fail("integral takes one argument")
+            inner = next((n for n in ast.walk(node.args[0]) if isinstance(n, ast.Call)
+                          and isinstance(n.func, ast.Name) and n.func.id == "integral"), None)
+            if inner is not None:     # unseen24: passed `check`, then a NameError in the run
+                raise self.fail(f"'{ast.unparse(node)}': an integral inside an integral is not allowed; make "
+                                f"the inner one a state (z: {ast.unparse(inner.args[0]) if inner.args else '...'} "
+                                "in the dynamics, z(t0) == 0) and integrate z")
             integrand = self.build(node.args[0])
             if is_vector(integrand):
                 raise self.fail("integral(...) takes a number, not a vector")

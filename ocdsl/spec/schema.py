@@ -266,6 +266,10 @@ class PseudospectralMethod(Strict):
         if isinstance(v, int):
             if v < 1:
                 raise ValueError("segments must be at least 1")
+            if v > MAX_SEGMENTS:
+                # unseen24: 100,000,000 passed `check`, and the build took 4 GB within 46 s
+                raise ValueError(f"segments must be at most {MAX_SEGMENTS:,} (about 4 million NLP variables "
+                                 "per state at degree 4); a finer solution: `mesh:` refines where it is needed")
         else:
             if len(v) < 2 or v[0] != 0 or v[-1] != 1 or any(b <= a for a, b in zip(v, v[1:])):
                 raise ValueError("breakpoints must increase from 0 to 1, e.g. [0, 0.5, 1]")
@@ -278,6 +282,9 @@ class PseudospectralMethod(Strict):
         if any(d < 1 or d > 60 for d in vals):
             raise ValueError("degree must be between 1 and 60")
         return v
+
+
+MAX_SEGMENTS = 1_000_000
 
 
 class SolverSpec(Strict):
@@ -302,9 +309,27 @@ class SolverSpec(Strict):
                 out[name] = ipopt_option_value(str(name), value, known)
             except ValueError as e:
                 problems.append(str(e))
+        missing = _missing_linear_solver(out.get("linear_solver"))
+        if missing:
+            problems.append(missing)
         if problems:
             raise ValueError("; ".join(problems))
         return out
+
+
+def _missing_linear_solver(name) -> str | None:
+    """Why Ipopt cannot use ``linear_solver: name`` here, or None. The bundled Ipopt has MUMPS;
+    the HSL solvers and Pardiso are loaded at run time from libraries a user may install
+    (libhsl, libcoinhsl, libpardiso). Without them the run ended with Ipopt's bare "Invalid
+    option encountered." after `check` said ok (unseen24)."""
+    import ctypes.util
+
+    libraries = {"ma27": ("hsl", "coinhsl"), "ma57": ("hsl", "coinhsl"), "ma77": ("hsl", "coinhsl"),
+                 "ma86": ("hsl", "coinhsl"), "ma97": ("hsl", "coinhsl"), "pardiso": ("pardiso", "pardisomkl")}
+    if name not in libraries or any(ctypes.util.find_library(lib) for lib in libraries[name]):
+        return None
+    return (f"linear_solver {name}: its library ({' or '.join('lib' + lib for lib in libraries[name])}) is not "
+            "installed here; the bundled Ipopt has mumps (the default)")
 
 
 @lru_cache(maxsize=1)

@@ -137,6 +137,9 @@ def _issue_from_pydantic(located: Located, err: dict, root: tuple | None = None)
         msg = f"missing required key '{loc[-1]}'"
     elif err["type"] == "list_type" and loc and loc[-1] in DECLARED_LISTS:
         msg = f"a list of names is expected, e.g. {loc[-1]}: [{_example_names(err.get('input'))}]"
+    elif err["type"] == "string_type" and isinstance(err.get("input"), bool):
+        # YAML 1.1 reads yes/no/on/off/true/false unquoted as booleans (unseen24: a state `no`)
+        msg += "; YAML reads an unquoted yes, no, on, off, true or false as a boolean: quote the name ('no')"
     if loc and isinstance(loc[-1], str) and ("(" in loc[-1]) != (")" in loc[-1]):
         # YAML split `{a: f(x, y)}` at the comma: the tail became a key
         msg += "; inside { } a comma ends the value: quote an expression with commas, e.g. {a: 'f(x, y)'}"
