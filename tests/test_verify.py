@@ -563,3 +563,22 @@ def test_a_miss_on_a_nearly_constant_state_is_given_in_its_units():
     assert res.objective == pytest.approx(0.9375, rel=1e-6) and not res.verified
     summary = res.verification["summary"]
     assert "x is nearly constant over the phase" in summary and "in its units" in summary, summary
+
+
+def test_an_objective_that_vanishes_is_measured_against_its_integrands_first_order_size():
+    """unseen23 FA1: x' = u x, minimise integral((1 - u) x), 0 <= u <= 1: J* = 0 at u = 1. The
+    solver's J is -1.6e-9 (u 9e-10 over its bound, Ipopt's bound relaxation), the flight's 0,
+    and the objective check divided by the integral of |integrand|, about 0: 'not verified:
+    objective 1.57e+03', exit 1. Against the integrand's first-order size (|x| times u's range)
+    it passes; a J off by 1e-4 still fails."""
+    import copy
+
+    from ocdsl.api import run_file
+
+    path = Path(__file__).parent / "data" / "zero_optimum_integral.yaml"
+    res = run_file(path, None)
+    assert abs(res.objective) < 1e-8 and res.verification["status"] == "verified", res.verification["summary"]
+    wrong = copy.deepcopy(res)
+    wrong.objective = res.objective + 1e-4
+    v = verify_result(compile_file(path).problem, wrong, VerifySettings(tolerance=1e-5))
+    assert v["status"] == "failed" and any(c["name"] == "objective" and not c["passed"] for c in v["checks"])

@@ -34,8 +34,8 @@ import sympy as sp
 
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
-from .checks import (RESOLUTION, evaluate, irregular_controls, path_scales, relative_violation, row,
-                     sensitivity_scale, state_scale, worst)
+from .checks import (RESOLUTION, evaluate, integral_scales, irregular_controls, path_scales, relative_violation,
+                     row, sensitivity_scale, state_scale, worst)
 from .admissible import project, row_values
 from .functions import PhaseFunctions, between_points, controls_at
 from .integrate import IntegrationFailure, reintegrate, time_budget
@@ -285,8 +285,7 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
     scale_x = state_scale(X)
     nq = len(funcs.integral_symbols)
     if nq:
-        Q = np.abs(funcs.q(t, X, controls_at(uf, t, X)))
-        scale_q = np.maximum(np.trapezoid(Q, t, axis=0), 1e-12)
+        scale_q = integral_scales(funcs, t, X, controls_at(uf, t, X), scale_x, ubounds)
     else:
         scale_q = np.zeros(0)
     scale = np.concatenate([scale_x, scale_q])
