@@ -14,10 +14,10 @@ from ..arcs import free_final_times
 from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, flight_rtol, phase_end, segment_ends
 from .junction import limit_junction_controls
-from .flown import beaten_meshes, refuted_corners, with_breakpoints
+from .flown import announce_again, beaten_meshes, refined_again, refuted_corners, with_breakpoints
 from .locate import locate_features, locate_switches, misplaced
 from .confirm import confirm
-from .outcome import GOOD, _objective_disagreement, outcome
+from .outcome import GOOD, _objective_disagreement, outcome, record
 from .refine import MeshStalled, refine, same_mesh
 from .switches import solve_switch_times
 from .regularise import chattering_segments, merge_intervals, regularise
@@ -78,7 +78,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     """Solve with adaptive mesh refinement; returns a Result with the mesh history. ``pinned``
     (phase -> normalised times every mesh keeps as features), ``first`` (start meshes) and
     ``start`` (start trajectories): the refinement once more after the flown control refuted
-    the first answer (flown.py)."""
+    the first answer (flown.py), a second pass of at most max_iterations meshes whose record
+    follows the first's."""
     import pyomo.core as pyo
 
     from ...run import _result
@@ -567,29 +568,12 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                        f"{result.certificate['flown_control']['flown']:.10g}; their estimates missed a corner or a switch)")
     corners = refuted_corners(result, spec.tolerance) if pinned is None and status == "optimal" else {}
     if corners:
-        shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
-        flown = result.certificate["flown_control"]
-        why = (f"the control the minimum principle flies beats J = {info_c.objective:.10g}"
-               if not flown.get("inconclusive") else
-               f"the control that minimises H predicts a gain of {flown['predicted_gain']:.1e} over J = "
-               f"{info_c.objective:.10g} (its flight proves nothing)")
-        say(progress, f"mesh: {why}; refining again with breakpoints kept at {shown} (normalised time)")
+        say(progress, announce_again(result, corners, info_c.objective))
         again = solve_adaptive(file, timer, seed=seed, verbose=verbose, progress=progress, pinned=corners,
                                first={k: with_breakpoints(m, corners.get(k, []), spec.corner_tolerance)
                                       for k, m in meshes_c.items()},
                                start={ph.name: ph for ph in result.phases})
-        beat = (f"which the control the minimum principle flies beat (J = {flown['flown']:.10g})"
-                if not flown.get("inconclusive") else
-                f"where the control that minimises H predicted a gain of {flown['predicted_gain']:.1e} "
-                "that its flight did not realise")
-        again.extra.setdefault("notes", []).append(
-            f"the first refinement ended at J = {flown['claimed']:.10g} (mesh iteration {it_c}), {beat}; "
-            f"refined again with breakpoints kept where that control reaches or leaves a bound ({shown}, "
-            "normalised time)")
-        again.extra["first_refinement"] = {"objective": flown["claimed"], "flown": flown.get("flown"),
-                                           "predicted_gain": flown.get("predicted_gain"),
-                                           "iterations": len(history), "corners": corners}
-        return again
+        return refined_again(again, result, corners, history, tables, it_c)
     result.status = status
     # one starting mesh in the record (both pairs were echoed, the unused one as defaults: unseen6)
     for key in ("segments", "degree"):
@@ -600,32 +584,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
                       + (f"; {terminal_notes[-1]}" if terminal_notes else ""))
     result.iterations = sum(h["ipopt_iterations"] for h in history)
-    err_tab = {k: [] for k in ("phase", "segment", "t_start", "t_end", "degree", "error",
-                               "discrepancy", "violation", "nonsmooth")}
-    names = [ph.name for ph in problem.phases]
-    for es in errors_c.values():
-        for e in es:
-            for key in err_tab:
-                v = getattr(e, key)
-                err_tab[key].append(names.index(v) if key == "phase" else float(v))
-    result.extra["mesh_history"] = history
-    if confirmed.unregularised is not None:
-        result.extra["unregularised"] = confirmed.unregularised.record()
-    if confirmed.bisection is not None:
-        result.extra["bisection"] = confirmed.bisection.record()
-    if notes:
-        result.extra["notes"] = notes
-    if start_records:
-        result.extra["starts"] = start_records     # the first mesh's starts (refined from the best)
-    result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
-                            "chosen_status": info_c.status,
-                            "symbolic_notes": list(dict.fromkeys(budget.notes)),
-                            "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),
-                            "max_error": max_err,
-                            "error_map": {ph: [[e.t_start, e.t_end, e.error] for e in es]
-                                          for ph, es in errors_c.items()}}
-    result.tables["mesh_history"] = {k: np.asarray(v) for k, v in tables.items()}
-    result.tables["mesh_error"] = {k: np.asarray(v) for k, v in err_tab.items()}
+    record(result, problem, spec, status, history, tables, errors_c, max_err, it_c, info_c, budget.notes,
+           confirmed, notes, start_records)
     result.wall_time_s = timer.breakdown()
     stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result

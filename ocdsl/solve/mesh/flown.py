@@ -78,3 +78,54 @@ def with_breakpoints(mesh, points, tolerance: float):
         bps.insert(k + 1, p)
         degrees.insert(k, degrees[k])
     return Mesh(mesh.scheme_name, np.asarray(bps), tuple(degrees))
+
+
+def _continued(again, history: list, tables: dict) -> None:
+    """The second refinement's record after the first's: one history, iterations numbered on."""
+    n = len(history)
+    later = again.extra.get("mesh_history") or []
+    for rec in later:
+        rec["iteration"] = rec.get("iteration", 0) + n
+    again.extra["mesh_history"] = history + later
+    mesh = again.extra.get("mesh")
+    if isinstance(mesh, dict):
+        mesh["iterations"] = n + int(mesh.get("iterations", 0))
+        if mesh.get("chosen_iteration") is not None:
+            mesh["chosen_iteration"] = int(mesh["chosen_iteration"]) + n
+    old = again.tables.get("mesh_history") or {}
+    if old and all(k in tables for k in old):
+        first = {k: np.asarray(tables[k]) for k in old}
+        if "iteration" in first:
+            old = {**old, "iteration": np.asarray(old["iteration"]) + n}
+        again.tables["mesh_history"] = {k: np.concatenate([first[k], np.asarray(old[k])]) for k in old}
+
+
+def announce_again(result, corners: dict, objective: float) -> str:
+    """The progress line of a second refinement with ``corners`` kept."""
+    shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
+    flown = result.certificate["flown_control"]
+    why = (f"the control the minimum principle flies beats J = {objective:.10g}"
+           if not flown.get("inconclusive") else
+           f"the control that minimises H predicts a gain of {flown['predicted_gain']:.1e} over J = "
+           f"{objective:.10g} (its flight proves nothing)")
+    return f"mesh: {why}; refining again with breakpoints kept at {shown} (normalised time)"
+
+
+def refined_again(again, result, corners: dict, history: list, tables: dict, chosen: int):
+    """``again`` (the second refinement, with ``corners`` kept) recorded after the first (its
+    ``history`` and ``tables``; ``result`` its answer at mesh iteration ``chosen``)."""
+    _continued(again, history, tables)
+    shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
+    flown = result.certificate["flown_control"]
+    beat = (f"which the control the minimum principle flies beat (J = {flown['flown']:.10g})"
+            if not flown.get("inconclusive") else
+            f"where the control that minimises H predicted a gain of {flown['predicted_gain']:.1e} "
+            "that its flight did not realise")
+    again.extra.setdefault("notes", []).append(
+        f"the first refinement ended at J = {flown['claimed']:.10g} (mesh iteration {chosen}), {beat}; "
+        f"refined again with breakpoints kept where that control reaches or leaves a bound ({shown}, "
+        "normalised time)")
+    again.extra["first_refinement"] = {"objective": flown["claimed"], "flown": flown.get("flown"),
+                                       "predicted_gain": flown.get("predicted_gain"),
+                                       "iterations": len(history), "corners": corners}
+    return again

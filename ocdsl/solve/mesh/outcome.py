@@ -120,3 +120,37 @@ def _features_shown(off: dict) -> str:
     """Features per phase as a user reads them: normalised time is 0 at t0 and 1 at tf."""
     parts = [f"phase '{k}' at " + ", ".join(f"{v:.6g}" for v in vs) for k, vs in off.items() if vs]
     return "; ".join(parts) + " (normalised time: 0 at t0, 1 at tf)"
+
+
+def record(result, problem, spec, status: str, history: list, tables: dict, errors_c: dict, max_err: float,
+           it_c: int, info_c, symbolic_notes: list, confirmed, notes: list, start_records: list) -> None:
+    """The refinement's record in ``result``: its history, the chosen mesh's errors (table
+    ``mesh_error`` and ``extra.mesh``), the confirmation's checks, notes and first starts."""
+    import numpy as np
+
+    err_tab = {k: [] for k in ("phase", "segment", "t_start", "t_end", "degree", "error",
+                               "discrepancy", "violation", "nonsmooth")}
+    names = [ph.name for ph in problem.phases]
+    for es in errors_c.values():
+        for e in es:
+            for key in err_tab:
+                v = getattr(e, key)
+                err_tab[key].append(names.index(v) if key == "phase" else float(v))
+    result.extra["mesh_history"] = history
+    if confirmed.unregularised is not None:
+        result.extra["unregularised"] = confirmed.unregularised.record()
+    if confirmed.bisection is not None:
+        result.extra["bisection"] = confirmed.bisection.record()
+    if notes:
+        result.extra["notes"] = notes
+    if start_records:
+        result.extra["starts"] = start_records     # the first mesh's starts (refined from the best)
+    result.extra["mesh"] = {"tolerance": spec.tolerance, "iterations": len(history), "chosen_iteration": it_c,
+                            "chosen_status": info_c.status,
+                            "symbolic_notes": list(dict.fromkeys(symbolic_notes)),
+                            "converged": status == "optimal" or (status in GOOD and max_err <= spec.tolerance),
+                            "max_error": max_err,
+                            "error_map": {ph: [[e.t_start, e.t_end, e.error] for e in es]
+                                          for ph, es in errors_c.items()}}
+    result.tables["mesh_history"] = {k: np.asarray(v) for k, v in tables.items()}
+    result.tables["mesh_error"] = {k: np.asarray(v) for k, v in err_tab.items()}
