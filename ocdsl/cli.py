@@ -131,17 +131,14 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
 def _check_warm_start(folder: Path) -> None:
     """A warm start is a run folder with a trajectory; anything else is a usage error before
     any work (unseen12 F7: a failed run folder was written, exit 1)."""
-    from .result import Result
+    from .result import unusable_start
 
     if not (folder / "result.json").is_file():
         raise _SpecFailure(f"--warm-start {folder}: not a run folder (no result.json)"
                            + ("; a study's points are run folders of their own" if (folder / "points").is_dir() else ""))
-    try:
-        phases = Result.read(folder).phases
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise _SpecFailure(f"--warm-start {folder}: its result.json cannot be read ({e})") from None
-    if not phases:
-        raise _SpecFailure(f"--warm-start {folder}: that run has no trajectory to start from")
+    why = unusable_start(folder)
+    if why:
+        raise _SpecFailure(f"--warm-start {folder}: {why}")
 
 
 def _cache_off(no_cache: bool) -> None:

@@ -288,6 +288,28 @@ def _column(values) -> np.ndarray:
     return a if a.dtype.kind in "US" else a.astype(str) if a.dtype.kind == "O" else a.astype(float)
 
 
+def unusable_start(run_dir: str | os.PathLike) -> str | None:
+    """Why the run folder ``run_dir`` cannot start another run (``--warm-start``, ``guess:
+    {from:}``), or None: its result.json or trajectory unreadable, no trajectory, a column that
+    is not numbers, fewer than two rows with finite times. Found later, these were raw
+    TypeError / IndexError messages in a failed run folder (unseen24)."""
+    try:
+        phases = Result.read(run_dir).phases
+    except (OSError, ValueError, KeyError, TypeError, IndexError, UnicodeDecodeError) as e:
+        return f"its result.json or trajectory cannot be read ({e})"
+    if not phases:
+        return "that run has no trajectory to start from"
+    for ph in phases:
+        columns = {"time": ph.time, **ph.states, **ph.controls}
+        text = [n for n, v in columns.items() if np.asarray(v).dtype.kind not in "fiu"]
+        if text:
+            return f"phase {ph.name!r}: its column(s) {', '.join(text)} hold text, not numbers"
+        t = np.asarray(ph.time, float)
+        if np.isfinite(t).sum() < 2:
+            return f"phase {ph.name!r}: fewer than two rows with a finite time"
+    return None
+
+
 def read_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read a run-folder CSV into column arrays: numbers (empty cells become NaN), or text
     where a cell is not a number."""

@@ -234,6 +234,26 @@ def test_a_warm_start_that_is_not_a_run_folder_is_a_usage_error(tmp_path):
     assert not (tmp_path / "r").exists()
 
 
+def test_a_warm_start_whose_trajectory_is_not_numbers_is_a_usage_error(tmp_path):
+    """unseen24: a run folder whose trajectory.csv holds text, or a single row, started a run
+    that failed with a raw TypeError / IndexError. Both `--warm-start` and `guess: {from:}`
+    now say what is wrong with it, exit 2, nothing written."""
+    run = _result("r").write(tmp_path / "run")
+    csv = (run / "trajectory.csv").read_text().splitlines()
+    (run / "trajectory.csv").write_text("\n".join([csv[0], csv[1].replace(csv[1].split(",")[1], "abc", 1)]
+                                                 + csv[2:]) + "\n")
+    r = _ocdsl("run", PROBLEM, "--out", tmp_path / "a", "--warm-start", run, cwd=tmp_path)
+    assert r.returncode == 2 and "hold text, not numbers" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    (run / "trajectory.csv").write_text("\n".join(csv[:2]) + "\n")
+    r = _ocdsl("run", PROBLEM, "--out", tmp_path / "b", "--warm-start", run, cwd=tmp_path)
+    assert r.returncode == 2 and "fewer than two rows" in r.stderr, r.stderr
+    text = PROBLEM.read_text().replace("  objective: minimize tf\n", f"  objective: minimize tf\n  guess: {{from: {run}}}\n")
+    (tmp_path / "g.yaml").write_text(text)
+    r = _ocdsl("check", tmp_path / "g.yaml", cwd=tmp_path)
+    assert r.returncode == 2 and "g.yaml:" in r.stderr and "fewer than two rows" in r.stderr, r.stderr
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
 def test_a_report_never_writes_through_a_linked_figures_folder(tmp_path):
     """unseen24 V1: with run/figures replaced by a link to the user's own folder, `ocdsl
     report run` replaced the user's states-0.svg and solver.pdf there (exit 0). Refused now,

@@ -48,6 +48,12 @@ def check_guess(path: Path, guess, loc: tuple, issue: Callable[[tuple, str], Non
         if not (target / "result.json").exists():
             issue(loc + ("guess", "from"), f"guess from '{source}': no run folder there "
                   f"(looked for {target / 'result.json'})")
+        else:
+            from ..result import unusable_start
+
+            why = unusable_start(target)
+            if why:
+                issue(loc + ("guess", "from"), f"guess from '{source}': {why}")
         return
     if not target.is_file():
         issue(loc + ("guess", "from"), f"guess from '{source}': no such problem file (looked for {target})")
