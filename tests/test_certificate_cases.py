@@ -794,3 +794,15 @@ def test_a_second_refinement_pass_is_recorded_after_the_first():
     assert [h["iteration"] for h in history] == list(range(1, len(history) + 1))
     assert res.extra["mesh"]["iterations"] == len(history) > first and len(history) - first <= 14
     assert len(res.tables["mesh_history"]["iteration"]) >= len(history)
+
+
+def test_a_stalled_refinement_names_only_path_constraints_that_bind():
+    """unseen23 n10: a refinement that ran out of iterations on a box-bound corner advised on
+    "path constraints that bound" the control, naming x + u <= 100, which never binds (x <= 2
+    there). The hint now names only constraints at their bound on the reported mesh."""
+    res = run_file(DATA / "sat_lq_inactive_path.yaml", None)
+    if res.status == "mesh_not_converged":
+        assert "x + u <= 100" not in res.message
+    from ocdsl.solve.mesh.outcome import _path_bound_hint
+
+    assert "x + u <= 100" in _path_bound_hint(compile_file(DATA / "sat_lq_inactive_path.yaml").problem)

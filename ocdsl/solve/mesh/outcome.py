@@ -4,18 +4,28 @@ from __future__ import annotations
 GOOD = ("optimal", "acceptable")
 
 
-def _path_bound_hint(problem) -> str:
+def _path_bound_hint(problem, tr=None) -> str:
     """What to do when a control is bounded by path constraints (`u <= 1 + x`, `-p <= u <= p`):
     the switch locators and the switch-time solves know box bounds only, so a control that
     switches between two such constraints is refined around, never located (unseen11 F2:
-    12 meshes, tf 1.1e-3 off; written with a box-bounded control, converged to 1e-12)."""
+    12 meshes, tf 1.1e-3 off; written with a box-bounded control, converged to 1e-12). With
+    the reported mesh's transcription ``tr``, only constraints that bind on it are named (a
+    never-binding x + u <= 100 was blamed: unseen23)."""
     import sympy as sp
 
+    binding = None
+    if tr is not None:
+        try:
+            from ..arcs import _binding_rows
+
+            binding = {text for _pb, rows in _binding_rows(tr) for text, _s in rows}
+        except Exception:  # noqa: BLE001  (a hint: without the solution every candidate is named)
+            binding = None
     texts = []
     for ph in problem.phases:
         controls = set(ph.controls)
         for c in ph.path:
-            if c.is_equality:
+            if c.is_equality or (binding is not None and (c.text or str(c.expr)) not in binding):
                 continue
             e = sp.sympify(ph.substitute(c.expr))
             used = e.free_symbols & controls
@@ -112,7 +122,7 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
                    f"largest estimated error {max_err:.3e} {where}. "
                    + (f"Stopped early because {stalled}." if stalled else
                       "Raise max_iterations or max_degree, or loosen the tolerance.")
-                   + _path_bound_hint(problem))
+                   + _path_bound_hint(problem, _tr))
     return status, chosen, message, disagree, stalled
 
 
