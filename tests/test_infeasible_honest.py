@@ -121,9 +121,12 @@ def test_a_feasible_point_of_the_relaxed_problem_is_where_the_problem_is_solved_
     starts = res.extra["starts"]
     assert [s["status"] for s in starts[:2]] == ["infeasible", "infeasible"]
     assert starts[-1].get("from_feasible_point") and starts[-1]["status"] == "optimal"
-    assert res.status == "optimal" and "Solved from a feasible point" in res.message, res.message
-    # the coarse mesh's own optimum (its verification is the mesh's business, not this test's)
+    # the coarse mesh's own optimum, 0.35 % above Pontryagin's: since unseen23 the flown control's
+    # contradiction (a predicted gain its feasible flight did not realise) lets the bisection
+    # judge J, which moves by 6.5e-3 on bisection: the run says so instead of `optimal`
     assert abs(res.objective - OSCILLATOR_TF) < 1e-2 * OSCILLATOR_TF
+    assert res.status == "mesh_not_converged" and res.extra["bisection"]["agrees"] is False, res.message
+    assert res.certificate["flown_control"].get("inconclusive"), res.certificate["flown_control"]
     m = tmp_path / "m.yaml"
     m.write_text(OSCILLATOR.replace("starts: STARTS", "starts: 4, mesh: {tolerance: 1.0e-7, max_iterations: 12}"))
     res = run_file(m, None)

@@ -70,12 +70,10 @@ def load_yaml(path: str | Path) -> Located:
             # hangs the second reading (unseen24): problem files are files
             raise SpecError([Issue(name, None, "not a regular file (a folder, a device or a pipe): give the "
                                                "problem file itself (save piped text to a file first)")])
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_FILE_BYTES + 1)
-        if len(data) > MAX_FILE_BYTES:
+        if path.stat().st_size > MAX_FILE_BYTES:
             raise SpecError([Issue(name, None, f"file larger than {MAX_FILE_BYTES:,} bytes "
                                    f"({path.stat().st_size:,}); a problem file is a few kB")])
-        text = data.decode("utf-8")
+        text = path.read_text()
     except FileNotFoundError:
         raise SpecError([Issue(name, None, "file not found")]) from None
     except (OSError, UnicodeDecodeError) as e:
