@@ -90,6 +90,7 @@ CASES = [
     ("a YAML boolean as a name", ("states: [x, v]", "states: [x, no]"), 3, "quote the name"),
     ("a linear solver not installed", ("method: {", "solver: {options: {linear_solver: ma57}}\nmethod: {"), 18,
      "linear_solver ma57: its library"),
+    ("not-equal relation", ("- -1 <= u <= 1", "- u != 1"), 11, "`!=` is not a constraint"),
     ("a mesh beyond any machine", ("segments: 4, degree: 3", "segments: 100000000, degree: 3"), 18,
      "segments must be at most"),
 ]

@@ -113,6 +113,11 @@ def parse_relation(text: str, scope: Scope) -> list[Relation]:
     sizes = {len(t) for t in terms if is_vector(t)}
     if len(sizes) > 1:
         raise ExprError(f"vectors of different sizes {sorted(sizes)} in one relation", str(text))
+    if any(isinstance(op, ast.NotEq) for op in tree.ops):
+        # unseen24: `x(t0) != 1` got the message about < and >
+        raise ExprError("`!=` is not a constraint an optimiser can keep (the points it excludes have no "
+                        "neighbourhood): write the side you mean, e.g. `x(t0) >= 1.1` or `x(t0) <= 0.9`",
+                        str(text))
     if any(type(op) not in ops for op in tree.ops):
         raise ExprError("only <=, >= and == are allowed in relations (strict < and > have no "
                         "meaning for a continuous optimiser)", str(text))
@@ -195,7 +200,8 @@ def _parse(text: str | int | float) -> ast.expr:
                     "in the model's units; `units:` labels them), and a product needs *")
         raise ExprError(f"syntax error ({e.msg}){hint}", text) from None
     except (RecursionError, MemoryError, ValueError) as e:   # Python's own parser limits
-        raise ExprError(f"expression too long or nested too deeply for the parser ({type(e).__name__})",
+        raise ExprError(f"expression too long or nested too deeply for the parser ({type(e).__name__}); a sum "
+                        "or product of more than about 1,500 terms is: split it into named expressions",
                         text[:60]) from None
     _check_nesting(tree, text)
     return tree
