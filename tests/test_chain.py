@@ -228,3 +228,14 @@ def test_a_previous_runs_values_outside_the_bounds_are_clipped_into_them(tmp_pat
     g = make_guess(file.problem, ph, prev)
     assert np.all(np.abs(g.v_table["u"]) <= 1.0) and np.isclose(np.abs(g.v_table["u"]), 1.0).all()
     assert np.array_equal(g.v_table["x"], 1.0 - t)       # inside its bounds: as it was
+
+
+def test_a_guess_from_a_source_that_failed_is_noted_where_the_user_reads(tmp_path):
+    """unseen23 w12: a chained source that ended infeasible was used as the guess with no word
+    outside result.json (`extra.chain[0].source_status`). The run's notes say so now."""
+    bad = SOURCE.replace("x(t0) == 1", "x(t0) == 0").replace("x(tf) == 0", "x(tf) == 50")    # beyond |u| <= 1
+    (tmp_path / "source.yaml").write_text(bad)
+    (tmp_path / "target.yaml").write_text(target("{from: source.yaml, tf: 2.5}"))
+    res = run_file(tmp_path / "target.yaml", None)
+    assert res.extra["chain"][0]["source_ok"] is False
+    assert any("comes from source.yaml, whose run ended" in n for n in res.extra.get("notes", [])), res.extra

@@ -136,6 +136,12 @@ def finish(result: Result, file, stages: list[Stage]) -> None:
     result.extra["chain"] = [{"phases": st.phases, **st.record,
                               "folders": sorted(st.entries())} for st in stages]
     for st in stages:
+        if not st.record.get("source_ok", True):
+            # said where the user reads, not only in result.json (unseen23 w12)
+            result.extra.setdefault("notes", []).append(
+                f"the guess of {', '.join(st.phases)} comes from {st.source}, whose run ended "
+                f"{st.record.get('source_status')}: a start, not a solution")
+    for st in stages:
         transform = get_transform(st.transform)
         if transform.annotate is not None:
             transform.annotate(result, st.folder, file)
