@@ -686,7 +686,8 @@ def test_a_bang_bang_mesh_answer_with_its_switch_on_a_breakpoint_is_not_failed_o
     assert res.tf == pytest.approx(2.0, rel=1e-8) and res.verified
     cert = res.certificate
     assert cert["switching"]["passed"] and certificate_verdict(cert) == "inconclusive", cert.get("failed")
-    assert "switches on mesh breakpoints" in cert["hamiltonian"]["inconclusive"]
+    # since unseen23 FA2 H is judged at LGL's interior nodes, where every control is bang-bang
+    assert cert["hamiltonian"]["passed"] is None and cert["hamiltonian"]["inconclusive"]
 
 
 ISO_BEST = 0.43761364575662437      # tests/data/iso_saturated.yaml's closed form
@@ -722,7 +723,10 @@ def test_a_fixed_mesh_whose_flight_proves_nothing_is_bisected(tmp_path):
     assert res.objective - ISO_BEST > 1e-4                                  # the case: J off
     flown = res.certificate["flown_control"]
     assert flown["passed"] and "not judged" in flown["inconclusive"]
-    assert "flown_control" in res.certificate["inconclusive"]
+    from ocdsl.result import certificate_verdict
+
+    # the wrong J's nodes may fail a node check as well (a failure outranks inconclusive)
+    assert certificate_verdict(res.certificate) in ("inconclusive", "failed")
     assert res.status == "mesh_not_converged" and not res.ok
     assert res.extra["bisection"]["agrees"] is False
 
@@ -806,3 +810,15 @@ def test_a_stalled_refinement_names_only_path_constraints_that_bind():
     from ocdsl.solve.mesh.outcome import _path_bound_hint
 
     assert "x + u <= 100" in _path_bound_hint(compile_file(DATA / "sat_lq_inactive_path.yaml").problem)
+
+
+def test_lgl_hamiltonian_is_judged_at_the_segments_interior_nodes():
+    """unseen23 FA2: on LGL the costates at a segment's ends carry the neighbour's and the
+    boundary conditions' terms: an area problem right to 1.1e-8 had H -1.32997..-1.32999 at
+    every interior node and -1.227, -1.432, -1.228 at the phase's ends and a breakpoint, and
+    the certificate failed (hamiltonian, 4.4 %), exit 1. The ends are left out on LGL."""
+    res = run_file(DATA / "iso_lgl_area.yaml", None)
+    assert res.objective == pytest.approx(ISO_BEST, rel=1e-7)
+    h = res.certificate["hamiltonian"]
+    assert h["passed"] and h["segment_ends_left_out"] >= 3 and h["relative_max_deviation"] < 1e-4, h
+    assert res.ok

@@ -146,6 +146,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
         kw["state_bounds"] = {x.name: ph.bounds_of(x) for x in ph.states}
         kw["shared_nodes"] = _shared_control_nodes(traj)
         kw["breakpoints"] = (traj.control_interpolation or {}).get("breakpoints") or ()
+        kw["lgl"] = str((result.method or {}).get("transcription", "")).upper() == "LGL"
         kw["refined"] = mesh_tolerance is not None
         # path constraints with their multipliers (costates.path_multipliers): H_aug
         mus = {f"mu_{k}": traj.extra.get(f"mu_{k}") for k in range(len(ph.path))}
