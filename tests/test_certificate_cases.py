@@ -822,3 +822,24 @@ def test_lgl_hamiltonian_is_judged_at_the_segments_interior_nodes():
     h = res.certificate["hamiltonian"]
     assert h["passed"] and h["segment_ends_left_out"] >= 3 and h["relative_max_deviation"] < 1e-4, h
     assert res.ok
+
+
+def test_a_second_pass_that_finds_no_better_j_leaves_the_first_answer():
+    """unseen25: on LG the first refinement's J was right to 1e-10, but H's minimiser along
+    LG's costates predicted a gain of 9.9e-4 that its flight did not realise; the second pass
+    (corners kept) had meshes that disagreed, and the run ended `mesh_not_converged`, exit 1.
+    A doubt, unlike a flight that beats J, is tested by that second pass: finding no better J,
+    the first answer stands, with a note."""
+    res = run_file(DATA / "iso_saturated_lg.yaml", None)
+    assert res.status == "optimal" and res.ok and res.objective == pytest.approx(ISO_BEST, rel=1e-8)
+    assert any("found no better J" in n for n in res.extra.get("notes", []))
+
+
+def test_a_refinement_whose_flight_cannot_be_corrected_is_refined_again():
+    """unseen25: LGR 2 x 4 at tolerance 1e-8, H's minimiser predicting a gain 12.6 times the
+    tolerance and its correction onto x(tf) == 0 and the area failing: `optimal`, verified,
+    certificate pass, J 3.8e-4 off. In a refinement the second pass tests the doubt: J* to 1e-8
+    (the status says whether its meshes agreed)."""
+    res = run_file(DATA / "iso_saturated_lgr2x4.yaml", None)
+    assert res.objective == pytest.approx(ISO_BEST, rel=1e-8)
+    assert res.extra["first_refinement"]["objective"] - ISO_BEST > 1e-4

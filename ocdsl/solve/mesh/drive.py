@@ -14,7 +14,8 @@ from ..arcs import free_final_times
 from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, flight_rtol, phase_end, segment_ends
 from .junction import limit_junction_controls
-from .flown import announce_again, beaten_meshes, refined_again, refuted_corners, with_breakpoints
+from .flown import (announce_again, beaten_meshes, refined_again, refuted_corners, second_pass_no_better,
+                    with_breakpoints)
 from .locate import locate_features, locate_switches, misplaced
 from .confirm import confirm
 from .outcome import GOOD, _objective_disagreement, outcome, record
@@ -573,7 +574,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                first={k: with_breakpoints(m, corners.get(k, []), spec.corner_tolerance)
                                       for k, m in meshes_c.items()},
                                start={ph.name: ph for ph in result.phases})
-        return refined_again(again, result, corners, history, tables, it_c)
+        unfounded = second_pass_no_better(result, again, problem.objective.sense, spec.tolerance)
+        if not unfounded:
+            return refined_again(again, result, corners, history, tables, it_c)
+        notes.append(unfounded)
     result.status = status
     # one starting mesh in the record (both pairs were echoed, the unused one as defaults: unseen6)
     for key in ("segments", "degree"):

@@ -129,3 +129,25 @@ def refined_again(again, result, corners: dict, history: list, tables: dict, cho
                                        "predicted_gain": flown.get("predicted_gain"),
                                        "iterations": len(history), "corners": corners}
     return again
+
+
+def second_pass_no_better(first, again, sense: str, tolerance: float) -> str | None:
+    """The note that keeps the first refinement's answer, or None (the second pass's is the
+    result). Where the flown control only doubted the first answer (a predicted gain its
+    flight did not realise), the second pass with the corners kept is the test: finding no J
+    better by more than the mesh tolerance x (1 + |J|), the first answer stands (unseen25: on
+    LG, J right to 1e-10, predicted 2.6e-3 from LG's costates, and the second pass's meshes
+    disagreed: `mesh_not_converged`, exit 1). A flight that beat the first answer proves it
+    wrong: the second pass's answer stands whatever it is."""
+    check = (first.certificate or {}).get("flown_control") or {}
+    if not check.get("inconclusive") or first.objective is None:
+        return None
+    if again.objective is not None and math.isfinite(float(again.objective)):
+        margin = max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(float(first.objective)))
+        sign = 1.0 if sense == "minimize" else -1.0
+        if sign * (float(first.objective) - float(again.objective)) > margin:
+            return None
+    shown = "none" if again.objective is None else f"{float(again.objective):.10g}"
+    return (f"the control that minimises H predicted a gain of {check['predicted_gain']:.1e} its flight did not "
+            f"realise; a second refinement with that control's corners kept found no better J ({shown}, "
+            f"{again.status}): this refinement's answer stands")
