@@ -1,9 +1,10 @@
 """Derivative generation time against model size (``python -m ocdsl.bench.derivatives``).
 
 What the direct NLP route (``ocdsl.transcribe.direct_nlp``) does once per phase on a cold
-cache: the dynamics times the duration, differentiated by SymPy (nonzero first and
-lower-triangle second derivatives in states, controls, t0, tf), then printed as NumPy
-source after common-subexpression elimination, and as C when the sources are long
+cache: the dynamics times the duration, differentiated (nonzero first and lower-triangle
+second derivatives in states, controls, t0, tf) and their common subexpressions eliminated by
+SymEngine where it can, else SymPy (``ocdsl.symbolic.engine``), then printed by SymPy as NumPy
+source, and as C when the sources are long
 (``direct_nlp.native``). Models: the ``configs/`` dynamics, seed 0's
 6-DOF rendezvous, and ``k`` independent copies of it (12 k states, 6 k controls), so that
 the size grows without changing the kind of expression. Size = nodes of the dynamics'
