@@ -169,9 +169,9 @@ def test_the_summary_of_a_failed_run_shows_no_objective_as_a_result(tmp_path):
     assert not any(r and r[0] == "objective" for r in rows), out.stdout
 
 
-def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_path):
-    """SIGINT while Ipopt iterates (an unbounded problem that would run for ever): the solve
-    stops at its next iteration, the run folder holds that iterate, status interrupted."""
+def _interrupted_run(tmp_path, sig):
+    """A run of an unbounded problem (it would iterate for ever) sent ``sig`` once Ipopt's log
+    table has started: (exit code, the run folder's result.json, the output)."""
     p = write(tmp_path, UNBOUNDED + "solver: {options: {max_iter: 100000000}}\n")
     env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
     proc = subprocess.Popen([sys.executable, "-m", "ocdsl.cli", "run", str(p), "--out", str(tmp_path / "run"),
@@ -181,10 +181,17 @@ def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_pat
         seen.append(line)
         if line.lstrip().startswith("iter") and "objective" in line:
             break
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     rest, _ = proc.communicate(timeout=300)
-    assert proc.returncode == 130, "".join(seen) + rest
-    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    saved = (tmp_path / "run" / "result.json")
+    return proc.returncode, json.loads(saved.read_text()) if saved.exists() else {}, "".join(seen) + rest
+
+
+def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_path):
+    """SIGINT while Ipopt iterates (an unbounded problem that would run for ever): the solve
+    stops at its next iteration, the run folder holds that iterate, status interrupted."""
+    code, saved, out = _interrupted_run(tmp_path, signal.SIGINT)
+    assert code == 130, out
     assert saved["status"] == "interrupted" and saved["iterations"] > 0
     assert (tmp_path / "run" / "trajectory.csv").exists()
 
@@ -192,19 +199,8 @@ def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_pat
 def test_sigterm_writes_the_last_iterate_marked_interrupted_and_exits_143(tmp_path):
     """unseen24: SIGTERM (what `timeout`, systemd and batch schedulers send) ended the process
     with no run folder at all. It is handled as Ctrl-C is: the folder holds the last iterate."""
-    p = write(tmp_path, UNBOUNDED + "solver: {options: {max_iter: 100000000}}\n")
-    env = {**os.environ, "PYOMO_CONFIG_DIR": str(ROOT / ".venv/share/pyomo")}
-    proc = subprocess.Popen([sys.executable, "-m", "ocdsl.cli", "run", str(p), "--out", str(tmp_path / "run"),
-                             "--verbose"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    seen = []
-    for line in proc.stdout:
-        seen.append(line)
-        if line.lstrip().startswith("iter") and "objective" in line:
-            break
-    proc.send_signal(signal.SIGTERM)
-    rest, _ = proc.communicate(timeout=300)
-    assert proc.returncode == 143, "".join(seen) + rest
-    saved = json.loads((tmp_path / "run" / "result.json").read_text())
+    code, saved, out = _interrupted_run(tmp_path, signal.SIGTERM)
+    assert code == 143, out
     assert saved["status"] == "interrupted" and "SIGTERM" in saved["message"]
 
 
