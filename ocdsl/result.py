@@ -295,7 +295,9 @@ def unusable_start(run_dir: str | os.PathLike) -> str | None:
     TypeError / IndexError messages in a failed run folder (unseen24)."""
     try:
         phases = Result.read(run_dir).phases
-    except (OSError, ValueError, KeyError, TypeError, IndexError, UnicodeDecodeError) as e:
+    except (KeyError, TypeError):      # fields missing: not a result.json ocdsl wrote
+        return "its result.json is not one ocdsl wrote (no run name, status or phases in it)"
+    except (OSError, ValueError, IndexError, UnicodeDecodeError) as e:
         return f"its result.json or trajectory cannot be read ({e})"
     if not phases:
         return "that run has no trajectory to start from"

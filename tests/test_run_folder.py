@@ -252,6 +252,9 @@ def test_a_warm_start_whose_trajectory_is_not_numbers_is_a_usage_error(tmp_path)
     r = _ocdsl("check", tmp_path / "g.yaml", cwd=tmp_path)
     assert r.returncode == 2 and "g.yaml:" in r.stderr and "fewer than two rows" in r.stderr, r.stderr
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    (run / "result.json").write_text('{"mine": 1}')      # a user's own result.json
+    r = _ocdsl("run", PROBLEM, "--out", tmp_path / "c", "--warm-start", run, cwd=tmp_path)
+    assert r.returncode == 2 and "not one ocdsl wrote" in r.stderr and "__init__" not in r.stderr, r.stderr
 
 
 def test_a_report_never_writes_through_a_linked_figures_folder(tmp_path):
