@@ -451,7 +451,7 @@ def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
     except ReportError as e:
         raise click.ClickException(str(e)) from None
     except OSError as e:     # a read-only or full folder: one line (unseen24 F39: a traceback)
-        where = f" in {e.filename}" if e.filename else ""
+        where = f" in {Path(e.filename).parent}" if e.filename else ""     # the folder, not ocdsl's scratch name
         raise click.ClickException(f"the report could not be written{where}: {e.strerror or e}") from None
     for f in files:
         click.echo(f"wrote {f}")
