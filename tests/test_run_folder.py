@@ -324,3 +324,24 @@ def test_a_problem_file_that_is_not_a_file_is_refused(tmp_path):
     for path in ("/dev/zero", fifo):
         r = _ocdsl("check", path, cwd=tmp_path)
         assert r.returncode == 2 and "not a regular file" in r.stderr, r.stderr
+
+
+def test_a_report_that_cannot_be_written_is_one_line_naming_the_folder(tmp_path, monkeypatch):
+    """unseen24 F39 / unseen25: `ocdsl report` into a read-only folder was a traceback, then a
+    line naming ocdsl's temporary file; one line naming the folder now."""
+    import errno
+
+    from click.testing import CliRunner
+
+    import ocdsl.report.build as build
+    from ocdsl.cli import main
+
+    run = _result("r").write(tmp_path / "run")
+
+    def read_only(*a, **k):
+        raise OSError(errno.EROFS, "Read-only file system", str(run / ".report.html.ocdsl-abc123"))
+
+    monkeypatch.setattr(build, "make_report", read_only)
+    r = CliRunner().invoke(main, ["report", str(run)])
+    assert r.exit_code == 1 and f"could not be written in {run}: Read-only file system" in r.output, r.output
+    assert "ocdsl-abc123" not in r.output and r.exception is None or isinstance(r.exception, SystemExit)
