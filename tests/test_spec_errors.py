@@ -91,6 +91,8 @@ CASES = [
     ("a linear solver not installed", ("method: {", "solver: {options: {linear_solver: ma57}}\nmethod: {"), 18,
      "linear_solver ma57: its library"),
     ("not-equal relation", ("- -1 <= u <= 1", "- u != 1"), 11, "`!=` is not a constraint"),
+    ("a file parameter named like a state", ("method: {", "parameters: {x: 1}\nmethod: {"), 18,
+     "'x' is a state of the model and a parameter of the file"),
     ("a mesh beyond any machine", ("segments: 4, degree: 3", "segments: 100000000, degree: 3"), 18,
      "segments must be at most"),
 ]

@@ -101,6 +101,13 @@ class ModelCompiler:
                     names[name] = sym(name)
         params = self.parameters(m.parameters, loc + ("parameters",))
         for name in self.spec.parameters:
+            if declared.get(name, ("",))[0] in ("states", "controls"):
+                # its value replaced the state in the dynamics, silently (unseen24: x' = u*x with a
+                # file parameter x: 1 solved v' = u)
+                self.issue(("parameters", name), f"'{name}' is a {declared[name][0][:-1]} of the model and a "
+                                                 "parameter of the file: rename one")
+                ok = False
+                continue
             names.setdefault(name, sym(name))
         vectors = self.vector_groups(m.vectors, names, loc)
         expressions: dict[sp.Symbol, sp.Expr] = {}
