@@ -36,6 +36,8 @@ def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
     out = {}
     for item in items:
         name, sep, value = item.partition("=")
+        if sep and name.strip() in out:     # the last one silently won (unseen24)
+            raise click.BadParameter(f"'{name.strip()}' is given twice", param_hint="--param")
         try:
             if not sep or not name.strip():
                 raise ValueError

@@ -107,6 +107,8 @@ def test_param_takes_a_constant_expression():
     for bad in ("l=x + 1", "l=", "=3", "l=1/0", 'l=__import__("os")'):
         with pytest.raises(click.BadParameter, match="not NAME=NUMBER"):
             _parse_params((bad,))
+    with pytest.raises(click.BadParameter, match="'l' is given twice"):     # the last won (unseen24)
+        _parse_params(("l=1", "l=2"))
 
 
 def test_a_param_that_divides_the_dynamics_by_zero_is_an_input_error(tmp_path):
