@@ -345,3 +345,24 @@ def test_a_report_that_cannot_be_written_is_one_line_naming_the_folder(tmp_path,
     r = CliRunner().invoke(main, ["report", str(run)])
     assert r.exit_code == 1 and f"could not be written in {run}: Read-only file system" in r.output, r.output
     assert "ocdsl-abc123" not in r.output and r.exception is None or isinstance(r.exception, SystemExit)
+
+
+def test_a_resumed_study_refuses_a_users_point_folder_before_writing_anything(tmp_path):
+    """unseen24 S08/S09: resuming a study whose point folder the user had replaced by a folder
+    of their own solved that point, refused to install it, and rewrote study.json under a
+    message that said nothing was changed. The point folders are checked first now."""
+    from ocdsl.study.run import StudyError, run_points
+
+    points = [{"id": f"p{k}", "parameters": {}} for k in range(2)]
+    out = tmp_path / "st"
+    run_points(PROBLEM, out, points, serial=True, quiet=True)
+    import shutil
+
+    shutil.rmtree(out / "points" / "p1")
+    (out / "points" / "p1").mkdir()
+    (out / "points" / "p1" / "notes.txt").write_text("mine")
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    with pytest.raises(StudyError, match="point p1: .*notes.txt"):
+        run_points(PROBLEM, out, points, serial=True, quiet=True, resume=True)
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+    assert (out / "points" / "p1" / "notes.txt").read_text() == "mine"

@@ -209,6 +209,15 @@ def _run(ex: Executor, problem_path: Path, problem_text: bytes, sha: str, finger
          out_dir: Path, points: list[Point], quiet: bool, point_fn: Callable | None,
          info: dict[str, Any], t_start: float, reuse_model: bool = True) -> StudyResult:
     points_dir = out_dir / "points"
+    for p in points:
+        # a point folder ocdsl may not write is refused before anything of the study is
+        # written: it was found at the point's install, after study.json had been rewritten,
+        # under a message saying nothing was changed (unseen24 S08, S09)
+        if os.path.lexists(points_dir / p.id):
+            try:
+                run_folder.check_destination(points_dir / p.id, "run")
+            except run_folder.FolderError as e:
+                raise StudyError(f"point {p.id}: {e}") from None
     points_dir.mkdir(parents=True, exist_ok=True)
     earlier = (run_folder.read_marker(out_dir) or {}).get("entries", [])
     run_folder.write_marker(out_dir, "study", [*earlier, *STUDY_ENTRIES])
