@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ocdsl.symbolic import engine
@@ -146,6 +146,9 @@ def _tree(children):
 def test_random_expressions_differentiate_as_in_sympy(text):
     x, y, z = sp.symbols("x y z", real=True)
     e = sp.sympify(eval(text, {"sp": sp, "x": x, "y": y, "z": z}))
+    # SymPy writes sqrt(x**2) of a real x as Abs(x): not smooth, and its second derivative a
+    # DiracDelta no numeric module evaluates; such expressions stay with SymPy anyway
+    assume(not e.has(sp.Abs, sp.sign))
     syms = [x, y, z]
     got = engine.derivative_table([e], syms)
     ref = _sympy_table([e], syms)
