@@ -84,17 +84,23 @@ def derivative_table(exprs: Sequence, syms: Sequence[sp.Symbol]):
         ours = _ours(se, exprs + list(syms))
         return (jac, [sp.sympify(d).xreplace(ours) for d in jexprs],
                 hess, [sp.sympify(d).xreplace(ours) for d in hexprs])
+    return _table(exprs, list(syms))
+
+
+def _table(exprs, syms):
+    """derivative_table's rows for expressions and symbols of one library, SymPy's or
+    SymEngine's (both spell ``e.diff(s)``, ``free_symbols`` and ``== 0`` alike)."""
     pos = {s: i for i, s in enumerate(syms)}
     jac, jexprs, hess, hexprs = [], [], [], []
     for o, e in enumerate(exprs):
         for a in sorted(pos[s] for s in e.free_symbols if s in pos):
-            d = sp.diff(e, syms[a])
+            d = e.diff(syms[a])
             if d == 0:
                 continue
             jac.append((o, a))
             jexprs.append(d)
             for b in sorted(pos[s] for s in d.free_symbols if s in pos and pos[s] <= a):
-                d2 = sp.diff(d, syms[b])
+                d2 = d.diff(syms[b])
                 if d2 != 0:
                     hess.append((o, a, b))
                     hexprs.append(d2)
@@ -103,23 +109,7 @@ def derivative_table(exprs: Sequence, syms: Sequence[sp.Symbol]):
 
 def _table_engine(se, exprs, syms):
     """derivative_table's rows, the expressions as SymEngine's."""
-    S = [se.sympify(s) for s in syms]
-    pos = {s: i for i, s in enumerate(S)}
-    jac, jexprs, hess, hexprs = [], [], [], []
-    for o, e in enumerate(exprs):
-        E = se.sympify(e)
-        for a in sorted(pos[s] for s in E.free_symbols if s in pos):
-            d = E.diff(S[a])
-            if d == 0:
-                continue
-            jac.append((o, a))
-            jexprs.append(d)
-            for b in sorted(pos[s] for s in d.free_symbols if s in pos and pos[s] <= a):
-                d2 = d.diff(S[b])
-                if d2 != 0:
-                    hess.append((o, a, b))
-                    hexprs.append(d2)
-    return jac, jexprs, hess, hexprs
+    return _table([se.sympify(e) for e in exprs], [se.sympify(s) for s in syms])
 
 
 def _ours(se, originals) -> dict:
