@@ -8,8 +8,9 @@ minimises H; flown from x(t0), that control gives a trajectory whose objective, 
 feasible, bounds the optimum. Better than the claim by more than the tolerance, it refutes the
 claim; worse or infeasible, it proves nothing (costates off near a singular arc, a condition
 missed), so the check then passes, unless the first-order prediction promised a gain above
-the tolerance and the feasible flight lost more than it: then inconclusive (``_doubted``). Conditions on the final state or an integral are met first
-by correcting the control (corrected_flight.py). Applies to one phase with box-bounded controls
+the tolerance and the feasible flight lost more than it: then inconclusive (``_doubted``).
+Conditions on the final state or an integral are met first by correcting the control
+(corrected_flight.py). Applies to one phase with box-bounded controls
 that enter H at most quadratically and no path constraint that binds (``_path_binds``).
 """
 from __future__ import annotations
@@ -187,7 +188,7 @@ def _doubted(out: dict, predicted: float, limit: float, flight: str) -> dict:
     return out
 
 
-def _path_binds(problem: Problem, result: Result) -> bool:
+def _path_binds(problem: Problem, result: Result, funcs) -> bool:
     """Whether a path constraint comes within ``PATH_AWAY`` (relative, scaled as the verification
     scales it) of a bound at a row of the solution. One that never does has a zero multiplier,
     so H's minimiser is the same without it, and the flight is checked against it
@@ -195,11 +196,9 @@ def _path_binds(problem: Problem, result: Result) -> bool:
     problem with a never-binding x + u <= 100 was `optimal`, verified, certificate pass with J
     3.2e-3 off (unseen23 FC1)."""
     from ...verify.checks import path_scales, relative_violation, state_scale
-    from ...verify.fly import flight_functions
     from ...verify.interpolate import bounds_of
 
     (ph,), traj = problem.phases, result.phases[0]
-    funcs = flight_functions(problem, result)
     t = np.asarray(traj.time, float)
     X = np.column_stack([np.asarray(traj.states[s.name], float) for s in ph.states])
     U = np.column_stack([np.asarray(traj.controls[c.name], float) for c in ph.controls])
@@ -249,8 +248,14 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     (``_doubted``)."""
     if len(problem.phases) != 1 or result.objective is None or not math.isfinite(float(result.objective)):
         return None
+    from ...verify.fly import Flight, flight_functions, fly_control
+
     ph, traj = problem.phases[0], result.phases[0]
-    if not ph.controls or not traj.costates or (ph.path and _path_binds(problem, result)):
+    if not ph.controls or not traj.costates:
+        return None
+    # the phase's compiled functions: the path constraints' now, the flights' later
+    funcs = flight_functions(problem, result) if ph.path else None
+    if ph.path and _path_binds(problem, result, funcs):
         return None
     model = ph.model
     if not _quadratic_in_controls(model, params, lagrange):
@@ -301,14 +306,13 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
                 "note": f"H's minimiser gains {predicted:.1e} over the solution's control to first order, "
                         f"below the {share * wanted:.1e} a flight would need: not flown"}
     t_tab, U_tab, cuts = _tabulate(tt, U_min, G_min, bounds, corners)
-    from ...verify.fly import Flight, flight_functions, fly_control
     from ...verify.integrate import IntegrationFailure, time_budget
 
     # J to 1e-3 of the tolerance is all the comparison needs (the verification's own flight
     # integrates at 1e-10); a correction onto final conditions needs them met to below that
     rtol = min(1e-11 if late else 1e-9, 1e-4 * tolerance)
     deadline = time.monotonic() + (FLIGHT_BUDGET_S if budget_s is None else budget_s)
-    funcs = flight_functions(problem, result)
+    funcs = funcs or flight_functions(problem, result)
     first: list[float] = []      # the first flight's seconds: a flight 20 times as long has left the domain
 
     def fly(t_fly, U, cuts_fly, stretch=1.0):

@@ -19,6 +19,16 @@ from ..certificate.flown_control import FLIGHT_RESOLUTION
 
 
 
+def _margin(tolerance: float, objective: float) -> float:
+    """What a J must differ by to count: the mesh tolerance x (1 + |J|), at least the flight's
+    resolution."""
+    return max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(float(objective)))
+
+
+def _shown(corners: dict) -> str:
+    return ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
+
+
 def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
     """Phase name -> normalised times of the flown control's corners and bang switches, when the certificate's
     ``flown_control`` flew a feasible trajectory better than the result by more than the mesh
@@ -31,7 +41,7 @@ def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
     times = list(check.get("corners") or []) + list(check.get("switches") or [])
     if not times or len(result.phases) != 1:
         return {}
-    margin = max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(check["claimed"]))
+    margin = _margin(tolerance, check["claimed"])
     beaten = check.get("feasible") and check.get("gain", 0.0) > margin
     doubted = bool(check.get("inconclusive")) and check.get("predicted_gain", 0.0) > margin
     if not (beaten or doubted):
@@ -60,7 +70,7 @@ def beaten_meshes(result, converged: list, sense: str, tolerance: float) -> list
     if not check.get("feasible") or check.get("flown") is None:
         return []
     flown = float(check["flown"])
-    margin = max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(flown))
+    margin = _margin(tolerance, flown)
     sign = 1.0 if sense == "minimize" else -1.0
     return [c[1] for c in converged if c[3].objective is not None and sign * (c[3].objective - flown) > margin]
 
@@ -102,20 +112,18 @@ def _continued(again, history: list, tables: dict) -> None:
 
 def announce_again(result, corners: dict, objective: float) -> str:
     """The progress line of a second refinement with ``corners`` kept."""
-    shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
     flown = result.certificate["flown_control"]
     why = (f"the control the minimum principle flies beats J = {objective:.10g}"
            if not flown.get("inconclusive") else
            f"the control that minimises H predicts a gain of {flown['predicted_gain']:.1e} over J = "
            f"{objective:.10g} (its flight proves nothing)")
-    return f"mesh: {why}; refining again with breakpoints kept at {shown} (normalised time)"
+    return f"mesh: {why}; refining again with breakpoints kept at {_shown(corners)} (normalised time)"
 
 
 def refined_again(again, result, corners: dict, history: list, tables: dict, chosen: int):
     """``again`` (the second refinement, with ``corners`` kept) recorded after the first (its
     ``history`` and ``tables``; ``result`` its answer at mesh iteration ``chosen``)."""
     _continued(again, history, tables)
-    shown = ", ".join(f"{p:.6g}" for ps in corners.values() for p in ps)
     flown = result.certificate["flown_control"]
     beat = (f"which the control the minimum principle flies beat (J = {flown['flown']:.10g})"
             if not flown.get("inconclusive") else
@@ -123,7 +131,7 @@ def refined_again(again, result, corners: dict, history: list, tables: dict, cho
             "that its flight did not realise")
     again.extra.setdefault("notes", []).append(
         f"the first refinement ended at J = {flown['claimed']:.10g} (mesh iteration {chosen}), {beat}; "
-        f"refined again with breakpoints kept where that control reaches or leaves a bound ({shown}, "
+        f"refined again with breakpoints kept where that control reaches or leaves a bound ({_shown(corners)}, "
         "normalised time)")
     again.extra["first_refinement"] = {"objective": flown["claimed"], "flown": flown.get("flown"),
                                        "predicted_gain": flown.get("predicted_gain"),
@@ -143,9 +151,8 @@ def second_pass_no_better(first, again, sense: str, tolerance: float) -> str | N
     if not check.get("inconclusive") or first.objective is None:
         return None
     if again.objective is not None and math.isfinite(float(again.objective)):
-        margin = max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(float(first.objective)))
         sign = 1.0 if sense == "minimize" else -1.0
-        if sign * (float(first.objective) - float(again.objective)) > margin:
+        if sign * (float(first.objective) - float(again.objective)) > _margin(tolerance, first.objective):
             return None
     shown = "none" if again.objective is None else f"{float(again.objective):.10g}"
     return (f"the control that minimises H predicted a gain of {check['predicted_gain']:.1e} its flight did not "
