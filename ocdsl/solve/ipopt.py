@@ -481,7 +481,8 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
         msg += " (as many equations as free unknowns: its one feasible point is the NLP's optimum)"
     if interrupted() and status in ("interrupted", "error"):
         status = "interrupted"
-        msg = f"interrupted ({interrupted_by()}) at iteration {history[-1][0] if history else 0}; the last iterate is written"
+        msg = (f"interrupted ({interrupted_by()}) at iteration {history[-1][0] if history else 0}; "
+               "the last iterate is written")
     if status == "time_limit":
         wall = opts.get("max_wall_time")
         given = f" (this solve had {float(wall):.3g} s: the run's solver: time_limit, or max_wall_time)" if wall else ""

@@ -17,12 +17,14 @@ from .path import _held_fraction, _path_active, _path_check, _path_item, _state_
 from .sides import _bounds, _f, _side, _switches, switch_pairs
 from .tolerances import EXPECTED_H, OBJECTIVE_KINDS, Tolerances
 
+
 def _lgl_interior(t, breakpoints) -> np.ndarray:
-    """The nodes of an LGL mesh at which H is judged: not the segments' ends, where the costates read from the multipliers also carry the
-    neighbouring segment's and the boundary conditions' terms, while at least three interior
-    nodes remain. Measured (unseen23 FA2): an area problem on LGL, J right to 1.1e-8, H
-    -1.32997 to -1.32999 at every interior node and -1.227, -1.432, -1.228 at the phase's ends
-    and a breakpoint: `certificate failed (hamiltonian)` at 4.4 % of its scale, exit 1."""
+    """The nodes of an LGL mesh at which H is judged: not the segments' ends, where the
+    costates read from the multipliers also carry the neighbouring segment's and the boundary
+    conditions' terms, while at least three interior nodes remain. Measured (unseen23 FA2): an
+    area problem on LGL, J right to 1.1e-8, H -1.32997 to -1.32999 at every interior node and
+    -1.227, -1.432, -1.228 at the phase's ends and a breakpoint: `certificate failed
+    (hamiltonian)` at 4.4 % of its scale, exit 1."""
     judged = np.ones(len(t), bool)
     span = float(t[-1] - t[0]) or 1.0
     ends = np.asarray([t[0], t[-1], *breakpoints], float)
@@ -39,7 +41,8 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                 path_constraints: Sequence[tuple] | None = None,
                 multipliers: Mapping[str, Any] | None = None,
                 state_bounds: Mapping[str, Sequence[float | None]] | None = None,
-                shared_nodes: Sequence[float] = (), breakpoints: Sequence[float] = (), lgl: bool = False,
+                shared_nodes: Sequence[float] = (), breakpoints: Sequence[float] = (),
+                lgl: bool = False,
                 refined: bool = False) -> dict[str, Any]:
     """Check the first-order optimality conditions of a collocated solution.
 

@@ -561,7 +561,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     if status == "mesh_not_converged" and disagree:
         beaten = beaten_meshes(result, converged, problem.objective.sense, spec.tolerance)
         kept = [c for c in converged if c[1] not in beaten]
-        if beaten and len(kept) >= 2 and any(c is chosen for c in kept) and _objective_disagreement(kept, spec.tolerance) is None:
+        if (beaten and len(kept) >= 2 and any(c is chosen for c in kept)
+                and _objective_disagreement(kept, spec.tolerance) is None):
             status = "optimal"
             message = (f"mesh converged: iterations {[c[1] for c in kept]} are within tolerance {spec.tolerance:.1e} "
                        f"and agree in J; iteration(s) {beaten}, also within it, are no optimum: the control the "
