@@ -202,3 +202,23 @@ def test_direct_route_runs_without_pyomo_environ(configs):
             "r = f.solve(); print(r.status, r.nlp['evaluation'].split()[0], 'pyomo.environ' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split("\n")[:2] == ["optimal direct False", "optimal PyNumero True"], out
+
+
+def test_pyomo_functions_are_made_once_per_expression_set(monkeypatch):
+    """A mesh refinement builds each phase once per mesh: the lambdified SymPy -> Pyomo
+    functions are made once per (arguments, expressions) and reused, a different set gets
+    its own."""
+    import sympy as sp
+
+    from ocdsl.transcribe import pyomo_expr
+
+    made = []
+    real = sp.lambdify
+    monkeypatch.setattr(pyomo_expr, "_MADE", {})
+    monkeypatch.setattr(sp, "lambdify", lambda *a, **k: made.append(a) or real(*a, **k))
+    x, u = sp.symbols("x u")
+    f = pyomo_expr.pyomo_function([x, u], [x * u, sp.sin(x)])
+    assert pyomo_expr.pyomo_function([x, u], [x * u, sp.sin(x)]) is f
+    g = pyomo_expr.pyomo_function([x, u], [x * u, sp.cos(x)])
+    assert g is not f and len(made) == 2
+    assert g(0.0, 2.0) == [0.0, 1.0]

@@ -265,9 +265,12 @@ def apply(snap: Snapshot, tr, *, primal: bool = True) -> Multipliers:
         for (w, n) in (("first", 0), ("last", N - 1)):
             for j in range(nx):
                 out.lower[b.X[n, j]], out.upper[b.X[n, j]] = ps.zx_ends[(w, j)]
-    for c in m.component_data_objects(pyo.Constraint, active=True):
-        if c.name in snap.duals and c not in out.constraints:
-            out.constraints[c] = snap.duals[c.name]
+    if snap.duals:
+        # the mesh's own rows are set above; a component's name is built on every call (a
+        # tenth of a mesh iteration's warm start when asked of all of them)
+        for c in m.component_data_objects(pyo.Constraint, active=True):
+            if c not in out.constraints and c.name in snap.duals:
+                out.constraints[c] = snap.duals[c.name]
     for name, value in snap.values.items():
         v = m.find_component(name)
         if v is None or v.fixed:

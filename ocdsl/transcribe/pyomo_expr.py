@@ -31,8 +31,20 @@ PYOMO_FUNCTIONS = {
 }
 
 
+# a mesh refinement builds the same phase's functions once per mesh (Rayleigh: 39 lambdify
+# calls, 0.08 s of 12 builds); the functions are pure, so one per expression set is kept
+_MADE: dict[tuple, Callable[..., list]] = {}
+_MADE_LIMIT = 256
+
+
 def pyomo_function(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Callable[..., list]:
     """A function of ``args`` returning the list of ``exprs`` as Pyomo expressions (or floats)."""
     exprs = [sp.sympify(e) for e in exprs]
-    fn = sp.lambdify(list(args), exprs, modules=[PYOMO_FUNCTIONS], cse=True, docstring_limit=0)
+    key = (tuple(args), tuple(exprs))
+    fn = _MADE.get(key)
+    if fn is None:
+        fn = sp.lambdify(list(args), exprs, modules=[PYOMO_FUNCTIONS], cse=True, docstring_limit=0)
+        if len(_MADE) >= _MADE_LIMIT:
+            _MADE.clear()
+        _MADE[key] = fn
     return fn
