@@ -222,3 +222,18 @@ def test_pyomo_functions_are_made_once_per_expression_set(monkeypatch):
     g = pyomo_expr.pyomo_function([x, u], [x * u, sp.cos(x)])
     assert g is not f and len(made) == 2
     assert g(0.0, 2.0) == [0.0, 1.0]
+
+
+def test_console_script_loads_blas_with_one_thread_unless_the_user_chose(monkeypatch):
+    import os
+
+    from ocdsl.serve import client
+
+    for k in client.BLAS_THREADS:
+        monkeypatch.delenv(k, raising=False)
+    client.one_blas_thread()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS")
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    client.one_blas_thread()
+    assert "OPENBLAS_NUM_THREADS" not in os.environ

@@ -135,8 +135,9 @@ def _one_blas_thread():
     same wall; the CasADi script's own Ipopt CPU is twice its wall time on the small examples
     of reports/bench/peers.md). OpenBLAS reads the count when it loads (openblas_set_num_threads
     afterwards leaves its second thread spinning), so it is set for the load only."""
-    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
-    if any(os.environ.get(k) for k in keys):
+    from ..serve.client import BLAS_THREADS
+
+    if any(os.environ.get(k) for k in BLAS_THREADS):
         yield
         return
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
