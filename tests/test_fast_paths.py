@@ -237,3 +237,24 @@ def test_console_script_loads_blas_with_one_thread_unless_the_user_chose(monkeyp
     monkeypatch.setenv("OMP_NUM_THREADS", "2")
     client.one_blas_thread()
     assert "OPENBLAS_NUM_THREADS" not in os.environ
+
+
+def test_model_dynamics_substituted_once_per_parameter_values(monkeypatch):
+    """``Model.rhs`` keeps its substitution per parameter values (a mesh refinement asks for
+    it once per mesh); each call gets its own copy, so a caller's edit does not reach the next."""
+    import sympy as sp
+
+    from ocdsl.symbolic import numbers
+    from ocdsl.symbolic.model import Model
+
+    calls = []
+    real = numbers.substitute_numbers
+    monkeypatch.setattr(numbers, "substitute_numbers", lambda *a: calls.append(a) or real(*a))
+    x, u, a = sp.symbols("x u a")
+    model = Model("m", (x,), (u,), {x: a * x + u}, {a: 1.0})
+    f = model.rhs({a: 2.0})
+    f[0] = 0
+    assert model.rhs({a: 2.0}) == sp.Matrix([2.0 * x + u])
+    assert model.rhs({a: 3.0}) == sp.Matrix([3.0 * x + u])
+    assert model.rhs() == sp.Matrix([a * x + u])
+    assert len(calls) == 2

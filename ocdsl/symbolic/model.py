@@ -95,13 +95,26 @@ class Model:
 
         ``parameter_values`` substitutes numbers for parameters (others stay symbols).
         """
+        # kept per parameter values: a mesh refinement asks once per mesh built (hang glider:
+        # 15 substitutions, a tenth of its builds); a copy is returned, the Matrix is mutable
+        try:
+            key = tuple((parameter_values or {}).items())
+            made = self.__dict__.setdefault("_rhs_made", {})
+            if key in made:
+                return made[key].copy()
+        except TypeError:       # an unhashable value: made afresh
+            key, made = None, {}
         f = sp.Matrix([self.expand(self.dynamics[s]) for s in self.states])
         if parameter_values:
             from .numbers import substitute_numbers
 
             f = substitute_numbers(f, {k: sp.Float(v) if not isinstance(v, sp.Basic) else v
                                        for k, v in parameter_values.items()})
-        return f
+        if key is not None:
+            if len(made) >= 16:
+                made.clear()
+            made[key] = f
+        return f.copy()
 
     def default_parameters(self) -> dict[sp.Symbol, float]:
         return {k: v for k, v in self.parameters.items() if v is not None}
