@@ -6,7 +6,11 @@ ocdsl writes only into a folder that does not exist, an empty one, or one whose 
 lists everything in it (sub-folders with their own marker, e.g. a study's points, are
 checked by theirs). Anything else is the user's, and the write is refused before any work,
 naming what is there. A folder of another kind (a study where a run goes) is replaced only
-with ``force``; files ocdsl did not write never are.
+with ``force``; files ocdsl did not write never are. The marker of a folder written in one
+step (``assemble``: runs, study points, Pareto sets) also holds each file's SHA-256: a file
+the user changed since, a link put where ocdsl wrote a file or folder, and another ocdsl
+run folder put inside a run count as the user's too (unseen24 G1-G3: each was replaced
+without a word).
 
 A new folder is assembled beside its destination in ``.<name>.ocdsl-tmp-*`` (its marker is
 the first file written, so an interrupted write is recognisable) and swapped into place by
@@ -21,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import errno
+import hashlib
 import json
 import os
 import shutil
@@ -66,12 +71,36 @@ def read_marker(folder: Path) -> dict | None:
     return data if isinstance(data, dict) and data.get("kind") in KINDS else None
 
 
-def write_marker(folder: Path, kind: str, entries: Iterable[str] = (), *, partial: bool = False) -> None:
+def write_marker(folder: Path, kind: str, entries: Iterable[str] = (), *, partial: bool = False,
+                 digests: dict[str, str] | None = None) -> None:
+    """The marker listing ``entries``; ``digests`` (name -> SHA-256) default to the current
+    marker's for the names still listed (None: keep those; {}: none)."""
     from . import __version__
 
+    entries = sorted(set(entries))
+    if digests is None:
+        digests = (read_marker(folder) or {}).get("digests") or {}
     data = {"written_by": "ocdsl", "version": __version__, "kind": kind, "partial": partial,
-            "entries": sorted(set(entries))}
+            "entries": entries}
+    kept = {n: d for n, d in digests.items() if n in set(entries)}
+    if kept:
+        data["digests"] = dict(sorted(kept.items()))
     atomic_write_text(Path(folder) / MARKER, json.dumps(data, indent=1))
+
+
+def file_digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def digests_of(folder: Path, entries: Iterable[str]) -> dict[str, str]:
+    """SHA-256 of each regular file among ``entries`` (relative to ``folder``)."""
+    folder = Path(folder)
+    return {n: file_digest(folder / n) for n in entries
+            if (folder / n).is_file() and not (folder / n).is_symlink()}
 
 
 def entries_of(folder: Path) -> list[str]:
@@ -96,11 +125,15 @@ def entries_of(folder: Path) -> list[str]:
 
 
 def claim(folder: Path, names: Iterable[str]) -> None:
-    """Add ``names`` (relative paths ocdsl just wrote) to ``folder``'s marker."""
+    """Add ``names`` (relative paths ocdsl is writing) to ``folder``'s marker; a digest of an
+    earlier file of one of those names goes (ocdsl rewrites it)."""
     data = read_marker(folder)
     if data is None:
         return
-    write_marker(folder, data["kind"], [*data.get("entries", []), *names], partial=data.get("partial", False))
+    names = list(names)
+    digests = {n: d for n, d in (data.get("digests") or {}).items() if n not in set(names)}
+    write_marker(folder, data["kind"], [*data.get("entries", []), *names], partial=data.get("partial", False),
+                 digests=digests)
 
 
 def foreign_entries(folder: Path, limit: int = 8) -> list[str]:
@@ -108,6 +141,7 @@ def foreign_entries(folder: Path, limit: int = 8) -> list[str]:
     folder = Path(folder)
     marker = read_marker(folder)
     listed = set(marker.get("entries", [])) if marker else set()
+    digests = (marker or {}).get("digests") or {}
     found: list[str] = []
 
     def walk(d: Path, rel: Path) -> None:
@@ -122,9 +156,18 @@ def foreign_entries(folder: Path, limit: int = 8) -> list[str]:
                 continue      # scratch of an interrupted ocdsl write inside its own folder
             if name not in listed:
                 if entry.is_dir(follow_symlinks=False) and read_marker(Path(entry.path)) is not None:
+                    if marker is not None and marker.get("kind") == "run":
+                        # a run holds no other run: this one is a separate run the user put here
+                        found.append(f"{name}/ (another ocdsl run)")
+                        continue
                     found.extend(f"{name}/{f}" for f in foreign_entries(Path(entry.path), limit - len(found)))
                     continue
                 found.append(name + ("/" if entry.is_dir(follow_symlinks=False) else ""))
+            elif entry.is_symlink():
+                # ocdsl writes no links: one where it wrote a file or folder is the user's
+                found.append(f"{name} (a link the user put there)")
+            elif name in digests and entry.is_file() and file_digest(Path(entry.path)) != digests[name]:
+                found.append(f"{name} (changed since ocdsl wrote it)")
             elif entry.is_dir(follow_symlinks=False):
                 if read_marker(Path(entry.path)) is not None:
                     found.extend(f"{name}/{f}" for f in foreign_entries(Path(entry.path), limit - len(found)))
@@ -173,8 +216,8 @@ def check_destination(dest: str | os.PathLike, kind: str, *, force: bool = False
                           "files away")
     foreign = foreign_entries(dest)
     if foreign:
-        raise FolderError(f"{shown} is an ocdsl {marker['kind']} folder but also holds files ocdsl did not "
-                          f"write: {_names(foreign)}. Nothing was changed: move them away or choose a "
+        raise FolderError(f"{shown} is an ocdsl {marker['kind']} folder but also holds what is not ocdsl's "
+                          f"as it wrote it: {_names(foreign)}. Nothing was changed: move them away or choose a "
                           "new --out (--force never removes them)")
     if marker["kind"] != kind and not force:
         raise FolderError(f"{shown} holds an earlier ocdsl {marker['kind']} folder, not a {kind}; "
@@ -267,7 +310,8 @@ def assemble(dest: str | os.PathLike, kind: str, *, force: bool = False) -> Iter
         # written directly, not by rename: even a marker cut short tags the folder as ocdsl's
         (tmp / MARKER).write_text(json.dumps({"written_by": "ocdsl", "kind": kind, "partial": True}))
         yield tmp
-        write_marker(tmp, kind, entries_of(tmp))
+        entries = entries_of(tmp)
+        write_marker(tmp, kind, entries, digests=digests_of(tmp, entries))
         check_destination(dest, kind, force=force)   # the folder may have changed meanwhile
         swap_into_place(tmp, dest)
     except BaseException:

@@ -108,6 +108,63 @@ def test_nested_run_folders_are_ocdsl_s(tmp_path):
         run_folder.check_destination(out, "study", force=True)
 
 
+def test_a_file_the_user_changed_in_a_run_is_the_users(tmp_path):
+    """unseen24 G1: a user's edit of an ocdsl-written file was replaced by the next run."""
+    out = tmp_path / "run"
+    _result("one").write(out)
+    with open(out / "trajectory.csv", "a") as fh:
+        fh.write("# my edit\n")
+    edited = (out / "trajectory.csv").read_text()
+    with pytest.raises(FolderError, match=r"trajectory.csv \(changed since ocdsl wrote it\)"):
+        _result("two").write(out, force=True)
+    assert (out / "trajectory.csv").read_text() == edited
+
+
+def test_a_link_put_in_place_of_an_ocdsl_entry_is_the_users(tmp_path):
+    """unseen24 G2: a link the user put where ocdsl wrote a folder or a file was removed."""
+    out = tmp_path / "run"
+    precious = tmp_path / "precious"
+    precious.mkdir()
+    (precious / "mine.csv").write_text("mine")
+    _result("one").write(out)
+    import shutil
+    shutil.rmtree(out / "tables")
+    (out / "tables").symlink_to(precious)
+    with pytest.raises(FolderError, match="tables \\(a link the user put there\\)"):
+        _result("two").write(out)
+    assert (out / "tables").is_symlink() and (precious / "mine.csv").read_text() == "mine"
+    (out / "tables").unlink()
+    (out / "trajectory.csv").unlink()
+    (out / "trajectory.csv").symlink_to(precious / "mine.csv")
+    with pytest.raises(FolderError, match="a link the user put there"):
+        _result("two").write(out)
+    assert (out / "trajectory.csv").is_symlink()
+
+
+def test_another_run_inside_a_run_is_not_replaced_with_it(tmp_path):
+    """unseen24 G3: ``run --out q/inner`` then ``run --out q`` deleted the separate run q/inner."""
+    out = tmp_path / "q"
+    _result("outer").write(out)
+    _result("inner").write(out / "inner")
+    with pytest.raises(FolderError, match=r"inner/ \(another ocdsl run\)"):
+        _result("again").write(out, force=True)
+    assert _holds(out / "inner", "inner") and _holds(out, "outer")
+
+
+def test_a_report_s_files_rewritten_by_ocdsl_keep_the_run_replaceable(tmp_path):
+    """Files ocdsl itself rewrites in a run folder (a report made twice) are not taken for
+    the user's: their digests go when ocdsl claims them again."""
+    out = tmp_path / "run"
+    _result("one").write(out)
+    marker = run_folder.read_marker(out)
+    assert "result.json" in marker["digests"] and "trajectory.csv" in marker["digests"]
+    for text in ("<p>first</p>", "<p>second</p>"):
+        run_folder.claim(out, ["report.html"])
+        (out / "report.html").write_text(text)
+    _result("two").write(out)
+    assert _holds(out, "two") and not (out / "report.html").exists()
+
+
 @pytest.mark.parametrize("mask,dmode,fmode", [(0o022, 0o755, 0o644), (0o077, 0o700, 0o600),
                                                (0o002, 0o775, 0o664)])
 def test_modes_follow_the_umask(tmp_path, mask, dmode, fmode):
