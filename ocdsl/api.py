@@ -6,6 +6,7 @@
 """
 from __future__ import annotations
 
+import json
 import tempfile
 import time
 import traceback
@@ -248,6 +249,17 @@ def _chain(file, out, warm_start, *, quiet: bool, verbose: bool):
                                    quiet=quiet, verbose=verbose)
 
 
+def _complete_run(folder: Path) -> bool:
+    """``folder`` holds a run ocdsl finished writing whose run was not interrupted itself."""
+    marker = run_folder.read_marker(folder) if folder.is_dir() else None
+    if marker is None or marker.get("kind") != "run" or marker.get("partial"):
+        return False
+    try:
+        return json.loads((folder / "result.json").read_text()).get("status") != "interrupted"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str, float] | None = None,
              seed: int | None = None, warm_start: str | Path | None = None, quiet: bool = True,
              verbose: bool = False, force: bool = False, time_limit: float | None = None) -> Result:
@@ -287,7 +299,13 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
                             parameters=file.parameters,
                             problem=file.problem.description if file.problem else {},
                             extra={"traceback": traceback.format_exc(limit=6)})
-        if out_dir is not None:
+        if out_dir is not None and result.status == "interrupted" and _complete_run(Path(out_dir)):
+            # Ctrl-C stops a run; it does not throw away the complete one it would have replaced
+            # (unseen24 G4: the earlier result became the interrupted iterate, tables gone)
+            result.message += (f"; the earlier complete run in {out_dir} was kept and the interrupted iterate "
+                               "not written (run again with another --out to keep an interrupted one)")
+            result.extra["run_folder_kept"] = str(out_dir)
+        elif out_dir is not None:
             try:
                 write_run(result, out_dir, Path(path), force=force, extra_dirs=chain_stages.entries(stages),
                           logs=logs)

@@ -2,7 +2,8 @@
 
 Exit codes: 0 solved and every expect check passed; 1 the run failed or a check failed
 (the run folder is still written, with the diagnosis); 2 bad problem file or bad usage;
-130 interrupted by Ctrl-C (the run folder holds the last iterate, status interrupted).
+130 interrupted by Ctrl-C (the run folder holds the last iterate, status interrupted; a complete
+earlier run in the folder is kept instead).
 """
 from __future__ import annotations
 
@@ -269,7 +270,8 @@ def _summary(result, out: Path) -> None:
     if w:
         parts = ", ".join(f"{k} {v:.3f}" for k, v in w.items() if k != "total")
         t.add_row("wall time", f"{w.get('total', 0):.3f} s ({parts})")
-    t.add_row("run folder", str(out))
+    kept = result.extra.get("run_folder_kept")
+    t.add_row("run folder", f"{out} (the earlier run, kept; nothing of this one written)" if kept else str(out))
     if v.get("tolerance") is not None and vstatus in ("verified", "failed"):
         t.add_row("verification", f"{len(v.get('checks', []))} checks against tolerance {v['tolerance']:g}"
                   f" ({v.get('wall_time_s', 0):.3f} s)")

@@ -196,6 +196,20 @@ def test_ctrl_c_writes_the_last_iterate_marked_interrupted_and_exits_130(tmp_pat
     assert (tmp_path / "run" / "trajectory.csv").exists()
 
 
+def test_ctrl_c_keeps_a_complete_earlier_run_in_the_folder(tmp_path):
+    """unseen24 G4: Ctrl-C over a complete earlier run replaced it with the interrupted
+    iterate. The earlier run stays, and the output says the iterate was not written."""
+    first = ocdsl("run", str(write(tmp_path, UNBOUNDED + "solver: {options: {max_iter: 3}}\n")),
+                  "--out", str(tmp_path / "run"))
+    before = json.loads((tmp_path / "run" / "result.json").read_text())
+    marker = (tmp_path / "run" / ".ocdsl-run").read_text()
+    assert first.returncode == 1 and before["status"] == "max_iter", first.stdout
+    code, saved, out = _interrupted_run(tmp_path, signal.SIGINT)
+    assert code == 130, out
+    assert saved == before and (tmp_path / "run" / ".ocdsl-run").read_text() == marker
+    assert "earlier complete run" in out and "was kept" in out, out
+
+
 def test_sigterm_writes_the_last_iterate_marked_interrupted_and_exits_143(tmp_path):
     """unseen24: SIGTERM (what `timeout`, systemd and batch schedulers send) ended the process
     with no run folder at all. It is handled as Ctrl-C is: the folder holds the last iterate."""
