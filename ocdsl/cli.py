@@ -255,10 +255,16 @@ def _summary(result, out: Path) -> None:
         t.add_row("final time", f"{result.tf:.10g}{qualifier}")
     # a flat refinement's starts solved its first level, whose objective is not the reported
     # (refined) one (unseen19: seed 2 printed "8: 0 ended at this objective")
+    # (and a mesh refinement's, its first mesh: unseen27 FC1 printed "8: 0 ended at this objective")
     levels = (result.extra.get("refinement") or {}).get("levels") or []
-    starts = _starts_line(result.extra.get("starts") or [],
-                          levels[0].get("objective") if len(levels) > 1 else result.objective,
-                          "the first level's objective" if len(levels) > 1 else "this objective")
+    meshes = result.extra.get("mesh_history") or []
+    if len(levels) > 1:
+        first, said = levels[0].get("objective"), "the first level's objective"
+    elif len(meshes) > 1:
+        first, said = meshes[0].get("objective"), "the first mesh's objective"
+    else:
+        first, said = result.objective, "this objective"
+    starts = _starts_line(result.extra.get("starts") or [], first, said)
     if starts:
         t.add_row("starts", starts)
     if result.nlp:

@@ -192,3 +192,49 @@ def test_the_summary_says_how_the_starts_ended():
     assert _starts_line(rec, 25.8727) == "5: 2 ended at this objective, 2 elsewhere (26.1567), 1 did not solve"
     assert _starts_line(rec[:1], 25.8727) == ""
     assert _starts_line([{"status": "optimal", "objective": 0.6893}] * 8, 0.6893) == "8: 8 ended at this objective"
+
+
+OBSTACLE = """
+name: obstacle
+model:
+  states: [x, y]
+  controls: [ux, uy]
+  dynamics: {x: ux, y: uy}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, y(t0) == 0, x(tf) == 1.2, y(tf) == 1.6, (x-0.4)**2 + (y-0.5)**2 >= 0.1]
+  objective: minimize integral(ux**2 + uy**2)
+  guess: {x: {t: [0, 0.5, 1], values: [0, 0.9, 1.2]}, y: {t: [0, 0.5, 1], values: [0, 0.4, 1.6]}}
+method: {transcription: LGR, segments: 4, degree: 4, starts: 8, mesh: {tolerance: 1.0e-7, max_iterations: 10}}
+"""
+
+
+def _shortest_around_circle(a, b, c, r) -> float:
+    """Length of the shortest path from a to b around the disc (c, r): tangent, arc, tangent
+    on the side that is shorter (both ends outside the disc, the segment a-b through it)."""
+    a, b, c = (np.asarray(p, float) for p in (a, b, c))
+    da, db = np.linalg.norm(a - c), np.linalg.norm(b - c)
+    ta, tb = np.sqrt(da ** 2 - r ** 2), np.sqrt(db ** 2 - r ** 2)
+    ang = np.arccos(np.dot(a - c, b - c) / (da * db))
+    arc = ang - np.arccos(r / da) - np.arccos(r / db)
+    return float(ta + tb + r * arc)
+
+
+def test_a_mesh_restarted_from_the_guess_starts_from_the_start_that_won(tmp_path):
+    """unseen27 FC1: with `starts: 8` a perturbed start passes the obstacle on its short side
+    on the first mesh (J 4.4203); the refinement restarts a mesh from the guess where a control
+    zigzags, and took the file's guess (the long side): 4.5442, `optimal`. It takes the
+    winning start's guess: J = L^2 for the shortest path L around the disc. The summary
+    compares the starts with the first mesh's objective."""
+    import subprocess
+    import sys
+
+    problem = tmp_path / "obstacle.yaml"
+    problem.write_text(OBSTACLE)
+    out = subprocess.run([sys.executable, "-m", "ocdsl.cli", "run", str(problem), "--out", str(tmp_path / "run")],
+                         capture_output=True, text=True, timeout=600)
+    result = ocdsl.read(tmp_path / "run")
+    best = _shortest_around_circle((0, 0), (1.2, 1.6), (0.4, 0.5), np.sqrt(0.1)) ** 2
+    assert best == pytest.approx(4.4211973256, abs=1e-9)
+    assert result.objective == pytest.approx(best, abs=1e-6), out.stdout
+    assert "ended at the first mesh's objective" in out.stdout, out.stdout

@@ -105,6 +105,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
 
     previous: dict[str, PhaseTrajectory] = start if start is not None else previous_phases(file, warm_start)
     given = previous      # what the first mesh started from (a later mesh's retry starts there too)
+    # the guesses of the start that won on the first mesh when it was not start 0 (``starts:``):
+    # a later mesh started "from the guess" starts from these
+    start_won: dict | None = None
+    from_start: dict | None = None      # the next mesh's guesses, when it restarts from them
     notes = start_notes(file, previous)
     options = dict(file.spec.solver.options)
     # the NLP must be solved well below the mesh tolerance, or solver noise (Ipopt's
@@ -147,7 +151,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # the first mesh starts from the guess (start 0 of ``starts:``, the single start's);
             # later meshes from the previous mesh's solution (``previous``)
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
-                       for ph in problem.phases}
+                       for ph in problem.phases} if from_start is None else from_start
+            from_start = None
             built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
 
             def rebuild(ms, guesses=guesses, built_with=built_with, collect=False, free_breakpoints=None):
@@ -182,7 +187,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                       transcription=t)
                     start_records.append(_start_record(i, base_seed + i, res))
                     if _better(res, info, problem.objective.sense):
-                        tr, info = t, res
+                        tr, info, start_won = t, res, g
                         # trial models of this iteration (switches.py) start from the best start's guess
                         rebuild = functools.partial(rebuild, guesses=g)
                         reg = getattr(tr.model, "mesh_regularisation", None)
@@ -190,8 +195,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         from_guess = False      # this mesh solved from the file's guess (restart.py)
         if it > 1 and info.status not in GOOD and info.status not in ("time_limit", "interrupted"):
             def cold(given=given):
-                t = rebuild(meshes, guesses={ph.name: make_guess(problem, ph, given.get(ph.name))
-                                             for ph in problem.phases}, collect=True)
+                t = rebuild(meshes, guesses=start_won or {ph.name: make_guess(problem, ph, given.get(ph.name))
+                                                          for ph in problem.phases}, collect=True)
                 ws.prepare(t.model)
                 return t
 
@@ -510,8 +515,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # misses most: the NLP exploits the quadrature (sqrt(1 + u^2) "shortened" by a
                 # zigzag), and a next mesh started from that point found the same kind of
                 # optimum (the hanging chain: 4.94, 4.95, 4.83, 4.79 for 5.068 on meshes 1-4,
-                # then 753 Ipopt iterations to leave it). It starts from the file's guess.
-                previous, snapshot = given, None
+                # then 753 Ipopt iterations to leave it). It starts from the guess of the start
+                # that won the first mesh (unseen27 FC1: an obstacle passed on the short side by a
+                # perturbed start, J 4.4203 on the first mesh; the next mesh, restarted from the
+                # file's guess, passed it on the long side: 4.5442, optimal)
+                previous, snapshot, from_start = given, None, start_won
                 guess_restarts += 1
                 rec["next_mesh_from_guess"] = "the control zigzags where an integral's quadrature misses"
             try:
