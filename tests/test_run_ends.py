@@ -488,3 +488,16 @@ def test_ipopts_output_file_keeps_the_first_solve_and_numbers_the_later_ones(tmp
     first = ipopt._numbered_output_file({"output_file": log})
     second = ipopt._numbered_output_file({"output_file": log})
     assert first["output_file"] == log and second["output_file"] == str(tmp_path / "ipopt.2.txt")
+
+
+@pytest.mark.parametrize("objective", ["minimize 0", "minimize x(tf) - x(tf)"])
+def test_a_feasibility_problem_solves_and_its_certificate_is_skipped(tmp_path, objective):
+    """unseen27: `minimize 0` (documented as a feasibility problem) ended `solver error` with a
+    SyntaxError from the generated code (a function of no argument), and once solved its
+    certificate judged the NLP's arbitrary multipliers ("failed"). Now it solves; the
+    certificate says there is nothing to check."""
+    res = run_file(write(tmp_path, BASE.replace("minimize integral(u**2)", objective)), tmp_path / "run")
+    assert res.status == "optimal", res.message
+    x_end = res.phases[0].states["x"][-1]
+    assert x_end == pytest.approx(0.2, abs=1e-6)
+    assert "feasibility problem" in res.certificate.get("skipped", ""), res.certificate

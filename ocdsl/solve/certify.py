@@ -92,6 +92,12 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
     degenerate = _degenerate_rows(result)
     if degenerate is not None:
         return degenerate
+    if not sp.sympify(problem.objective.expr).free_symbols:
+        # `minimize 0`: the minimum principle holds with a zero cost multiplier and says
+        # nothing (unseen27: its H and dH/du, the NLP's arbitrary multipliers, "failed")
+        return {"passed": False, "skipped": "the objective is a constant (a feasibility problem): every "
+                                            "feasible trajectory is optimal, there is no optimality condition "
+                                            "to check"}
     J = _endpoint_lagrangian(problem, result)
     if isinstance(J, str):
         return {"passed": False, "skipped": J}

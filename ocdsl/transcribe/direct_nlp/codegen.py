@@ -42,7 +42,8 @@ def _numpy_source(args, reps, red) -> str:
     without a per-entry ``broadcast_to`` and ``stack`` (which took half of a Hessian
     evaluation's time on seed 0)."""
     pr = _printer()
-    lines = [f"def f({', '.join(str(a) for a in args)}, _out):"]
+    # an objective of no variable (`minimize 0`) has no arguments but the output
+    lines = [f"def f({', '.join([*(str(a) for a in args), '_out'])}):"]
     lines += [f"    {s} = {pr.doprint(e)}" for s, e in reps]
     lines += [f"    _out[{i}] = {pr.doprint(e)}" for i, e in enumerate(red)]
     lines.append("    return _out")
