@@ -501,3 +501,23 @@ def test_a_feasibility_problem_solves_and_its_certificate_is_skipped(tmp_path, o
     x_end = res.phases[0].states["x"][-1]
     assert x_end == pytest.approx(0.2, abs=1e-6)
     assert "feasibility problem" in res.certificate.get("skipped", ""), res.certificate
+
+
+def test_scaling_auto_prints_no_pyomo_note_before_the_status(tmp_path):
+    """unseen27: `scaling: auto` printed Pyomo's NL-writer WARNING (factors of variables it
+    skips) before the run's status line."""
+    text = """name: si
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-10 <= u <= 10, x(t0) == -1.0e5, v(t0) == 0, x(tf) == 0, v(tf) == 0, 1 <= tf <= 1000]
+  objective: minimize tf
+scaling: {mode: auto}
+"""
+    out = ocdsl("run", str(write(tmp_path, text)), "--out", str(tmp_path / "run"))
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "WARNING" not in out.stdout + out.stderr, out.stdout + out.stderr
+    assert out.stdout.startswith("si: solver optimal"), out.stdout

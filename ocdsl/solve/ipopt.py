@@ -365,14 +365,13 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
     ``transcription``: the pseudospectral Transcription that built ``model``; Ipopt then
     evaluates the NLP through ``transcribe.direct_nlp`` where it covers the model (the
     message of ``SolveInfo.nlp["evaluation"]`` says which route was taken)."""
-    import logging
-
     import pyomo.core as pyo
+
+    from .. import pyomo_logs
 
     check_available()
     heap_kept()
-    # Ipopt may end a hair outside a bound (bound_relax_factor); Pyomo warns per variable on load
-    logging.getLogger("pyomo.core").setLevel(logging.ERROR)
+    pyomo_logs.quiet()
 
     def options_with(*layers):
         out = {k: v for layer in layers for k, v in layer.items()}

@@ -168,11 +168,9 @@ def build(problem: Problem, meshes: dict[str, Mesh], guesses: dict[str, PhaseGue
     of the NLP (each between the middles of its neighbouring segments), not data: a
     bang-bang switch's time solved for with everything else (ocdsl/solve/mesh/switches.py).
     Such a model is evaluated by Pyomo's route, not ``direct_nlp``."""
-    import logging
+    from .. import pyomo_logs
 
-    # a guess outside a variable's bounds (a warm start's t_f of 0 against 0.1 <= tf) is the
-    # guess notes' to say once, not Pyomo's W1002 on standard output (unseen24)
-    logging.getLogger("pyomo.core").setLevel(logging.ERROR)
+    pyomo_logs.quiet()
     with _gc_paused(collect):
         return _build(problem, meshes, guesses, mutable or {}, free_breakpoints or {})
 
