@@ -238,3 +238,24 @@ def test_a_mesh_restarted_from_the_guess_starts_from_the_start_that_won(tmp_path
     assert best == pytest.approx(4.4211973256, abs=1e-9)
     assert result.objective == pytest.approx(best, abs=1e-6), out.stdout
     assert "ended at the first mesh's objective" in out.stdout, out.stdout
+
+
+def test_a_junction_inside_a_segment_is_not_called_converged(tmp_path):
+    """unseen27 FC2: x' = u, an obstacle centred on the chord. A coarse mesh's exit from the
+    circle held a breakpoint at t = 0.503; the true exit, 0.548, sat between two nodes of
+    the next segment, where the polynomial states of x' = u are exact: every error estimate
+    below 1e-8, J 1.65e-4 high, `optimal`, verified. The constraint's binding (by its
+    multipliers) that changes between two inner nodes of a segment is no converged mesh:
+    the run says so, or refines on to the optimum."""
+    text = OBSTACLE.replace("0.4)**2 + (y-0.5)**2", "0.6)**2 + (y-0.8)**2").replace(
+        "starts: 8, ", "").replace("values: [0, 0.9, 1.2]", "values: [0, 1.1, 1.2]").replace(
+        "values: [0, 0.4, 1.6]", "values: [0, 0.5, 1.6]")
+    problem = tmp_path / "chord.yaml"
+    problem.write_text(text)
+    result = ocdsl.load(problem).solve()
+    best = _shortest_around_circle((0, 0), (1.2, 1.6), (0.6, 0.8), np.sqrt(0.1)) ** 2
+    assert best == pytest.approx(4.4136106983, abs=1e-9)
+    flagged = [h for h in result.extra["mesh_history"] if h.get("inner_junctions")]
+    assert flagged
+    if result.status == "optimal":
+        assert result.objective == pytest.approx(best, abs=1e-5 * (1 + best))

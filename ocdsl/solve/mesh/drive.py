@@ -447,7 +447,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             located = features
             rec["features"] = features
             rec["features_off_breakpoints"] = off
-            if max_err <= spec.tolerance and not any(off.values()):
+            inner = {k: [e.segment for e in errors[k] if e.inner_junction] for k in errors}
+            if any(inner.values()):
+                rec["inner_junctions"] = inner
+            if max_err <= spec.tolerance and not any(off.values()) and not any(inner.values()):
                 converged.append(last)
                 rec["converged"] = True
                 smaller = None

@@ -139,11 +139,17 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
             still |= {q - 1, q}
     memory["last"] = list(nudges.values())
     proposals: list[list[list]] = []
+    within = not any(e.error > tol for e in errors)
     for e in errors:
         k = e.segment
         a, b = float(mesh.breakpoints[k]), float(mesh.breakpoints[k + 1])
         N = mesh.degrees[k]
         holds = [f for f in todo if a < f < b]
+        if within and e.inner_junction and not holds:
+            # every segment meets the tolerance but this one holds a junction between two of its
+            # nodes (``SegmentError.inner_junctions``): cut at its bracket
+            proposals.append(_cut(a, b, N, e.inner_junctions, pieces, nmin))
+            continue
         if not (e.error > tol) or holds or k in still:
             proposals.append([[a, b, N]])
             continue
@@ -211,6 +217,17 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
         # refined regardless of the rules above, or the refinement stops (MeshStalled)
         new = _forced_refinement(mesh, errors, spec, todo)
     return new
+
+
+def _cut(a: float, b: float, N: int, brackets, pieces: int, nmin: int) -> list[list]:
+    """[a, b] cut into ``pieces`` across each bracket (s, s'), the pieces at the lowest degree
+    and the rest of the segment at its own."""
+    width = b - a
+    cuts = sorted({lo + (hi - lo) * q / pieces for lo, hi in brackets for q in range(pieces + 1)})
+    cuts = [c for c in cuts if a + 1e-9 * width < c < b - 1e-9 * width]
+    edges = [a, *cuts, b]
+    inside = lambda x, y: any(lo <= x and y <= hi for lo, hi in brackets)  # noqa: E731
+    return [[x, y, nmin if inside(x, y) else N] for x, y in zip(edges, edges[1:])]
 
 
 def _smooth_proposal(a: float, b: float, N: int, error: float, spec) -> list[list]:
