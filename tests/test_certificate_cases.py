@@ -567,6 +567,32 @@ def test_a_hamiltonian_below_what_the_nlp_resolves_is_not_judged(tmp_path):
     assert certificate_verdict(res.certificate) == "inconclusive"
 
 
+ZERO_COSTATE = """name: reachable target, zero costates
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [-1 <= u <= 1, x(t0) == 0]
+  objective: minimize (x(tf) - 0.5)**2
+"""
+
+
+def test_zero_costates_at_the_optimum_are_not_judged(tmp_path):
+    """unseen27 FA2: J* = 0 with lambda = 0 (any control with int u = 1/2 is optimal). The
+    costates Ipopt returns at tol 1e-8 are ~2e-8 of noise, above the old resolution 1e-8:
+    H "off" by 0.45 of itself, certificate failed, exit 1, with J right to 6e-16. Ipopt's tol
+    bounds its scaled dual infeasibility: costates are resolved to ten times it."""
+    from ocdsl.result import certificate_verdict
+
+    (tmp_path / "zero.yaml").write_text(ZERO_COSTATE)
+    res = run_file(tmp_path / "zero.yaml", None)
+    assert res.status == "optimal" and res.verified and abs(res.objective) < 1e-12
+    assert certificate_verdict(res.certificate) == "inconclusive"
+    assert res.ok
+
+
 def test_a_hamiltonian_that_the_nlp_resolves_is_still_judged(energy):
     """The same rule leaves an ordinary optimum's H judged (its terms are of order 1)."""
     _, res = energy
