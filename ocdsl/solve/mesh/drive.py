@@ -2,6 +2,8 @@
 mesh; returns the Result with the mesh history."""
 from __future__ import annotations
 
+import dataclasses
+
 import functools
 import math
 import time
@@ -106,9 +108,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     previous: dict[str, PhaseTrajectory] = start if start is not None else previous_phases(file, warm_start)
     given = previous      # what the first mesh started from (a later mesh's retry starts there too)
     # the guesses of the start that won on the first mesh when it was not start 0 (``starts:``):
-    # a later mesh started "from the guess" starts from these
+    # a later mesh solved again "from the guess" (``restart``) starts from these
     start_won: dict | None = None
-    from_start: dict | None = None      # the next mesh's guesses, when it restarts from them
     notes = start_notes(file, previous)
     options = dict(file.spec.solver.options)
     # the NLP must be solved well below the mesh tolerance, or solver noise (Ipopt's
@@ -151,8 +152,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # the first mesh starts from the guess (start 0 of ``starts:``, the single start's);
             # later meshes from the previous mesh's solution (``previous``)
             guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=seed if it == 1 else None)
-                       for ph in problem.phases} if from_start is None else from_start
-            from_start = None
+                       for ph in problem.phases}
             built_with = ({k: list(v) for k, v in chatter.items()}, dict(located))
 
             def rebuild(ms, guesses=guesses, built_with=built_with, collect=False, free_breakpoints=None):
@@ -518,13 +518,16 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # misses most: the NLP exploits the quadrature (sqrt(1 + u^2) "shortened" by a
                 # zigzag), and a next mesh started from that point found the same kind of
                 # optimum (the hanging chain: 4.94, 4.95, 4.83, 4.79 for 5.068 on meshes 1-4,
-                # then 753 Ipopt iterations to leave it). It starts from the guess of the start
-                # that won the first mesh (unseen27 FC1: an obstacle passed on the short side by a
-                # perturbed start, J 4.4203 on the first mesh; the next mesh, restarted from the
-                # file's guess, passed it on the long side: 4.5442, optimal)
-                previous, snapshot, from_start = given, None, start_won
+                # then 753 Ipopt iterations to leave it). It starts from this mesh's states and
+                # the file's controls: the states keep the side of an obstacle it passed on
+                # (unseen27 FC1: a perturbed start passed on the short side, J 4.4203 on mesh 1;
+                # the next mesh, started from the file's guess, passed on the long side:
+                # 4.5442, optimal), the zigzagging controls go
+                previous = {k: dataclasses.replace(v, controls={}) for k, v in previous.items()}
+                snapshot = None
                 guess_restarts += 1
-                rec["next_mesh_from_guess"] = "the control zigzags where an integral's quadrature misses"
+                rec["next_mesh_from_guess"] = ("the control zigzags where an integral's quadrature misses: this mesh's "
+                                               "states, the guess's controls")
             try:
                 # terminal conditions missed while every segment meets the tolerance: the segment
                 # errors add up (or are amplified) over the phase, so the segments are held to
