@@ -257,5 +257,7 @@ def test_a_junction_inside_a_segment_is_not_called_converged(tmp_path):
     assert best == pytest.approx(4.4136106983, abs=1e-9)
     flagged = [h for h in result.extra["mesh_history"] if h.get("inner_junctions")]
     assert flagged
-    if result.status == "optimal":
-        assert result.objective == pytest.approx(best, abs=1e-5 * (1 + best))
+    # converged or not, the reported mesh is not one the estimate is blind on (unseen28: the
+    # "best" mesh reported, J 1.65e-4 high, was such a mesh, beside later ones that were right)
+    assert result.objective == pytest.approx(best, abs=1e-5 * (1 + best)), result.message
+    assert "inner_junctions" not in result.extra["mesh_history"][result.extra["mesh"]["chosen_iteration"] - 1]

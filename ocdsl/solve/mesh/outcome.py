@@ -118,7 +118,10 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
                  f"({history[it_c - 1].get('terminal_flown')}) "
                  f"({term_c:.3e})" if term_c > spec.tolerance else
                  "within tolerance, but located switches/corners lie off the breakpoints by more than "
-                 f"corner_tolerance {spec.corner_tolerance:g}: {_features_shown(off_c)}")
+                 f"corner_tolerance {spec.corner_tolerance:g}: {_features_shown(off_c)}" if any(off_c.values()) else
+                 "within tolerance, but a constraint starts or stops binding between two nodes inside "
+                 f"{_inner_shown(errors_c)}, where the states integrate the controls exactly and the estimate "
+                 "cannot see the junction's error")
         message = (f"mesh refinement did not reach the tolerance {spec.tolerance:.1e} in "
                    f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
                    f"largest estimated error {max_err:.3e} {where}. "
@@ -126,6 +129,13 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
                       "Raise max_iterations or max_degree, or loosen the tolerance.")
                    + _path_bound_hint(problem, _tr))
     return status, chosen, message, disagree, stalled
+
+
+def _inner_shown(errors: dict) -> str:
+    """The segments holding a junction between two of their nodes, as a user reads them."""
+    parts = [f"phase '{e.phase}' segment {e.segment} (t in [{e.t_start:.6g}, {e.t_end:.6g}])"
+             for es in errors.values() for e in es if e.inner_junction]
+    return "; ".join(parts[:4]) + (f" and {len(parts) - 4} more" if len(parts) > 4 else "") or "a segment"
 
 
 def _features_shown(off: dict) -> str:
