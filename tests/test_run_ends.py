@@ -490,7 +490,7 @@ def test_ipopts_output_file_keeps_the_first_solve_and_numbers_the_later_ones(tmp
     assert first["output_file"] == log and second["output_file"] == str(tmp_path / "ipopt.2.txt")
 
 
-@pytest.mark.parametrize("objective", ["minimize 0", "minimize x(tf) - x(tf)"])
+@pytest.mark.parametrize("objective", ["minimize 0", "minimize 0.0"])
 def test_a_feasibility_problem_solves_and_its_certificate_is_skipped(tmp_path, objective):
     """unseen27: `minimize 0` (documented as a feasibility problem) ended `solver error` with a
     SyntaxError from the generated code (a function of no argument), and once solved its
@@ -514,3 +514,12 @@ def test_scaling_auto_prints_no_pyomo_note_before_the_status(tmp_path):
     assert out.returncode == 0, out.stdout + out.stderr
     assert "WARNING" not in out.stdout + out.stderr, out.stdout + out.stderr
     assert out.stdout.startswith("t: solver optimal"), out.stdout
+
+
+def test_an_objective_whose_names_cancel_is_refused_at_check(tmp_path):
+    """unseen28: `minimize x(tf) - x(tf)` is the constant 0 once SymPy cancels it; the docs
+    refuse an objective that names something yet is a constant, but it passed as a bare number."""
+    p = write(tmp_path, BASE.replace("minimize integral(u**2)", "minimize x(tf) - x(tf)"))
+    with pytest.raises(SpecError) as err:
+        compile_file(p)
+    assert "simplifies to the constant 0" in str(err.value) and ":16:" in str(err.value)

@@ -3,6 +3,7 @@ assembly and its description for the report; models, phases and constraints in t
 own modules (mixed in)."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -333,6 +334,13 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                     fixed[symbol] = value
                     label[symbol] = f"{ph.name}.{end}" if multi else end
         named = obj.expr.free_symbols
+        written = re.sub(r"^\s*(minimize|maximize)\s+", "", obj.text).strip()
+        if not named and not re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", written):
+            # names that cancel (`x(tf) - x(tf)`): a constant that was not meant as one
+            self.issue(loc, f"the objective `{written}` simplifies to the constant {obj.expr}, so it does not "
+                            "depend on the solution: write the cost meant, or `minimize 0` for a feasibility "
+                            "problem", obj.text)
+            return
         if not named or sp.sympify(obj.expr.xreplace(fixed)).free_symbols:
             return
         # every name was replaced by a number (times and constants are floats)
