@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from scipy.integrate import quad, solve_ivp
 from scipy.linalg import expm
 from scipy.optimize import brentq, fsolve
@@ -30,6 +31,8 @@ MATCHED = {
     "brachistochrone_to_line": False,
     # written from the docs in the sixth session of 2026-12-06
     "min_time_energy": False,
+    # written in the tenth session of 2026-12-07 (unseen27 FC2)
+    "obstacle_chord": False,
 }
 # not verified: adaptive refinement stops at max_iterations (largest estimated error 2e-5),
 # J settles at 7.910916, 4.5e-5 above the published 7.91055654 (expect fails at rtol 1e-6)
@@ -294,6 +297,20 @@ def test_min_time_energy_reference():
     assert best.fun == pytest.approx(math.sqrt(2), rel=1e-12)
     u = 1 / best.x
     assert u ** 2 / 2 - u ** 2 == pytest.approx(-1.0, rel=1e-6)
+
+
+def test_obstacle_chord_reference():
+    """Shortest path from a to b around the disc (c, r), the chord through c: a tangent from
+    each end and the arc between the tangent points, L = 2 sqrt(d^2 - r^2) + r (pi - 2
+    acos(r / d)) with d = |a - c| = |b - c|; at constant speed over T = 1, J = L^2 (the
+    minimum of int |u|^2 for a path of length L)."""
+    a, b, c, r = np.array([0.0, 0.0]), np.array([1.2, 1.6]), np.array([0.6, 0.8]), math.sqrt(0.1)
+    u, v = b - a, c - a
+    assert u[0] * v[1] - u[1] * v[0] == pytest.approx(0.0, abs=1e-15)      # c on the chord
+    d = float(np.linalg.norm(a - c))
+    L = 2 * math.sqrt(d * d - r * r) + r * (math.pi - 2 * math.acos(r / d))
+    spec = yaml.safe_load((CONFIGS / "lit_obstacle_chord.yaml").read_text())
+    assert L ** 2 == pytest.approx(spec["expect"]["objective"]["value"], rel=1e-10)
 
 
 def test_brachistochrone_to_line_reference():
