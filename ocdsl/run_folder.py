@@ -82,7 +82,8 @@ def write_marker(folder: Path, kind: str, entries: Iterable[str] = (), *, partia
         digests = (read_marker(folder) or {}).get("digests") or {}
     data = {"written_by": "ocdsl", "version": __version__, "kind": kind, "partial": partial,
             "entries": entries}
-    kept = {n: d for n, d in digests.items() if n in set(entries)}
+    listed = set(entries)
+    kept = {n: d for n, d in digests.items() if n in listed}
     if kept:
         data["digests"] = dict(sorted(kept.items()))
     atomic_write_text(Path(folder) / MARKER, json.dumps(data, indent=1))
@@ -131,7 +132,8 @@ def claim(folder: Path, names: Iterable[str]) -> None:
     if data is None:
         return
     names = list(names)
-    digests = {n: d for n, d in (data.get("digests") or {}).items() if n not in set(names)}
+    rewritten = set(names)
+    digests = {n: d for n, d in (data.get("digests") or {}).items() if n not in rewritten}
     write_marker(folder, data["kind"], [*data.get("entries", []), *names], partial=data.get("partial", False),
                  digests=digests)
 

@@ -10,8 +10,8 @@ import numpy as np
 import sympy as sp
 
 
-# the NLP's resolution in its own units (ten times Ipopt's tol, ocdsl's default 1e-8, as the
-# certificate's Tolerances.resolution): a state whose values all stay within it of zero is
+# the NLP's resolution in its own units (ten times Ipopt's tol, ocdsl's default 1e-8; the
+# certificate's Tolerances.resolution is this too): a state whose values all stay within it of zero is
 # measured against it. With 1e-12 a state that is 0 at the optimum failed on the solver's
 # slop: an unused axis (planar motion in a 3-D model, a single-axis slew of a full attitude
 # model) left at 1e-16..2.4e-13 by a perturbed start was "1e-4..0.24 relative", while the

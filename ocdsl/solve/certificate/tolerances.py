@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...verify.checks import RESOLUTION
+
 OBJECTIVE_KINDS = ("min_tf", "max_tf", "free_tf", "fixed_tf")
 EXPECTED_H = {"min_tf": -1.0, "max_tf": 1.0, "free_tf": 0.0, "fixed_tf": None}
 
@@ -35,4 +37,4 @@ class Tolerances:
     # with J right to 3e-11; zero costates at the optimum, unseen27: x' = u, min (x(1) -
     # 0.5)^2, and a phase cost that balances the final value, H of 2.2e-8 "failed" at 0.45 of
     # itself with J right to 6e-16 and 4.8e-10): it is not judged, neither passed nor failed
-    resolution: float = 1e-7
+    resolution: float = RESOLUTION

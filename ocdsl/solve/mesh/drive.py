@@ -3,7 +3,6 @@ mesh; returns the Result with the mesh history."""
 from __future__ import annotations
 
 import dataclasses
-
 import functools
 import math
 import time

@@ -154,14 +154,9 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
             proposals.append([[a, b, N]])
             continue
         if e.nonsmooth and not e.smoothed:
-            cuts = set()
-            for lo, hi in e.switches:
-                for q in range(pieces + 1):
-                    cuts.add(lo + (hi - lo) * q / pieces)
             width = b - a
-            cuts = sorted(c for c in cuts if a + 1e-9 * width < c < b - 1e-9 * width)
             merged = []
-            for c in cuts:   # drop slivers far below the bracket scale
+            for c in _bracket_cuts(a, b, e.switches, pieces):   # drop slivers far below the bracket scale
                 if not merged or c - merged[-1] > 1e-6 * width:
                     merged.append(c)
             if merged:
@@ -219,13 +214,17 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
     return new
 
 
+def _bracket_cuts(a: float, b: float, brackets, pieces: int) -> list[float]:
+    """The points that cut each bracket (s, s') into ``pieces``, strictly inside [a, b], sorted."""
+    width = b - a
+    cuts = {lo + (hi - lo) * q / pieces for lo, hi in brackets for q in range(pieces + 1)}
+    return sorted(c for c in cuts if a + 1e-9 * width < c < b - 1e-9 * width)
+
+
 def _cut(a: float, b: float, N: int, brackets, pieces: int, nmin: int) -> list[list]:
     """[a, b] cut into ``pieces`` across each bracket (s, s'), the pieces at the lowest degree
     and the rest of the segment at its own."""
-    width = b - a
-    cuts = sorted({lo + (hi - lo) * q / pieces for lo, hi in brackets for q in range(pieces + 1)})
-    cuts = [c for c in cuts if a + 1e-9 * width < c < b - 1e-9 * width]
-    edges = [a, *cuts, b]
+    edges = [a, *_bracket_cuts(a, b, brackets, pieces), b]
     inside = lambda x, y: any(lo <= x and y <= hi for lo, hi in brackets)  # noqa: E731
     return [[x, y, nmin if inside(x, y) else N] for x, y in zip(edges, edges[1:])]
 
