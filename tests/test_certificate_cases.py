@@ -869,3 +869,51 @@ def test_a_refinement_whose_flight_cannot_be_corrected_is_refined_again():
     res = run_file(DATA / "iso_saturated_lgr2x4.yaml", None)
     assert res.objective == pytest.approx(ISO_BEST, rel=1e-8)
     assert res.extra["first_refinement"]["objective"] - ISO_BEST > 1e-4
+
+
+TIED_JUNCTION = """\
+name: two-phase minimax with a shared free parameter
+parameters:
+  p: {value: 2.0, free: true, bounds: [0, 10]}
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+phases:
+  a:
+    time: {t0: 0, tf: 0.7}
+    constraints: [u - p <= 0, u + p >= 0, x(t0) == 0, v(t0) == 0]
+  b:
+    time: {t0: 0.7, tf: 2}
+    constraints: [u - p <= 0, u + p >= 0, x(tf) == 1, v(tf) == 0]
+links:
+  - continuous(a, b)
+objective: minimize p
+method: {transcription: LGR, segments: 4, degree: 4, mesh: {tolerance: 1.0e-7, max_iterations: 10}}
+"""
+
+
+def test_a_control_tied_at_a_phase_junction_is_judged_by_its_segments_reduced_stationarity(tmp_path):
+    """unseen27 FA4: rest to rest, x'' = u, min p with -p <= u <= p in two phases (p* = 1).
+    Mesh refinement ties phase a's control at the junction to its segment's interior
+    polynomial (`junction_control: limit`); the tie's multiplier moved that segment's path
+    multipliers off -lambda_v by up to 0.31 and the certificate failed stationarity in phase a
+    with J right to 2e-9. With the segment's reduced stationarity it passes, `u - p <= 0`
+    counts as active where it binds (range and bound 0, its size is its terms'), and a wrong
+    multiplier on the same segment still fails."""
+    (tmp_path / "fa4.yaml").write_text(TIED_JUNCTION)
+    problem = compile_file(tmp_path / "fa4.yaml").problem
+    res = run_file(tmp_path / "fa4.yaml", None)
+    assert res.status == "optimal" and res.verified and abs(res.parameters["p"] - 1) < 1e-7
+    a = res.phases[0]
+    ties = a.control_interpolation["tied_controls"]
+    assert len(ties) == 1 and ties[0]["tied"] == len(a.time) - 1
+    cert = res.certificate
+    assert cert["passed"], cert
+    upper = cert["phases"]["a"]["path_multipliers"]["per_constraint"][0]
+    assert upper["text"] == "u - p <= 0" and upper["active_nodes"] == int(np.sum(a.extra["collocated"]))
+    wrong = copy.deepcopy(res)
+    rows = ties[0]["rows"]
+    wrong.phases[0].extra["mu_0"][rows] *= 1.2
+    failed = certify_result(problem, wrong, mesh_tolerance=1e-7)
+    assert not failed["passed"] and "stationarity" in failed["phases"]["a"]["failed"]

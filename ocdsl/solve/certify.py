@@ -151,6 +151,9 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
                   for c in ph.controls}
         kw["state_bounds"] = {x.name: ph.bounds_of(x) for x in ph.states}
         kw["shared_nodes"] = _shared_control_nodes(traj)
+        kw["tied_controls"] = [{"tied": float(traj.time[tie["tied"]]), "factors": tie["factors"],
+                                "times": [float(traj.time[r]) for r in tie["rows"]]}
+                               for tie in (traj.control_interpolation or {}).get("tied_controls") or ()]
         kw["breakpoints"] = (traj.control_interpolation or {}).get("breakpoints") or ()
         kw["lgl"] = str((result.method or {}).get("transcription", "")).upper() == "LGL"
         kw["refined"] = mesh_tolerance is not None

@@ -38,6 +38,10 @@ class PhaseBlock:
     # breakpoint index -> its Pyomo variable, for a build whose breakpoints there are unknowns
     # (``build(free_breakpoints=...)``); the layout keeps the mesh the variables start from
     free_breakpoints: dict = field(default_factory=dict)
+    # controls tied to their segment's interior polynomial (mesh refinement's junction
+    # controls): (segment, tied node, other nodes, Lagrange coefficients), positions in the
+    # segment's collocation points; the certificate judges such a segment's reduced stationarity
+    control_ties: list = field(default_factory=list)
 
 
 @dataclass

@@ -150,12 +150,32 @@ def extract(tr: Transcription) -> list[PhaseTrajectory]:
             interpolation["segment_starts"] = starts
         if any(later_owns_breakpoint(lay.mesh, k) for k in range(1, lay.mesh.segments)):
             interpolation["breakpoint_rows"] = "later"    # LGR-start: a row on a breakpoint is the later segment's
+        ties = tied_control_rows(pb)
+        if ties:
+            interpolation["tied_controls"] = ties
         out.append(PhaseTrajectory(
             ph.name, time,
             states={s.name: X[:, j] for j, s in enumerate(ph.states)},
             controls={c.name: Us[:, j] for j, c in enumerate(ph.controls)},
             extra={"collocated": collocated},
             control_interpolation=interpolation))
+    return out
+
+
+def tied_control_rows(pb: PhaseBlock) -> list[dict]:
+    """The phase's tied controls (``PhaseBlock.control_ties``) as trajectory rows: the tied
+    node's row, its segment's other rows, and their factors coef_q * w_tied / w_q (quadrature
+    weights), with which the reduced stationarity of the segment is dH/du_q + factor_q dH/du_tied
+    (the tied control is sum_q coef_q u_q, not a choice of its own). A tie through a breakpoint
+    row two LGL segments share (its row holds the earlier segment's control) is left out."""
+    lay, out = pb.layout, []
+    for k, at, others, coef in pb.control_ties:
+        w = np.asarray(lay.mesh.scheme(k).weights, float)
+        if 0 in others and k > 0 and _collocates_at(lay.mesh, k, -1.0) and _collocates_at(lay.mesh, k - 1, 1.0):
+            continue
+        rows = [int(lay.colloc_state[k][q]) for q in others]
+        out.append({"tied": int(lay.colloc_state[k][at]), "rows": rows,
+                    "factors": [float(c * w[at] / w[q]) for c, q in zip(coef, others)]})
     return out
 
 

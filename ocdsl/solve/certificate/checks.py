@@ -13,7 +13,8 @@ from ocdsl.symbolic.model import Model
 
 from .conditions import symbolic_conditions
 from .nodes import _arrays, _hamiltonian_nodes, _Numeric
-from .path import _held_fraction, _path_active, _path_check, _path_item, _state_arcs, _state_touches
+from .path import (_held_fraction, _path_active, _path_check, _path_item, _path_sizes, _state_arcs,
+                   _state_touches)
 from .sides import _bounds, _f, _side, _switches, switch_pairs
 from .tolerances import EXPECTED_H, OBJECTIVE_KINDS, Tolerances
 
@@ -32,6 +33,34 @@ def _lgl_interior(t, breakpoints) -> np.ndarray:
     return inside if inside.sum() >= 3 else judged
 
 
+def _reduce_tied(t, dHdu, side, ties) -> tuple[np.ndarray, np.ndarray]:
+    """dH/du with each tied segment's reduced stationarity in place of its nodes' own, and the
+    (N, m) mask of tied nodes left unjudged. A tied control u_e = sum_q c_q u_q is no choice of
+    its own: the NLP's stationarity is w_q dH/du_q + c_q w_e dH/du_e = 0 at the segment's other
+    nodes (unseen27 FA4: u held by `u - p <= 0` at a phase junction; dH/du 0.31 "off" at the
+    node before the junction, which is exactly c_q w_e dH/du_e / w_q). Where the tied node is
+    at a bound its bound multiplier holds part of that term: those are judged as before."""
+    tied = np.zeros(dHdu.shape, bool)
+    if not len(ties) or not len(t):
+        return dHdu, tied
+    dHdu = dHdu.copy()
+    span = max(float(t[-1] - t[0]), 1e-300)
+
+    def node(time):
+        i = int(np.argmin(np.abs(t - time)))
+        return i if abs(t[i] - time) <= 1e-9 * span else None
+
+    for tie in ties:
+        e, rows = node(tie["tied"]), [node(x) for x in tie["times"]]
+        if e is None or None in rows:
+            continue
+        for j in range(dHdu.shape[1]):
+            if side[e, j] == 0:
+                dHdu[rows, j] += np.asarray(tie["factors"], float) * dHdu[e, j]
+                tied[e, j] = True
+    return dHdu, tied
+
+
 def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                 control_bounds: Mapping[str, Sequence[float | None]] | None,
                 lagrange: sp.Expr | float = 0, objective: str = "min_tf", *,
@@ -42,6 +71,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                 multipliers: Mapping[str, Any] | None = None,
                 state_bounds: Mapping[str, Sequence[float | None]] | None = None,
                 shared_nodes: Sequence[float] = (), breakpoints: Sequence[float] = (),
+                tied_controls: Sequence[Mapping] = (),
                 lgl: bool = False,
                 refined: bool = False) -> dict[str, Any]:
     """Check the first-order optimality conditions of a collocated solution.
@@ -76,6 +106,11 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         bound changes across one, its control is tied to its segment's one-sided limit
         (mesh refinement's ``junction_control: limit``), not chosen by the minimum
         principle, so its switching sign is not judged (a weakly active node).
+    tied_controls : ``[{"tied": time, "times": [...], "factors": [...]}]``: a control node
+        tied to its segment's interior polynomial (``junction_control: limit``) at the other
+        nodes' ``times``; where the tied control is not at a bound, those nodes are judged by
+        the segment's reduced stationarity dH/du_q + factor_q dH/du_tied, the tied node not at
+        all (``_reduce_tied``).
     lgl : the mesh is LGL: H is judged at the segments' interior nodes (``_lgl_interior``).
     breakpoints : the mesh's segment ends (times). With them an explicit time dependence
         of H is integrated on each segment's own polynomial through its nodes, else by PCHIP
@@ -209,6 +244,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
 
     # ---- stationarity on interior arcs and switching functions on bound arcs ----------
     side = _side(U, bounds, tol.saturation)
+    dHdu, tied = _reduce_tied(t, dHdu, side, tied_controls)
     # each node's share of time: |dH/du| times it is the NLP's residual in that control
     share = np.empty(N)
     share[1:-1] = 0.5 * (t[2:] - t[:-2])
@@ -228,7 +264,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                               "weakly_active_nodes": 0, "agreement": None}
             continue
         S = dHdu[:, j]
-        interior = side[:, j] == 0
+        interior = (side[:, j] == 0) & ~tied[:, j]
         cscale = float(np.max(dHdu_terms[:, j]))
         lo, hi = bounds[j]
         if cscale * duration <= tol.resolution and bool(np.any(np.abs(S) > u_floor)):
@@ -321,7 +357,8 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         h["passed"] = None
     elif (not h["passed"] and path and model.controls and out["switching"]["passed"] and mean_ok
           and out["path_multipliers"]["passed"]
-          and _held_fraction(side, gu, _path_active(num.g_nodes(t, X, U), path, tol)) >= tol.bang_bang):
+          and _held_fraction(side, gu, _path_active(G := num.g_nodes(t, X, U), path, tol,
+                                                    _path_sizes(G, path, gu, U))) >= tol.bang_bang):
         # the same with path constraints that bound the controls (`-p <= u <= p`,
         # `u <= 1 + x`): active ones fix every control at (nearly) every node, so the
         # multipliers absorb what stationarity would fix (unseen11 F1: the minimax problem's

@@ -71,12 +71,24 @@ def _path_item(c) -> tuple:
     return sp.sympify(g), lo, hi, (str(rest[0]) if rest else str(g))
 
 
-def _path_active(G, path, tol: Tolerances) -> np.ndarray:
+def _path_sizes(G, path, gu=None, U=None) -> list[float]:
+    """Each path constraint's size: its range over the phase, its bounds, and its control
+    terms sum_j |dg/du_j u_j| (a constraint binding throughout, `u - p <= 0` at u = p = 1,
+    has range 0 and bound 0: its size is its terms', 1, not 1e-12; unseen27 FA4 counted it
+    active at no node)."""
+    sizes = []
+    for k, (_g, lo, hi, _text) in enumerate(path):
+        terms = [float(np.max(np.abs(gu[:, k, :] * U).sum(axis=1)))] if gu is not None and len(G) else []
+        sizes.append(max([float(np.ptp(G[:, k]))] + [abs(b) for b in (lo, hi) if math.isfinite(b)]
+                         + terms + [1e-12]))
+    return sizes
+
+
+def _path_active(G, path, tol: Tolerances, sizes) -> np.ndarray:
     """(N, p): path constraint k within ``saturation`` of its size from a finite bound."""
     active = np.zeros(G.shape, bool)
-    for k, (_g, lo, hi, _text) in enumerate(path):
+    for k, ((_g, lo, hi, _text), size) in enumerate(zip(path, sizes)):
         gk = G[:, k]
-        size = max([float(np.ptp(gk))] + [abs(b) for b in (lo, hi) if math.isfinite(b)] + [1e-12])
         band = tol.saturation * size
         if math.isfinite(hi):
             active[:, k] |= gk >= hi - band
@@ -101,14 +113,14 @@ def _held_fraction(side, gu, active) -> float:
 def _path_check(num, path, t, X, U, Mu, scale, tol: Tolerances) -> dict[str, Any]:
     """Complementarity and sign conditions of the path multipliers (see the module doc)."""
     G = num.g_nodes(t, X, U)                             # (N, p)
-    actives = _path_active(G, path, tol)
+    sizes = _path_sizes(G, path, num.gu_nodes(t, X, U), U)
+    actives = _path_active(G, path, tol, sizes)
     per = []
     comp_abs = comp_rel = wrong_rel = 0.0
     ok_scale = scale > 0
-    for k, (g, lo, hi, text) in enumerate(path):
+    for k, ((g, lo, hi, text), size) in enumerate(zip(path, sizes)):
         mu, gk = Mu[:, k], G[:, k]
         finite = [b for b in (lo, hi) if math.isfinite(b)]
-        size = max([float(np.ptp(gk))] + [abs(b) for b in finite] + [1e-12])
         # the bound the multiplier's sign points to (an equality: its value)
         b = np.where(mu > 0, hi, lo) if lo != hi else np.full(len(mu), lo)
         wrong = ~np.isfinite(b) & (mu != 0)

@@ -63,6 +63,7 @@ def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0) 
             nodes = np.asarray(lay.colloc[k])
             cl = pyo.ConstraintList()
             b.add_component(f"mesh_junction_control_{which}", cl)
+            pb.control_ties.append((k, int(at[0]), others, np.asarray(coef, float)))
             for j in range(nu):
                 cl.add(b.U[int(nodes[at[0]]), j]
                        == sum(float(c) * b.U[int(nodes[q]), j] for c, q in zip(coef, others)))
