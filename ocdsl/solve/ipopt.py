@@ -599,7 +599,15 @@ def pynumero_nlp(model):
     ``pyomo.core`` (0.2 s less start-up than ``pyomo.environ``); the NL writer is one of
     the plugins ``pyomo.environ`` registers, so it is imported here, where it is needed."""
     import pyomo.environ  # noqa: F401
+    from pyomo.common.env import CtypesEnviron
     from pyomo.contrib.pynumero.interfaces.pyomo_nlp import PyomoNLP
+
+    if os.name != "nt":
+        # PyomoNLP sets AMPLFUNC through CtypesEnviron, which first probes eleven Windows C
+        # runtimes with ctypes.util.find_library, a subprocess each (0.14 s per process,
+        # half of a small PyNumero solve); off Windows none exists and os.environ is the C
+        # library's own environment, so there is nothing to probe
+        CtypesEnviron.DLLs = []
 
     return PyomoNLP(model)
 
