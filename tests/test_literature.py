@@ -33,6 +33,8 @@ MATCHED = {
     "min_time_energy": False,
     # written in the tenth session of 2026-12-07 (unseen27 FC2)
     "obstacle_chord": False,
+    # written in the eleventh session of 2026-12-07
+    "dubins_uturn": False,
 }
 # not verified: adaptive refinement stops at max_iterations (largest estimated error 2e-5),
 # J settles at 7.910916, 4.5e-5 above the published 7.91055654 (expect fails at rtol 1e-6)
@@ -311,6 +313,59 @@ def test_obstacle_chord_reference():
     L = 2 * math.sqrt(d * d - r * r) + r * (math.pi - 2 * math.acos(r / d))
     spec = yaml.safe_load((CONFIGS / "lit_obstacle_chord.yaml").read_text())
     assert L ** 2 == pytest.approx(spec["expect"]["objective"]["value"], rel=1e-10)
+
+
+def _dubins_lengths(start, goal, r: float = 1.0) -> dict[str, float]:
+    """Lengths of Dubins' six words (LSL, RSR, LSR, RSL, RLR, LRL) from pose ``start`` to pose
+    ``goal`` (x, y, heading), turning radius ``r``, by the standard normalised formulas
+    (Shkel and Lumelsky 2001); an impossible word is left out."""
+    dx, dy = goal[0] - start[0], goal[1] - start[1]
+    d = math.hypot(dx, dy) / r
+    th = math.atan2(dy, dx)
+    a, b = (start[2] - th) % (2 * math.pi), (goal[2] - th) % (2 * math.pi)
+    sa, sb, ca, cb, cab = math.sin(a), math.sin(b), math.cos(a), math.cos(b), math.cos(a - b)
+    m = lambda x: x % (2 * math.pi)  # noqa: E731
+    out = {}
+    p2 = 2 + d * d - 2 * cab + 2 * d * (sa - sb)
+    if p2 >= 0:
+        t = m(-a + math.atan2(cb - ca, d + sa - sb))
+        out["LSL"] = t + math.sqrt(p2) + m(b - math.atan2(cb - ca, d + sa - sb))
+    p2 = 2 + d * d - 2 * cab + 2 * d * (sb - sa)
+    if p2 >= 0:
+        out["RSR"] = m(a - math.atan2(ca - cb, d - sa + sb)) + math.sqrt(p2) + m(-b + math.atan2(ca - cb, d - sa + sb))
+    p2 = -2 + d * d + 2 * cab + 2 * d * (sa + sb)
+    if p2 >= 0:
+        p = math.sqrt(p2)
+        w = math.atan2(-ca - cb, d + sa + sb) - math.atan2(-2, p)
+        out["LSR"] = m(-a + w) + p + m(-b + w)
+    p2 = -2 + d * d + 2 * cab - 2 * d * (sa + sb)
+    if p2 >= 0:
+        p = math.sqrt(p2)
+        w = math.atan2(ca + cb, d - sa - sb) - math.atan2(2, p)
+        out["RSL"] = m(a - w) + p + m(b - w)
+    q = (6 - d * d + 2 * cab + 2 * d * (sa - sb)) / 8
+    if abs(q) <= 1:
+        p = m(2 * math.pi - math.acos(q))
+        t = m(a - math.atan2(ca - cb, d - sa + sb) + p / 2)
+        out["RLR"] = t + p + m(a - b - t + p)
+    q = (6 - d * d + 2 * cab + 2 * d * (sb - sa)) / 8
+    if abs(q) <= 1:
+        p = m(2 * math.pi - math.acos(q))
+        t = m(-a - math.atan2(ca - cb, d + sa - sb) + p / 2)
+        out["LRL"] = t + p + m(b - a - t + p)
+    return {k: v * r for k, v in out.items()}
+
+
+def test_dubins_uturn_reference():
+    """The shortest of Dubins' six words from (0, 0, east) to (0, 4, west) at radius 1 is
+    LSL, pi/2 + 2 + pi/2; at unit speed its length is the minimum time. The word lengths are
+    checked on a pose pair whose answer is plain (straight ahead: S alone) first."""
+    assert _dubins_lengths((0, 0, 0), (5, 0, 0))["LSL"] == pytest.approx(5.0, abs=1e-12)
+    words = _dubins_lengths((0, 0, 0), (0, 4, math.pi))
+    best = min(words, key=words.get)
+    assert best == "LSL" and words[best] == pytest.approx(math.pi + 2, rel=1e-12)
+    spec = yaml.safe_load((CONFIGS / "lit_dubins_uturn.yaml").read_text())
+    assert words[best] == pytest.approx(spec["expect"]["objective"]["value"], rel=1e-12)
 
 
 def test_brachistochrone_to_line_reference():
