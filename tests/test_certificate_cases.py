@@ -917,3 +917,19 @@ def test_a_control_tied_at_a_phase_junction_is_judged_by_its_segments_reduced_st
     wrong.phases[0].extra["mu_0"][rows] *= 1.2
     failed = certify_result(problem, wrong, mesh_tolerance=1e-7)
     assert not failed["passed"] and "stationarity" in failed["phases"]["a"]["failed"]
+
+
+@pytest.mark.parametrize("transcription", ["LGL", "LG"])
+def test_the_tied_junction_problem_on_lgl_and_lg(transcription, tmp_path):
+    """The same problem on the other schemes. LGL: phase a's last segment starts on a
+    breakpoint two segments share (its row holds the earlier segment's control), which made
+    the whole tie unrecorded and stationarity fail again (0.063); the shared node is left out
+    of the tie's list, each node's reduced condition standing alone. LG: phase a coarsens to
+    one segment of two nodes, u = 1 + 1e-9 at both; `u - p <= 0`'s scale took the control's
+    spread (2e-10, floored at 1e-6) and a 4e-11 excess became a violation of 3.8e-5 (not
+    verified); the control's scale is now its size, as a state's."""
+    (tmp_path / "fa4.yaml").write_text(TIED_JUNCTION.replace("transcription: LGR,", f"transcription: {transcription},"))
+    res = run_file(tmp_path / "fa4.yaml", None)
+    assert res.status == "optimal" and abs(res.parameters["p"] - 1) < 1e-7
+    assert res.verified, [c for c in res.verification["checks"] if not c["passed"]]
+    assert res.certificate["passed"], res.certificate

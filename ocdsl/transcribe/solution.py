@@ -166,16 +166,16 @@ def tied_control_rows(pb: PhaseBlock) -> list[dict]:
     """The phase's tied controls (``PhaseBlock.control_ties``) as trajectory rows: the tied
     node's row, its segment's other rows, and their factors coef_q * w_tied / w_q (quadrature
     weights), with which the reduced stationarity of the segment is dH/du_q + factor_q dH/du_tied
-    (the tied control is sum_q coef_q u_q, not a choice of its own). A tie through a breakpoint
-    row two LGL segments share (its row holds the earlier segment's control) is left out."""
+    (the tied control is sum_q coef_q u_q, not a choice of its own). Each node's condition
+    stands alone, so a node without a row of its own (LGL: a breakpoint two segments share
+    holds the earlier segment's control) is left out of the list, not the tie."""
     lay, out = pb.layout, []
     for k, at, others, coef in pb.control_ties:
         w = np.asarray(lay.mesh.scheme(k).weights, float)
-        if 0 in others and k > 0 and _collocates_at(lay.mesh, k, -1.0) and _collocates_at(lay.mesh, k - 1, 1.0):
-            continue
-        rows = [int(lay.colloc_state[k][q]) for q in others]
-        out.append({"tied": int(lay.colloc_state[k][at]), "rows": rows,
-                    "factors": [float(c * w[at] / w[q]) for c, q in zip(coef, others)]})
+        shared_start = k > 0 and _collocates_at(lay.mesh, k, -1.0) and _collocates_at(lay.mesh, k - 1, 1.0)
+        own = [(q, c) for q, c in zip(others, coef) if not (q == 0 and shared_start)]
+        out.append({"tied": int(lay.colloc_state[k][at]), "rows": [int(lay.colloc_state[k][q]) for q, _ in own],
+                    "factors": [float(c * w[at] / w[q]) for q, c in own]})
     return out
 
 

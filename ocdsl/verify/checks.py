@@ -125,7 +125,8 @@ def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcrip
 
 def _first_order_size(fn, t, X, U, scale_x, ubounds) -> np.ndarray:
     """Per row and output of ``fn(t, X, U)``: ``sum_j |d fn/dz_j| scale_j`` over the states
-    and controls (finite differences), a control's scale its bounds' range, else its spread."""
+    and controls (finite differences), a control's scale its bounds' range, else its
+    ``state_scale``."""
     g0 = fn(t, X, U)
     sens = np.zeros(g0.shape)
     for j in range(X.shape[1]):
@@ -134,7 +135,10 @@ def _first_order_size(fn, t, X, U, scale_x, ubounds) -> np.ndarray:
         Xp[:, j] += h
         sens += np.abs(fn(t, Xp, U) - g0) / h * scale_x[j]
     for j, (lo, hi) in enumerate(ubounds):
-        su = hi - lo if math.isfinite(hi - lo) and hi > lo else max(float(np.ptp(U[:, j])), 1e-6)
+        # without bounds, the control's scale as a state's (``state_scale``): a control held
+        # at one value (u = p = 1 at two LG nodes, 1e-10 apart) is measured against its
+        # size, not its spread (a 1e-6 floor made 4e-11 a violation of 3.8e-5; unseen27 FA4)
+        su = hi - lo if math.isfinite(hi - lo) and hi > lo else max(float(state_scale(U[:, [j]])[0]), 1e-6)
         h = 1e-6 * su
         Up = U.copy()
         Up[:, j] += h
