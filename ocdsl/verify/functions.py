@@ -27,7 +27,7 @@ def _vectorised(fn, exprs: list[sp.Expr], owner):
         out = fn(t, *X.T, *U.T, *owner.free_values)
         arr = np.empty((P, len(exprs)))
         for i, entry in enumerate(out):
-            arr[:, i] = np.broadcast_to(np.asarray(entry, float), (P,))
+            arr[:, i] = entry      # a constant entry (a number) fills its column
         return arr
 
     return evaluate
