@@ -34,7 +34,7 @@ import sympy as sp
 
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
-from .checks import (RESOLUTION, evaluate, integral_scales, irregular_controls, path_scales, relative_violation,
+from .checks import (RESOLUTION, end_control_jumps, evaluate, integral_scales, irregular_controls, path_scales, relative_violation,
                      row, sensitivity_scale, state_scale, worst)
 from .admissible import project, row_values
 from .functions import PhaseFunctions, between_points, controls_at
@@ -221,7 +221,11 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
             tr, Ur = control_rows(traj, names_u)
             notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n
                       for n in irregular_controls(tr, Ur, names_u, (result.method or {}).get("transcription"),
-                                                  mesh=(result.method or {}).get("mesh") is not None)]
+                                                  mesh=(result.method or {}).get("mesh") is not None)
+                      + (end_control_jumps(tr, Ur, names_u, (traj.control_interpolation or {}).get("breakpoints"),
+                                           mesh=(result.method or {}).get("mesh") is not None)
+                         if any(c["phase"] == ph.name and c["name"].startswith("dynamics") and not c["passed"]
+                                for c in checks) else [])]
     _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
     _reported_integral_checks(problem, result, runs, tol, checks)
     return checks, notes

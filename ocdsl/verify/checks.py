@@ -123,6 +123,56 @@ def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcrip
     return notes
 
 
+END_JUMP_SHARE = 0.25   # an end control this share of its spread off its segment's extrapolation "jumps"
+
+
+def end_jump(x_end: float, x_others: np.ndarray, u_end: np.ndarray, u_others: np.ndarray,
+             size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per control: whether the value ``u_end`` at a segment's end node ``x_end`` departs by
+    more than END_JUMP_SHARE of ``size`` from what the segment's other nodes extrapolate to,
+    while those nodes are smooth among themselves (the nearest one predicted by the rest to a
+    tenth of that; else the segment holds a switch and its end value may be right); and the
+    extrapolated values."""
+    from ..transcribe.nodes import lagrange_matrix
+
+    x_others, u_others = np.asarray(x_others, float), np.asarray(u_others, float)
+    limit = lagrange_matrix(x_others, np.array([x_end]))[0] @ u_others
+    near = int(np.argmin(np.abs(x_others - x_end)))
+    rest = np.arange(len(x_others)) != near
+    smooth = (lagrange_matrix(x_others[rest], x_others[near:near + 1])[0] @ u_others[rest]) if rest.sum() >= 2 \
+        else u_others[rest][0]
+    share = END_JUMP_SHARE * np.asarray(size, float)
+    return (np.abs(u_end - limit) > share) & (np.abs(smooth - u_others[near]) <= 0.1 * share), limit
+
+
+def end_control_jumps(t: np.ndarray, U: np.ndarray, names: list[str], breakpoints, mesh: bool = False) -> list[str]:
+    """Notes on a control collocated at a phase end (LGR: t_f; LGR-start: t0; LGL: both)
+    that jumps there (``end_jump``): a value at one instant that the end conditions do not
+    price (a free final state's costate vanishes at t_f), which the NLP sets arbitrarily and
+    which bends that segment's states (unseen29: psi(t_f) = 3.71 after 0.927 at every other
+    node, the verification's dynamics 3 % off, J right to 1e-10)."""
+    bps = np.asarray(breakpoints or [], float)
+    if len(bps) < 2 or len(t) < 3:
+        return []
+    notes = []
+    span = max(float(bps[-1] - bps[0]), 1e-300)
+    size = np.maximum(np.ptp(U, axis=0), 1e-9)
+    for end, at, (a, b) in (("t_f", bps[-1], (bps[-2], bps[-1])), ("t0", bps[0], (bps[0], bps[1]))):
+        seg = (t >= a - 1e-12 * span) & (t <= b + 1e-12 * span)
+        here = seg & (np.abs(t - at) <= 1e-12 * span)
+        others = seg & ~here
+        if not here.any() or others.sum() < 2:
+            continue
+        jumps, limit = end_jump(at, t[others], U[np.flatnonzero(here)[0]], U[others], size)
+        value = U[np.flatnonzero(here)[0]]
+        notes += [f"{name} at {end} = {at:.6g} is {value[j]:.6g} where its segment's other nodes extrapolate "
+                  f"to {limit[j]:.6g}: a value at one end instant that the end conditions do not price (e.g. "
+                  "free final states, whose costates vanish there), set by the NLP at will; it bends that "
+                  "segment's states" + ("" if mesh else ". `mesh:` ties it to its segment's polynomial")
+                  for j, name in enumerate(names) if jumps[j]]
+    return notes
+
+
 def _first_order_size(fn, t, X, U, scale_x, ubounds) -> np.ndarray:
     """Per row and output of ``fn(t, X, U)``: ``sum_j |d fn/dz_j| scale_j`` over the states
     and controls (finite differences), a control's scale its bounds' range, else its

@@ -29,7 +29,7 @@ class Confirmed:
 def confirm(file, chosen, status: str, message: str, *, converged: list, history: list, timer, options: dict,
             rebuild, verbose: bool = False, progress: bool = False) -> Confirmed:
     """``chosen`` = (max_err, iteration, tr, info, meshes, errors) as ``outcome`` picked it;
-    ``rebuild(meshes, guesses=, built_with=)`` builds the last iteration's model on other meshes."""
+    ``rebuild(meshes, guesses=, regularised=)`` builds the last iteration's model on other meshes."""
     import pyomo.core as pyo
 
     from ...run import _scale, bisection_check
@@ -71,7 +71,7 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
     if status == "optimal" and getattr(tr_c.model, "mesh_regularisation", None) is not None:
         with timer.measure("mesh"):
             unreg = check_unregularised(
-                tr_c, info_c.objective, reg_weight, lambda g: rebuild(meshes_c, guesses=g, built_with=({}, {})),
+                tr_c, info_c.objective, reg_weight, lambda g: rebuild(meshes_c, guesses=g, regularised=False),
                 lambda t: ipopt.solve(t.model, options, verbose=verbose, transcription=t,
                                       progress=ipopt.Progress(progress, "[without regularisation]")),
                 file.spec.verify.tolerance)

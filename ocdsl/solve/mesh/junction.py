@@ -5,7 +5,35 @@ from __future__ import annotations
 import numpy as np
 
 
-def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0) -> int:
+def jumping_ends(tr) -> dict[str, set]:
+    """Per phase, the ends (``"end"``: the last segment's tau = +1, ``"start"``: the first
+    segment's tau = -1) whose collocated control jumps off its segment's other nodes
+    (``verify.checks.end_jump``) in the solved model ``tr``."""
+    from ...verify.checks import end_jump
+    from .segments import solution_arrays
+
+    out: dict[str, set] = {}
+    for pb in tr.phases:
+        lay = pb.layout
+        if not pb.phase.controls:
+            continue
+        _X, U, _t0, _tf = solution_arrays(pb)
+        size = np.maximum(np.ptp(U, axis=0), 1e-9)
+        for which, k, tau in (("end", lay.mesh.segments - 1, 1.0), ("start", 0, -1.0)):
+            col = np.asarray(lay.mesh.scheme(k).colloc, float)
+            at = np.flatnonzero(np.abs(col - tau) < 1e-12)
+            if not len(at) or len(col) < 3:
+                continue
+            nodes = np.asarray(lay.colloc[k])
+            others = [q for q in range(len(col)) if q != at[0]]
+            jumps, _ = end_jump(tau, col[others], U[nodes[at[0]]], U[nodes[others]], size)
+            if jumps.any():
+                out.setdefault(pb.phase.name, set()).add(which)
+    return out
+
+
+def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0,
+                            outer: dict | None = None) -> int:
     """At every phase junction, constrain a control collocated at the phase's end point to the
     one-sided limit of its segment's interior control polynomial (``junction_control: limit``).
 
@@ -43,9 +71,10 @@ def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0) 
         lay, b = pb.layout, pb.block
         nu = len(pb.phase.controls)
         ends = []
-        if i < n_ph - 1:
+        tied_outer = (outer or {}).get(pb.phase.name, ())
+        if i < n_ph - 1 or "end" in tied_outer:
             ends.append(("end", lay.mesh.segments - 1, 1.0))
-        if i > 0:
+        if i > 0 or "start" in tied_outer:
             ends.append(("start", 0, -1.0))
         if lay.mesh.scheme_name == "LGL" and features:
             bps = np.asarray(lay.mesh.breakpoints)
