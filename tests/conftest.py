@@ -25,8 +25,8 @@ def write(tmp_path: Path, text: str, name: str = "problem.yaml") -> Path:
 def _floating_point_environment():
     """Tests that read an NL file through PyNumero themselves (PyomoNLP) leave the x87 unit
     at the ASL's 53-bit precision; restored so that no test depends on which ran before it
-    in its worker (ocdsl.solve.ipopt.floating_point_environment_kept)."""
-    from ocdsl.solve.ipopt import floating_point_environment_kept
+    in its worker (ocdsl.solve.process_state.floating_point_environment_kept)."""
+    from ocdsl.solve.process_state import floating_point_environment_kept
 
     with floating_point_environment_kept():
         yield

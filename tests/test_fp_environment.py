@@ -4,7 +4,7 @@ same numbers whatever was solved before it in the same process (a study, a test 
 import numpy as np
 import pytest
 
-from ocdsl.solve.ipopt import floating_point_environment_kept
+from ocdsl.solve.process_state import floating_point_environment_kept
 
 pytestmark = pytest.mark.ipopt
 

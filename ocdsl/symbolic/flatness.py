@@ -47,6 +47,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from .equations import solve_limited, solve_linear, trig_angle
 from .model import TIME, Model, sym
 
 __all__ = ["FlatnessError", "Residual", "NLPReduction", "FlatMap", "flatten", "derivative_symbol"]
@@ -322,61 +323,6 @@ def _choose(unknown, candidates, sampler, functions, orders, constants, eq_text)
     return min(winners, key=sp.count_ops)
 
 
-SOLVE_SECONDS = 3
-
-
-def _solve_limited(eqs, unknowns, seconds: int = SOLVE_SECONDS) -> list[dict]:
-    """``sympy.solve(eqs, unknowns, dict=True)``, given up after ``seconds`` (on the
-    main thread of a POSIX process; elsewhere without a limit) or when SymPy cannot."""
-    import signal
-    import threading
-
-    def handler(signum, frame):
-        raise TimeoutError
-
-    limited = hasattr(signal, "SIGALRM") and threading.current_thread() is threading.main_thread()
-    old = signal.signal(signal.SIGALRM, handler) if limited else None
-    if limited:
-        signal.alarm(seconds)
-    try:
-        return sp.solve(eqs, unknowns, dict=True)
-    except (NotImplementedError, TimeoutError):
-        return []
-    finally:
-        if limited:
-            signal.alarm(0)
-            signal.signal(signal.SIGALRM, old)
-
-
-def _solve_linear(eqs: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol]) -> dict | None:
-    """Cramer's rule for a square linear system, keeping the factored form."""
-    try:
-        A, b = sp.linear_eq_to_matrix(list(eqs), list(unknowns))
-    except (sp.polys.polyerrors.PolynomialError, ValueError):
-        return None
-    det = sp.factor_terms(A.det())
-    if det == 0:
-        return None
-    adj = A.adjugate()
-    sol = adj * b
-    return {u: sp.factor_terms(sol[i] / det) for i, u in enumerate(unknowns)}
-
-
-def _trig_angle(eqs: Sequence[sp.Expr], unknowns: set) -> sp.Symbol | None:
-    """An unknown that occurs in all ``eqs`` only through sin() and cos()."""
-    for c in sorted(unknowns, key=lambda s: s.name):
-        ok = True
-        for e in eqs:
-            stripped = e.replace(sp.sin, lambda a: sp.Symbol("__S") if a == c else sp.sin(a))
-            stripped = stripped.replace(sp.cos, lambda a: sp.Symbol("__C") if a == c else sp.cos(a))
-            if stripped.has(c) or not (stripped.has(sp.Symbol("__S")) or stripped.has(sp.Symbol("__C"))):
-                ok = False
-                break
-        if ok:
-            return c
-    return None
-
-
 # ---------------------------------------------------------------------------------------
 # public entry point
 # ---------------------------------------------------------------------------------------
@@ -481,9 +427,9 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             if len(unk) != 1:
                 continue
             (u,) = unk
-            if _trig_angle([e], unk) is not None:
+            if trig_angle([e], unk) is not None:
                 continue  # handled with its partner equation (rule 3)
-            sols = [d[u] for d in _solve_limited(e, [u]) if u in d]
+            sols = [d[u] for d in solve_limited(e, [u]) if u in d]
             if not sols:
                 continue
             known[u] = choose(u, sols, f"{_eq_name(x)} = {f[x]}")
@@ -499,7 +445,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             group = {x: e for x, e in eqs.items() if e.has(c)}
             if len(group) < 2:
                 continue
-            if _trig_angle(list(group.values()), {c}) is None:
+            if trig_angle(list(group.values()), {c}) is None:
                 continue
             others = set().union(*(unknowns_of(e) for e in group.values())) - {c}
             if len(others) > 1:
@@ -510,7 +456,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             unk = [S, C, *sorted(others, key=lambda s: s.name)]
             src = tuple(_eq_name(x) for x in group)
             if len(lin) >= len(unk):        # over-determined: sin^2 + cos^2 = 1 is left over
-                sol = _solve_linear(lin[:len(unk)], unk)
+                sol = solve_linear(lin[:len(unk)], unk)
                 if sol is None:
                     continue
                 rest = [sp.simplify(e.xreplace(sol)) for e in lin[len(unk):]]
@@ -526,7 +472,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
                 pq = [sp.expand(e.xreplace({S: P / o, C: Q / o})) for e in lin]
                 if any(e.has(o) for e in pq):
                     continue
-                sol_pq = _solve_linear(pq, [P, Q])
+                sol_pq = solve_linear(pq, [P, Q])
                 if sol_pq is None:
                     continue
                 norm = sp.sqrt(sol_pq[P] ** 2 + sol_pq[Q] ** 2)
@@ -549,7 +495,7 @@ def _flatten_with(model: Model, outputs: tuple[sp.Symbol, ...], bounds, pv) -> F
             unk = unknowns_of(e1) | unknowns_of(e2)
             if len(unk) != 2:
                 continue
-            sols = _solve_limited([e1, e2], sorted(unk, key=lambda s: s.name))
+            sols = solve_limited([e1, e2], sorted(unk, key=lambda s: s.name))
             if not sols:
                 continue
             text = f"{_eq_name(x1)} and {_eq_name(x2)}"

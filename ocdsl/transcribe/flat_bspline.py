@@ -390,7 +390,7 @@ def solve_flat(nlp: FlatNLP, tee: bool = False, options: Mapping[str, Any] | Non
     opts.update(options or {})
     for k, v in opts.items():
         solver.config.options[k] = v
-    from ..solve.ipopt import floating_point_environment_kept
+    from ..solve.process_state import floating_point_environment_kept
 
     t0 = time.perf_counter()
     with floating_point_environment_kept():
