@@ -11,6 +11,7 @@ import sympy as sp
 from .result import Result
 from .spec.compile import LoadedFile
 from .spec.schema import PseudospectralMethod
+from .verify.objective_size import objective_size
 
 
 def execute(file: LoadedFile, timer, *, seed: int | None = None, warm_start: str | Path | None = None,
@@ -220,7 +221,8 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
     if not file.spec.verify.bisection_check:
         return [arcs.note(found, multi, None)]
     with timer.measure("bisection"):
-        check = bisection_check(file, tr, result.objective, meshes, verbose=verbose, progress=progress)
+        check = bisection_check(file, tr, result.objective, meshes, verbose=verbose, progress=progress,
+                                objective_scale=result.extra.get("objective_scale"))
     result.extra["bisection"] = check.record()
     if check.agrees is False:
         result.status = "mesh_not_converged"
@@ -259,6 +261,7 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
 
     tol = file.spec.verify.tolerance
     J = float(result.objective or 0.0)
+    size = objective_size(J, result.extra.get("objective_scale"))
     with timer.measure("post"):
         params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
         suspects: dict[str, list[int]] = {}
@@ -282,7 +285,7 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
                 gap = (min(abs(c - t_b) for c in near) / (tf - t0) if near
                        else min(bps[q] - bps[q - 1], bps[q + 1] - bps[q]))
                 # J*(s) ~ quadratic about the switch's place: moving there gains |g| gap / 2
-                if math.isfinite(g) and 0.5 * abs(g) * gap > tol * (1.0 + abs(J)):
+                if math.isfinite(g) and 0.5 * abs(g) * gap > tol * size:
                     suspects.setdefault(pb.phase.name, []).append(q)
     if not suspects:
         return
@@ -296,7 +299,7 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
         return
     J_free, meshes = freed
     better = (J - J_free) if problem.objective.sense == "minimize" else (J_free - J)
-    if better <= tol * (1.0 + abs(J)):
+    if better <= tol * size:
         return
     moves = []
     for pb in tr.phases:
@@ -335,20 +338,23 @@ def _switching_crossings(certificate: dict | None, phase: str, phases: int) -> l
 
 
 def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=False, progress=False,
-                    build_model=None, options=None):
+                    build_model=None, options=None, objective_scale: float | None = None):
     """Solve ``file``'s problem on ``meshes`` with every segment bisected, started from the
     solution in ``tr``, and once more bisected where the first difference does not decide;
     compare J (``solve.arcs.Bisection``). ``build_model(meshes, guesses)`` and ``options``:
     how the caller builds and solves its models (mesh refinement: junction controls, its Ipopt
-    tolerance); by default a plain build and the file's solver options."""
+    tolerance); by default a plain build and the file's solver options. ``objective_scale``:
+    the objective's terms' size (verify/objective_size.py), below 1 the unit of Ipopt's
+    accuracy in J (an absolute 1e-7 accepted a J of 7.8e-11 that moved by 8.6e-5 of itself)."""
     from .solve import ipopt
     from .solve.arcs import Bisection, Level, free_final_times
     from .transcribe.guess import solved_guesses
 
     problem = file.problem
     options = file.spec.solver.options if options is None else options
-    # Ipopt's own accuracy: its tolerance on the (scaled) objective's optimality
-    floor = 10 * float(options.get("tol", 1e-8))
+    # Ipopt's own accuracy: its tolerance on the (scaled) objective's optimality, in units of
+    # the objective's own size where that is below 1
+    floor = 10 * float(options.get("tol", 1e-8)) * (objective_size(0.0, objective_scale))
     check = Bisection(float(objective), (), file.spec.verify.tolerance, floor)
     while not check.levels or check.needs_second:
         meshes = {name: mesh.bisected() for name, mesh in meshes.items()}

@@ -610,3 +610,36 @@ def test_an_objective_that_vanishes_is_measured_against_its_integrands_first_ord
     wrong.objective = res.objective + 1e-4
     v = verify_result(compile_file(path).problem, wrong, VerifySettings(tolerance=1e-5))
     assert v["status"] == "failed" and any(c["name"] == "objective" and not c["passed"] for c in v["checks"])
+
+
+KEEP_OUT = """\
+name: drone crossing 4 km past a 10 m keep-out zone (squared-distance form), minimum time
+model:
+  states: [x, y]
+  controls: [psi]
+  parameters: {V: 10.0, R: 10.0}
+  dynamics: {x: V*cos(psi), y: V*sin(psi)}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == -2000, y(t0) == 0, x(tf) == 2000, y(tf) == 0, x**2 + y**2 >= R**2, 100 <= tf <= 1000]
+  objective: minimize tf
+  guess: {tf: 400}
+method: {transcription: LG, segments: 4, degree: 4}
+"""
+
+
+def test_a_point_inside_a_small_keep_out_zone_on_a_long_path_is_a_violation(tmp_path):
+    """unseen29: LG 4 x 4 flies the straight line through the zone's centre (a segment end,
+    where LG imposes no path constraint, sits at distance 0). Measured against the path's
+    size of g (1.6e7, far from the zone) the shortfall R^2 = 100 was 6e-6: `optimal,
+    verified`, exit 0, tf = 400 for 400.005. Against the point's own first-order size (0
+    there, floored at 1e-3 of the path's) it is 6e-3: not verified."""
+    (tmp_path / "keep.yaml").write_text(KEEP_OUT)
+    from ocdsl.api import run_file
+
+    res = run_file(tmp_path / "keep.yaml", None)
+    assert res.status == "optimal" and res.objective == pytest.approx(400.0, abs=1e-6)
+    assert not res.verified
+    failed = [c for c in res.verification["checks"] if not c["passed"]]
+    assert [c["name"] for c in failed] == ["path constraints"] and "t = 200" in failed[0]["where"]
+    assert failed[0]["value"] > 1e-3

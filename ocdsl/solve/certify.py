@@ -19,6 +19,7 @@ from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
 from .certificate.end_arcs import end_arcs
 from .certificate.flown_control import flown_control
+from ..verify.objective_size import objective_scale, objective_size
 
 
 def _at_bound(value, bounds, within: float = 0.0) -> bool:
@@ -89,6 +90,9 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
     """The certificate per phase; ``tolerance``: the verification's, which a missing end arc's
     predicted gain in J (relative to 1 + |J|) must stay under; ``mesh_tolerance``: a ``mesh:``
     run's, ``always_fly`` and ``flight_budget_s`` (``flown_control``)."""
+    # the objective's own size, which the checks that can refute J measure against (and the
+    # bisection after them: run.py)
+    result.extra["objective_scale"] = objective_scale(problem, result)
     degenerate = _degenerate_rows(result)
     if degenerate is not None:
         return degenerate
@@ -166,7 +170,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
         # the ends' rows with no collocated control (the arrays above hold the nodes only)
         ends = end_arcs(ph.model, params, {"time": traj.time, "states": traj.states, "controls": traj.controls,
                                            "costates": traj.costates}, bounds, L,
-                        tolerance * (1.0 + abs(float(result.objective or 0.0))))
+                        tolerance * objective_size(result.objective, result.extra["objective_scale"]))
         # a feasible trajectory better than the claim, from the minimum principle's control
         try:
             flown = flown_control(problem, result, L, params, tolerance, mesh_tolerance, always_fly,

@@ -34,7 +34,8 @@ import sympy as sp
 
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
-from .checks import (RESOLUTION, end_control_jumps, evaluate, integral_scales, irregular_controls, path_scales, relative_violation,
+from .checks import (RESOLUTION, end_control_jumps, evaluate, integral_scales, irregular_controls, path_scales,
+                     path_violations, relative_violation,
                      row, sensitivity_scale, state_scale, worst)
 from .admissible import project, row_values
 from .functions import PhaseFunctions, between_points, controls_at
@@ -345,8 +346,7 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables) -> 
     if funcs.g is not None:
         G = funcs.g(grid, Yl[:, :funcs.n], Ug)
         gscale = path_scales(funcs, t, X, controls_at(uf, t, X), scale_x, ubounds, G)
-        err = np.column_stack([relative_violation(G[:, k], c.lower, c.upper, gscale[k])
-                               for k, c in enumerate(funcs.path)])
+        err = path_violations(funcs, grid, Yl[:, :funcs.n], Ug, G, scale_x, ubounds, gscale)
         t_err, detail = grid, f"{len(grid)} points"
         # a projected constraint holds between the rows by construction: at the rows it is
         # held with the exported controls and states, as the NLP held it

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _numbers, _PhaseRun, _points
-from .checks import evaluate, path_scales, relative_violation, sensitivity_scale, state_scale
+from .checks import evaluate, path_scales, path_violations, relative_violation, sensitivity_scale, state_scale
 from .functions import PhaseFunctions, controls_at
 from .integrate import _stiff, integrate_pass
 from .interpolate import bounds_of
@@ -140,8 +140,9 @@ def fly_control(problem, result, t_table: np.ndarray, U_table: np.ndarray, cuts:
         U_rows = controls_at(uf, t_rows, X_rows)
         ubounds = bounds_of(ph, [c.name for c in ph.controls], "controls")
         gscale = path_scales(funcs, t_rows, X_rows, U_rows, scale_x, ubounds, funcs.g(t_rows, X_rows, U_rows))
+        err = path_violations(funcs, flown.t, X_fl, controls_at(uf, flown.t, X_fl), G, scale_x, ubounds, gscale)
         for k, c in enumerate(funcs.path):
-            v = float(np.max(relative_violation(G[:, k], c.lower, c.upper, gscale[k])))
+            v = float(np.max(err[:, k]))
             if not v <= worst:
                 worst, where = (v if math.isfinite(v) else math.inf), c.text or str(c.expr)
     return Flight(evaluate(problem.objective.expr, point), worst, where, flown.steps, residuals)

@@ -25,6 +25,7 @@ import sympy as sp
 from ...result import Result
 from ...symbolic.numbers import substitute_numbers
 from ...symbolic.problem import Problem
+from ...verify.objective_size import objective_size
 from .. import pchip
 from .conditions import _param_subs
 from .corrected_flight import MAX_CONDITIONS, bang_jumps, corrected_flight, late_equalities, late_symbols
@@ -283,7 +284,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     U_min, G_min, corners = found
     corner_times = [c for c, _, _ in corners]
     claimed = float(result.objective)
-    limit = tolerance * (1.0 + abs(claimed))
+    size = objective_size(claimed, result.extra.get("objective_scale"))
+    limit = tolerance * size
     # what H's minimiser gains over the solution's own control, to first order (for a convex
     # problem an upper bound of J - J*): far below the limit, the flight cannot refute the claim
     from ...verify.interpolate import control_interpolant, declared_interpolation
@@ -299,7 +301,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     # with x(tf) fixed passed a mesh tolerance of 1e-7 with J 3.1e-6 off (unseen23 FC4:
     # predicted gain 3.8e-6 against the 1e-5 a flight then needed)
     wanted = limit if mesh_tolerance is None else \
-        min(limit, max(mesh_tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(claimed)))
+        min(limit, max(mesh_tolerance, FLIGHT_RESOLUTION) * size)
     share = PREDICTED_SHARE_CORRECTED if late else PREDICTED_SHARE
     if not always_fly and predicted < share * wanted:
         return {"claimed": claimed, "predicted_gain": predicted, "limit": limit, "corners": corner_times, "passed": True,
