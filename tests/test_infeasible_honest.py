@@ -58,6 +58,9 @@ def test_an_infeasible_problem_is_not_said_infeasible_even_relaxed_when_the_rela
     assert "Ipopt still found no point" not in res.message
     assert "cannot all be met from these starts" in res.message, res.message
     assert res.message.startswith("From the guess and from seeded random controls"), res.message
+    # the unmet condition's value is the relaxed solve's, a local minimum of the violation, not
+    # "the nearest feasible value" (unseen29: said so of a reachable waypoint)
+    assert "the relaxed solve's value" in res.message and "nearest feasible" not in res.message, res.message
 
 
 def test_max_violation_tells_a_solved_model_from_its_guess():

@@ -330,7 +330,10 @@ def elastic(problem, meshes, starts, options: dict | None = None, tried: str = "
         for c in equalities:
             got = float(c.expr.xreplace({s: sp.Float(values[s]) for s in c.expr.free_symbols if s in values}))
             if abs(got - c.lower) > 1e-4 * max(1.0, abs(c.lower)):
-                out.append(f"`{c.text}`{_line(c)} (the nearest feasible value is {sp.sstr(c.expr)} = {got:.6g})")
+                # the relaxed solve's value, not a proof of the nearest one: it is a local
+                # minimum of the violation from these starts (unseen29: a reachable waypoint,
+                # every start at tf's lower bound, "the nearest feasible value x(t0) = -0.739")
+                out.append(f"`{c.text}`{_line(c)} (the relaxed solve's value {sp.sstr(c.expr)} = {got:.6g})")
         return out
 
     best, ends = None, []
