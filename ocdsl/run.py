@@ -172,10 +172,11 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         records += recovered.records
         if recovered.scaled is not None:
             scaled = recovered.scaled
+    best, best_tr, tied = tie_jumping_end_controls(file, best, best_tr, meshes, timer, verbose=verbose)
     with timer.measure("post"):
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
-        notes = start_notes(file, previous)
+        notes = start_notes(file, previous) + tied
     notes += fixed_mesh_arcs(file, result, best_tr, meshes, timer, verbose=verbose, progress=progress)
     if notes:
         result.extra["notes"] = notes
@@ -183,6 +184,45 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         result.extra["scaling"] = scaled
     result.wall_time_s = timer.breakdown()
     return result
+
+
+def tie_jumping_end_controls(file: LoadedFile, info, tr, meshes, timer, *, verbose=False) -> tuple:
+    """A control collocated at the problem's first or last instant that jumps off its
+    segment's other nodes (``solve.mesh.junction.jumping_ends``: a value the end conditions
+    do not price, set by the NLP at will, which bends the segment's states: u(t_f) = 0 after
+    u = 1 with the final speed free, tf right to 1e-10, not verified) is tied to its segment's
+    polynomial and the problem solved once more from the solution, as mesh refinement does.
+    The tied solution is kept only where it converges and J moves by no more than the
+    tolerance times its size (a genuine switch between the last two nodes would cost more);
+    the run's notes say so. Returns (info, tr, notes)."""
+    from .solve import ipopt
+    from .solve.mesh.junction import jumping_ends, limit_junction_controls
+    from .transcribe.guess import solved_guesses
+    from .transcribe.pseudospectral import build
+
+    if info.status not in ("optimal", "acceptable") or info.objective is None:
+        return info, tr, []
+    with timer.measure("post"):
+        ends = jumping_ends(tr)
+    if not ends:
+        return info, tr, []
+    with timer.measure("build"):
+        tied = build(file.problem, meshes, solved_guesses(file.problem, tr))
+        _scale(file, tied)
+        limit_junction_controls(tied, outer=ends, junctions=False)
+    with timer.measure("solve"):
+        again = ipopt.solve(tied.model, file.spec.solver.options, verbose=verbose, transcription=tied)
+    shown = "; ".join(f"{'t_f' if e == 'end' else 't0'}" + (f" of phase {k}" if len(file.problem.phases) > 1 else "")
+                      for k, v in ends.items() for e in sorted(v))
+    size = objective_size(info.objective, abs(info.objective))      # relative below |J| = 1
+    if again.status not in ("optimal", "acceptable") or again.objective is None \
+            or abs(again.objective - info.objective) > file.spec.verify.tolerance * size:
+        return info, tr, [f"the control at {shown} jumps off its segment's other nodes; tied to its segment's "
+                          f"polynomial the problem ended {again.status} with J = {again.objective}: the untied "
+                          "solution is reported"]
+    return again, tied, [f"the control at {shown} jumped off its segment's other nodes (a value the end "
+                         "conditions do not price); it is tied to its segment's polynomial and the problem "
+                         f"solved again: J {info.objective:.10g} -> {again.objective:.10g}"]
 
 
 def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verbose=False,

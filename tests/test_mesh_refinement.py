@@ -954,10 +954,21 @@ def test_a_control_the_end_conditions_leave_free_at_tf_is_named_and_tied_by_the_
     advice was only "refine the mesh", and `mesh:` refined that segment ten times (error
     2e-6, mesh_not_converged). Now the failure names the jump, and the refinement ties that
     control to its segment's polynomial from the mesh after it jumped: optimal, verified."""
+    from ocdsl.api import compile_file
+    from ocdsl.verify import VerifySettings, verify_result
+
     (tmp_path / "fixed.yaml").write_text(FREE_END_SPEED)
     fixed = run_file(tmp_path / "fixed.yaml", None)
-    assert fixed.status == "optimal" and not fixed.verified and abs(fixed.tf - math.sqrt(2)) < 1e-8
-    assert any("u at t_f = 1.41421" in n and "extrapolate to 1" in n for n in fixed.verification["notes"])
+    # a fixed mesh ties it and solves once more (J unchanged): verified, and the notes say so
+    assert fixed.status == "optimal" and fixed.verified and abs(fixed.tf - math.sqrt(2)) < 1e-9
+    assert any("tied to its segment's polynomial" in n for n in fixed.extra["notes"])
+    assert fixed.phases[0].controls["u"][-1] == pytest.approx(1.0, abs=1e-6)     # was 0
+    # the untied answer (u(t_f) = 0 after 1): not verified, and the failure names the jump
+    fixed.phases[0].controls["u"][-1] = 0.0
+    problem = compile_file(tmp_path / "fixed.yaml").problem
+    ver = verify_result(problem, fixed, VerifySettings())
+    assert ver["status"] == "failed"
+    assert any("u at t_f = 1.41421 is 0" in n and "extrapolate to 1" in n for n in ver["notes"]), ver["notes"]
     (tmp_path / "mesh.yaml").write_text(FREE_END_SPEED.replace("degree: 4}", "degree: 4, mesh: {tolerance: 1.0e-7}}"))
     res = run_file(tmp_path / "mesh.yaml", None)
     assert res.status == "optimal" and res.verified and abs(res.tf - math.sqrt(2)) < 1e-9

@@ -33,7 +33,7 @@ def jumping_ends(tr) -> dict[str, set]:
 
 
 def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0,
-                            outer: dict | None = None) -> int:
+                            outer: dict | None = None, junctions: bool = True) -> int:
     """At every phase junction, constrain a control collocated at the phase's end point to the
     one-sided limit of its segment's interior control polynomial (``junction_control: limit``).
 
@@ -60,7 +60,9 @@ def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0,
     control polynomials overshoot to 1.12 between the nodes, and the estimate (3.0e-2, then
     falling only with the width of the two segments) never reached 1e-9. LGR and LGR-start
     collocate one control at such a breakpoint and converged there without it, so they are
-    left as they were. Returns the number of constraints added."""
+    left as they were. ``outer``: per phase, the problem's own ends (``"end"``, ``"start"``)
+    tied as well (``jumping_ends``); ``junctions=False``: those alone, no junction (a fixed
+    mesh's run, run.tie_jumping_end_controls). Returns the number of constraints added."""
     import pyomo.core as pyo
 
     from ...transcribe.nodes import lagrange_matrix
@@ -72,9 +74,9 @@ def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0,
         nu = len(pb.phase.controls)
         ends = []
         tied_outer = (outer or {}).get(pb.phase.name, ())
-        if i < n_ph - 1 or "end" in tied_outer:
+        if (junctions and i < n_ph - 1) or "end" in tied_outer:
             ends.append(("end", lay.mesh.segments - 1, 1.0))
-        if i > 0 or "start" in tied_outer:
+        if (junctions and i > 0) or "start" in tied_outer:
             ends.append(("start", 0, -1.0))
         if lay.mesh.scheme_name == "LGL" and features:
             bps = np.asarray(lay.mesh.breakpoints)
