@@ -933,3 +933,30 @@ def test_the_tied_junction_problem_on_lgl_and_lg(transcription, tmp_path):
     assert res.status == "optimal" and abs(res.parameters["p"] - 1) < 1e-7
     assert res.verified, [c for c in res.verification["checks"] if not c["passed"]]
     assert res.certificate["passed"], res.certificate
+
+
+WIDE_BOUND = """\
+name: a control bound far from the control
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u - 10}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0 <= u <= 1.0e5]
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 10, degree: 4}
+"""
+
+
+def test_a_control_far_inside_a_wide_bound_is_not_at_that_bound(tmp_path):
+    """unseen30: x'' = u - 10 with 0 <= u <= 1e5 never touches the bound (u = 10 + 12 - 24 t + ...,
+    J = 112 exact). 1 % of the range is 1,000, so every node sat "at" the lower bound, and the
+    end-arc check called for the upper one at t0: certificate failed (end_arcs, a gain of 94),
+    exit 1, J right to 6e-16. "At" a bound is now also within ten times 1 % of the control's
+    own spread: no node is at a bound and the certificate passes."""
+    (tmp_path / "wide.yaml").write_text(WIDE_BOUND)
+    res = run_file(tmp_path / "wide.yaml", None)
+    assert res.status == "optimal" and res.verified and res.objective == pytest.approx(112.0, rel=1e-10)
+    assert res.certificate["passed"], res.certificate
+    assert res.certificate["switching"]["saturated_nodes"] == 0

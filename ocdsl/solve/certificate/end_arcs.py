@@ -45,7 +45,7 @@ def end_arcs(model: Model, parameter_values: Mapping | None, trajectory, control
         rows = np.array([end, near])
         Ur = U[[near, near]]                        # the nearest node's control at both
         _, S, _, _ = _hamiltonian_nodes(num, t[rows], X[rows], Ur, Lam[rows])
-        side = _side(U[[near]], bounds, tol.saturation)[0]
+        side = _side(U, bounds, tol.saturation)[near]      # the spread over the phase's nodes
         for j, c in enumerate(model.controls):
             lo, hi = bounds[j]
             if side[j] == 0 or not (math.isfinite(lo) and math.isfinite(hi)):
