@@ -8,7 +8,7 @@ gave J = 12.24 on 3 LG segments and 12.1957 on 7 against the exact 12.1956, veri
 passing certificate (unseen5). Whether a junction sits inside a segment or the NLP moved it
 onto a wrong breakpoint (the 7-segment case: the arc began at the breakpoint 2/7, the exact
 junction is 0.3), the nodes alone do not tell. So a single solve whose inequalities bind
-inside a phase is solved once more with every segment bisected (``run.bisection_check``),
+inside a phase is solved once more with every segment bisected (``fixed_mesh.bisection_check``),
 and J must agree to a quarter of the verification's tolerance; else the run is ``mesh_not_converged``
 (the status of an adaptive mesh that misses its tolerance) and says where the arcs are.
 """
@@ -52,7 +52,7 @@ class Level:
 @dataclass(frozen=True)
 class Bisection:
     """J on the file's mesh against J with every segment bisected, and bisected again where
-    the first difference alone does not decide (``run.bisection_check``)."""
+    the first difference alone does not decide (``fixed_mesh.bisection_check``)."""
     objective: float
     levels: tuple[Level, ...]
     tolerance: float

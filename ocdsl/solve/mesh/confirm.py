@@ -22,7 +22,7 @@ class Confirmed:
     info: object
     meshes: dict
     unregularised: object = None     # check_unregularised's finding, where J was regularised
-    bisection: object = None         # run.bisection_check's finding, where it ran
+    bisection: object = None         # fixed_mesh.bisection_check's finding, where it ran
     notes: list = field(default_factory=list)
 
 
@@ -32,7 +32,8 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
     ``rebuild(meshes, guesses=, regularised=)`` builds the last iteration's model on other meshes."""
     import pyomo.core as pyo
 
-    from ...run import _scale, bisection_check
+    from ...fixed_mesh import bisection_check
+    from ...run import _scale
     from ...transcribe.guess import solved_guesses
     from ...transcribe.pseudospectral import build
     from .. import ipopt

@@ -62,7 +62,7 @@ def limit_junction_controls(tr, features: dict | None = None, tol: float = 0.0,
     collocate one control at such a breakpoint and converged there without it, so they are
     left as they were. ``outer``: per phase, the problem's own ends (``"end"``, ``"start"``)
     tied as well (``jumping_ends``); ``junctions=False``: those alone, no junction (a fixed
-    mesh's run, run.tie_jumping_end_controls). Returns the number of constraints added."""
+    mesh's run, fixed_mesh.tie_jumping_end_controls). Returns the number of constraints added."""
     import pyomo.core as pyo
 
     from ...transcribe.nodes import lagrange_matrix

@@ -161,7 +161,7 @@ def with_free_switches(tr, rebuild, solve, free: dict, tol: float):
     """(objective, meshes) of ``tr``'s problem solved with the breakpoints ``free`` (phase ->
     indices) as unknowns and the bang controls of their segments held (``_switch_model``), or
     None when no control is held or the solve does not converge: where the switches go when
-    the mesh does not hold them (``run.pinned_switches``)."""
+    the mesh does not hold them (``fixed_mesh.pinned_switches``)."""
     model, held = _switch_model(tr, rebuild, free, tol)
     if not held:
         return None
