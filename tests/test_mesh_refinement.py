@@ -933,18 +933,9 @@ problem:
 method: {transcription: LGR, segments: 4, degree: 4}
 """
 
-SWITCH_IN_LAST_SEGMENT = """\
-name: rest to rest in minimum time, the switch inside the only segment
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: free}
-  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, -1 <= u <= 1, 0.1 <= tf <= 10]
-  objective: minimize tf
-method: {transcription: LGR, segments: 1, degree: 7}
-"""
+# the same model, rest to rest: the switch inside the only segment
+SWITCH_IN_LAST_SEGMENT = (FREE_END_SPEED.replace("x(tf) == 1,", "x(tf) == 1, v(tf) == 0,")
+                          .replace("segments: 4, degree: 4", "segments: 1, degree: 7"))
 
 
 def test_a_control_the_end_conditions_leave_free_at_tf_is_named_and_tied_by_the_mesh(tmp_path):
