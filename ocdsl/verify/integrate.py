@@ -23,6 +23,7 @@ import contextlib
 import contextvars
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -137,7 +138,12 @@ def _piece(funcs, uf, a, b, y0, t_eval, rtol, atol, method):
             _check_deadline(tt)
             return fun(tt, y)
 
-        sol = solve_ivp(fun, (a, b), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol)
+        # SciPy's integrators warn on stderr where they struggle (LSODA's "Repeated
+        # convergence failures" on a diverging closed loop, unseen29); what they reached is
+        # the verdict's, said in its words
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sol = solve_ivp(fun, (a, b), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol)
     ok = sol.success and sol.y.shape[1] == len(t_eval) and np.all(np.isfinite(sol.y))
     return sol, ok
 
