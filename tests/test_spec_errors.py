@@ -373,3 +373,26 @@ def test_a_vector_literal_in_a_flow_list_says_how_to_write_it(tmp_path):
                  "  objective: minimize integral(u**2)\n")
     with pytest.raises(SpecError, match=r"f.yaml:8: YAML syntax error: .*write the relations one per line"):
         compile_file(p)
+
+
+def test_a_boundary_values_t0_or_tf_is_not_listed_as_an_unknown_name(tmp_path):
+    """unseen29: an undefined weight in a top-level objective of two phases was reported with
+    'tf' beside it, and tf's explanation about dynamics (`-b.x(tf) + cc*b.v(tf)**2`)."""
+    p = tmp_path / "w.yaml"
+    p.write_text("""name: two phases
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+phases:
+  a:
+    time: {t0: 0, tf: 1}
+    constraints: [x(t0) == 0, v(t0) == 0, -1 <= u <= 1]
+  b:
+    time: {t0: 1, tf: 2}
+    constraints: [v(tf) == 0, -1 <= u <= 1]
+links:
+  - continuous(a, b)
+objective: minimize -b.x(tf) + cc*b.v(tf)**2
+""")
+    with pytest.raises(SpecError) as e:
+        compile_file(p)
+    (issue,) = e.value.issues
+    assert issue.line == 12 and issue.message == "unknown name 'cc'", issue.message

@@ -276,6 +276,10 @@ class _Builder:
         tree = self.tree
         skip = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
         skip |= {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+        # the t0 / tf of a boundary value x(tf) is its form, not a name (unseen29: `cc` unknown
+        # in `-b.x(tf) + cc*b.v(tf)**2` was reported with 'tf' beside it)
+        skip |= {id(n.args[0]) for n in ast.walk(tree) if isinstance(n, ast.Call) and len(n.args) == 1
+                 and isinstance(n.args[0], ast.Name) and n.args[0].id in ("t0", "tf")}
         out: list[str] = []
         known = set(self.scope.names) | set(CONSTANTS) | set(FUNCTIONS) | set(VECTOR_FUNCTIONS) \
             | set(self.scope.functions) | {"integral"}
