@@ -396,3 +396,23 @@ objective: minimize -b.x(tf) + cc*b.v(tf)**2
         compile_file(p)
     (issue,) = e.value.issues
     assert issue.line == 12 and issue.message == "unknown name 'cc'", issue.message
+
+
+def test_a_degree_suffix_in_an_expression_says_where_it_is_read(tmp_path):
+    """unseen29: `x(tf) == 10deg` in a problem constraint was only 'syntax error (invalid
+    decimal literal)'; the suffix is read in a controller's numbers alone."""
+    p = tmp_path / "deg.yaml"
+    p.write_text("""name: d
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, x(tf) == 10deg]
+  objective: minimize integral(u**2)
+""")
+    with pytest.raises(SpecError) as e:
+        compile_file(p)
+    (issue,) = e.value.issues
+    assert issue.line == 8 and "controller" in issue.message and "10*pi/180" in issue.message, issue.message

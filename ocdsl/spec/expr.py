@@ -192,7 +192,11 @@ def _parse(text: str | int | float) -> ast.expr:
                             f"`dynamics:` (`{name}: ...` gives {name}'); to bound {name}', bound that right-hand side",
                             text) from None
         hint = ""
-        if re.search(r"(?<![<>=!])=(?!=)", text):
+        if re.search(r"(?<![\w.])\d+(\.\d*)?([eE][+-]?\d+)?\s*deg\b", text):
+            # `x(tf) == 10deg` (unseen29): the suffix is the controller blocks' (spec/controller.py)
+            hint = ("; `deg` is read only in a controller's numbers (`x0: {phi: 10deg}`): in an expression "
+                    "write the radians, e.g. 10*pi/180")
+        elif re.search(r"(?<![<>=!])=(?!=)", text):
             hint = "; an equality is written with ==, e.g. x(t0) == 1"
         elif re.search(r"(?<![\w.])\d+(\.\d*)?([eE][+-]?\d+)?\s+[A-Za-z_]", text):
             # `-1 m/s**2 <= u` (unseen12 F11): a number followed by a name
