@@ -88,7 +88,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
                    mesh_tolerance: float | None = None, always_fly: bool = False,
                    flight_budget_s: float | None = None) -> dict:
     """The certificate per phase; ``tolerance``: the verification's, which a missing end arc's
-    predicted gain in J (relative to 1 + |J|) must stay under; ``mesh_tolerance``: a ``mesh:``
+    predicted gain in J (relative to J's size, verify/objective_size.py) must stay under; ``mesh_tolerance``: a ``mesh:``
     run's, ``always_fly`` and ``flight_budget_s`` (``flown_control``)."""
     # the objective's own size, which the checks that can refute J measure against (and the
     # bisection after them: run.py)

@@ -38,22 +38,20 @@ SPREAD_SHARE = 10.0    # the band is at most this many times ``frac`` of the con
 RESOLUTION = 1e-7       # ... and at least this share of the bound range (the NLP's resolution)
 
 
-def _side(U, bounds, frac, spread=None):
+def _side(U, bounds, frac):
     """Per node and control: +1 at the upper bound, -1 at the lower, 0 off the bounds.
 
     "At" a bound: within ``frac`` of the bound range, but no farther than SPREAD_SHARE x
-    ``frac`` of the control's spread over the phase (``spread``, default: over the rows of
-    ``U``), and always within RESOLUTION of the range: with `0 <= u <= 1e5` a control near 20
-    throughout sat "at" its lower bound (1 % of the range is 1,000), and the end-arc check
-    called for the upper one, a gain of 94 on J = 112 exact (unseen30)."""
+    ``frac`` of the control's spread over the rows of ``U`` (the phase's nodes), and always
+    within RESOLUTION of the range: with `0 <= u <= 1e5` a control near 20 throughout sat "at"
+    its lower bound (1 % of the range is 1,000), and the end-arc check called for the upper
+    one, a gain of 94 on J = 112 exact (unseen30)."""
     side = np.zeros(U.shape, int)
-    if spread is None:
-        with np.errstate(all="ignore"):
-            spread = np.nanmax(U, axis=0) - np.nanmin(U, axis=0) if len(U) else np.zeros(U.shape[1])
+    with np.errstate(all="ignore"):
+        spread = np.nanmax(U, axis=0) - np.nanmin(U, axis=0) if len(U) else np.zeros(U.shape[1])
     for j, (lo, hi) in enumerate(bounds):
-        band = _band(lo, hi, frac)
         s = float(spread[j]) if np.isfinite(spread[j]) else math.inf
-        band = min(band, max(SPREAD_SHARE * frac * s, RESOLUTION * band / frac if frac > 0 else 0.0))
+        band = min(_band(lo, hi, frac), max(SPREAD_SHARE * frac * s, RESOLUTION * _band(lo, hi, 1.0)))
         if math.isfinite(hi):
             side[U[:, j] >= hi - band, j] = 1
         if math.isfinite(lo):
