@@ -163,8 +163,8 @@ def end_control_jumps(t: np.ndarray, U: np.ndarray, names: list[str], breakpoint
         others = seg & ~here
         if not here.any() or others.sum() < 2:
             continue
-        jumps, limit = end_jump(at, t[others], U[np.flatnonzero(here)[0]], U[others], size)
         value = U[np.flatnonzero(here)[0]]
+        jumps, limit = end_jump(at, t[others], value, U[others], size)
         notes += [f"{name} at {end} = {at:.6g} is {value[j]:.6g} where its segment's other nodes extrapolate "
                   f"to {limit[j]:.6g}: a value at one end instant that the end conditions do not price (e.g. "
                   "free final states, whose costates vanish there), set by the NLP at will; it bends that "

@@ -67,15 +67,16 @@ def objective_scale(problem, result) -> float:
     point: dict = {sp.Symbol(k, real=True): v for k, v in params.items()}
     integral_terms: dict = {}
     try:
+        trajectories = {ph.name: result.phase(ph.name) if len(result.phases) > 1 else result.phases[0]
+                        for ph in problem.phases}
         for ph in problem.phases:
-            traj = result.phase(ph.name) if len(result.phases) > 1 else result.phases[0]
+            traj = trajectories[ph.name]
             t = np.asarray(traj.time, float)
             point[ph.t0_symbol], point[ph.tf_symbol] = float(t[0]), float(t[-1])
             for s, (value, terms) in (_integrals(ph, traj, params) if ph.integrals else {}).items():
                 point[s], integral_terms[s] = value, terms
         for s, bv in problem.boundary_values.items():
-            ph = problem.phase(bv.phase)
-            traj = result.phase(ph.name) if len(result.phases) > 1 else result.phases[0]
+            ph, traj = problem.phase(bv.phase), trajectories[bv.phase]
             column = np.asarray((traj.states if bv.var in ph.states else traj.controls)[bv.var.name], float)
             finite = column[np.isfinite(column)]
             point[s] = float(finite[0] if bv.which == "t0" else finite[-1]) if len(finite) else math.nan
