@@ -207,7 +207,8 @@ def _summary(result, out: Path) -> None:
     efail = f", expect [red]FAIL[/red] ({', '.join(missed)})" if missed else ""
     con.print(f"[bold]{result.name}[/bold]: solver [{ok}]{result.status}[/{ok}], "
               f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}{cfail}{efail}")
-    if vstatus not in ("verified", "not_applicable") and v.get("summary"):
+    unjudged = any(c.get("passed") is None for c in v.get("checks") or [])
+    if (vstatus not in ("verified", "not_applicable") or unjudged) and v.get("summary"):
         con.print(f"  {v['summary']}", markup=False)
     if result.status not in ("optimal",) and result.message:
         # "controls [up, um]" is text; an error's reason may take several lines (every set of
@@ -279,7 +280,8 @@ def _summary(result, out: Path) -> None:
     kept = result.extra.get("run_folder_kept")
     t.add_row("run folder", f"{out} (the earlier run, kept; nothing of this one written)" if kept else str(out))
     if v.get("tolerance") is not None and vstatus in ("verified", "failed"):
-        t.add_row("verification", f"{len(v.get('checks', []))} checks against tolerance {v['tolerance']:g}"
+        t.add_row("verification", f"{sum(c.get('passed') is not None for c in v.get('checks', []))} checks "
+                  f"against tolerance {v['tolerance']:g}"
                   f" ({v.get('wall_time_s', 0):.3f} s)")
     con.print(t)
     for c in result.expect:

@@ -653,3 +653,51 @@ def test_a_point_inside_a_small_keep_out_zone_on_a_long_path_is_a_violation(tmp_
     failed = [c for c in res.verification["checks"] if not c["passed"]]
     assert [c["name"] for c in failed] == ["path constraints"] and "t = 200" in failed[0]["where"]
     assert failed[0]["value"] > 1e-3
+
+
+UNSTABLE_LQ = """
+name: unstable scalar LQ
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: 10*x + u}
+problem:
+  time: {t0: 0, tf: 5}
+  constraints: [x(t0) == 1]
+  objective: minimize integral(x**2 + u**2)
+method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-8, max_iterations: 15}}
+"""
+
+
+def test_a_flight_that_amplifies_past_what_it_can_judge_leaves_the_judging_to_the_pieces(tmp_path):
+    """unseen30 B: x' = 10 x + u over t_f = 5 amplifies a change of x(t0) by e^50; every piece
+    met the dynamics to 2.8e-8 and J was right to 1.7e-14, but the flight from x(t0) missed by
+    1.2e10 and the run was `verification failed`. Such a flight judges nothing (its own
+    integration error, amplified, passes the tolerance): the phase is judged piece by piece,
+    and the run says which checks it did not judge and why."""
+    from ocdsl.api import run_file
+
+    (tmp_path / "p.yaml").write_text(UNSTABLE_LQ)
+    res = run_file(tmp_path / "p.yaml", None)
+    g = np.hypot(10.0, 1.0)
+    exact = np.tanh(5 * g) / (g - 10 * np.tanh(5 * g))
+    assert res.status == "optimal" and res.objective == pytest.approx(exact, rel=1e-8)
+    v = res.verification
+    assert v["status"] == "verified", v["summary"]
+    flight = _check(v, "dynamics from x(t0)")
+    assert flight["passed"] is None and flight["value"] > 1.0 and "amplifies" in flight["not_judged"]
+    assert _check(v, "objective", "global")["passed"] is None
+    assert _check(v, "dynamics per piece")["passed"] and _check(v, "objective", "local")["passed"]
+    assert "not judged: dynamics from x(t0)" in v["summary"] and "feedback" in v["summary"]
+
+
+def test_a_flight_that_misses_on_stable_dynamics_still_fails(di_problem):
+    """The same miss without the amplification is the trajectory's: rows that drift by
+    1.5e-5 x sin(3 t) on 40 segments meet each piece's dynamics within the tolerance (the defects are
+    small per piece) and miss from x(t0) by more; the double integrator amplifies little,
+    so the flight judges and fails."""
+    v = verify_result(di_problem, di_result(segments=40, drift=1.5e-5))
+    assert _check(v, "dynamics per piece")["passed"]
+    flight = _check(v, "dynamics from x(t0)")
+    assert flight["passed"] is False and "not_judged" not in flight
+    assert v["status"] == "failed"

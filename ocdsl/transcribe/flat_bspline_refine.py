@@ -21,7 +21,7 @@ REFINED_LEVEL_OPTIONS = {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9
 def _level(result, opts, verification: dict, wall_s: float) -> dict:
     """One row of ``extra["refinement"]``: the setting, NLP size, t_f, objective, dense
     residual, the verification's verdict and its largest miss."""
-    failed = [c for c in verification.get("checks", []) if not c["passed"]]
+    failed = [c for c in verification.get("checks", []) if c["passed"] is False]
     _, worst = _worst_check(verification)
     dyn = [c["value"] for c in verification.get("checks", []) if c["name"] == "dynamics from x(t0)"]
     return {"control_points": opts.n_ctrl, "collocation_points": opts.n_col, "residual": opts.residual,

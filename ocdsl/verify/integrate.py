@@ -270,6 +270,25 @@ def batched_local_pass(funcs, uf, grid, breaks, X_start, rtol, scale, rho) -> Pa
     return Pass(grid, Y, {"DOP853 (batched)"}, sol.steps)
 
 
+def flight_amplification(funcs, uf, t_rows, X_rows, breaks, rtol, scale, nominal: Pass, rel: float = 1e-6) -> float:
+    """How much the flight from x(t0) amplifies a change of x(t0): the flight from x(t0) moved
+    by ``rel`` of every state's scale, against ``nominal`` (the global pass) at t_f, as
+    max_j |dx_j(t_f)| / scale_j over ``rel`` (one direction: a lower bound). Inf when the
+    moved flight fails or overflows. x' = 10 x + u over t_f = 5 amplifies by e^50."""
+    n = funcs.n
+    start = np.concatenate([X_rows[0] + rel * scale[:n], np.zeros(len(funcs.integral_symbols))])
+    rho = _stiff(funcs, uf, t_rows, X_rows, scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")       # an overflow is an infinite amplification
+        try:
+            moved = integrate_pass(funcs, uf, nominal.t, breaks, lambda k, y: start if k == 0 else y,
+                                   rtol, scale, rho)
+        except (IntegrationFailure, FloatingPointError, OverflowError):
+            return math.inf
+        dx = np.abs(moved.Y[-1, :n] - nominal.Y[-1, :n]) / scale[:n]
+    return float(np.max(dx) / rel) if n and np.all(np.isfinite(dx)) else math.inf
+
+
 def reintegrate(funcs, uf, t_rows, X_rows, breaks, rtol, scale, per_interval: int = 3,
                 open_loop: bool = True):
     """The global and the local pass (:class:`Pass` each) over the dense grid. ``X_rows`` are
