@@ -238,8 +238,11 @@ def _summary(result, out: Path) -> None:
     for law in result.extra.get("laws", []):       # a controller file: each law's closed loop
         rec = result.extra.get(law) or {}
         cost = rec.get("cost")
-        t.add_row(law, f"{rec.get('status', '?')}, J = {cost:.10g}" if isinstance(cost, (int, float))
-                  else str(rec.get("status", "?")))
+        # each law's trajectory is verified on its own (its rows carry the law as phase)
+        own = [c.get("passed") for c in v.get("checks") or [] if c.get("phase") == law]
+        judged = ("" if not own else ", verified" if all(p is not False for p in own) else ", not verified")
+        t.add_row(law, (f"{rec.get('status', '?')}, J = {cost:.10g}" if isinstance(cost, (int, float))
+                        else str(rec.get("status", "?"))) + judged)
     robust = _robustness_line(result.tables.get("robustness"))
     if robust:
         t.add_row("robustness", robust)

@@ -407,3 +407,53 @@ def test_a_diverging_law_s_integrator_trouble_is_said_in_the_verdict_not_as_a_sc
     assert res.status == "unstable"
     assert "integrators stop" in res.verification["summary"]
     assert not [w for w in caught if "lsoda" in str(w.message).lower()], [str(w.message) for w in caught]
+
+
+def test_a_diverging_law_leaves_the_other_laws_verified(tmp_path):
+    """unseen29: one law (LQR on x' = x^3 + u) blew up and the whole run's verification was
+    `error`, so the stable SDRE law went unverified. Each law is flown on its own: the
+    diverged one fails with where its integrators stopped, the other is verified, and the
+    summary line of each law says which."""
+    from click.testing import CliRunner
+
+    from ocdsl.api import run_file
+    from ocdsl.cli import main
+
+    (tmp_path / "laws.yaml").write_text(DIVERGING_LQR)
+    res = run_file(tmp_path / "laws.yaml", None)
+    v = res.verification
+    assert v["status"] == "failed"
+    lqr = [c for c in v["checks"] if c["phase"] == "lqr"]
+    sdre = [c for c in v["checks"] if c["phase"] == "sdre"]
+    assert sdre and all(c["passed"] for c in sdre)
+    assert any(c["passed"] is False and "integrators stop" in c["where"] for c in lqr)
+    out = CliRunner().invoke(main, ["run", str(tmp_path / "laws.yaml"), "--out", str(tmp_path / "run")]).output
+    assert "stable, J = 1.44" in out and "1.440235692, verified" in out and "not verified" in out, out
+
+
+def test_the_stiffness_of_a_row_is_measured_at_its_own_size():
+    """The stiffness estimate's finite-difference step was 1e-7 x the state's range: a closed
+    loop that diverged to 7e26 at its end made x' = x^3 + u look stiff (5e39) at x = 1.2, and
+    every one of its 590 pieces went to Radau (15 s of verification). At each row's own size
+    the estimate is 3 x^2 there."""
+    import numpy as np
+
+    from ocdsl.verify.functions import PhaseFunctions
+    from ocdsl.verify.integrate import _stiff
+
+    class Cubic:
+        n = 1
+        fx = PhaseFunctions.fx
+
+        def f(self, t, X, U):
+            return X**3 + U
+
+    class Zero:
+        def at(self, tt):
+            return np.zeros((len(tt), 1))
+
+    t = np.array([0.0, 0.3, 0.589, 0.59, 0.591])
+    X = np.array([[1.2], [1.5], [22.5], [83.0], [7e26]])
+    rho = _stiff(Cubic(), Zero(), t, X, np.array([np.ptp(X)]))
+    assert rho.over(0.0, 0.3) == pytest.approx(3 * 1.5**2, rel=1e-5)
+    assert rho.over(0.59, 0.591) > 1e50

@@ -248,12 +248,12 @@ def test_batched_local_pass_equals_piece_by_piece(di_problem):
     X = np.column_stack([x, v])
     scale = np.array([np.ptp(x), np.ptp(v)])
     grid = I.dense_grid(t, t, 3)
-    batched = I.batched_local_pass(funcs, uf, grid, t, X[:-1], 1e-10, scale, 0.0)
+    batched = I.batched_local_pass(funcs, uf, grid, t, X[:-1], 1e-10, scale, I.Stiffness(t, 0 * t))
     assert batched is not None and batched.methods == {"DOP853 (batched)"}
 
     def from_rows(k, y_prev):
         return X[k]
-    alone = I.integrate_pass(funcs, uf, grid, t, from_rows, 1e-10, scale, 0.0)
+    alone = I.integrate_pass(funcs, uf, grid, t, from_rows, 1e-10, scale, I.Stiffness(t, 0 * t))
     assert np.max(np.abs(batched.Y - alone.Y) / scale) < 1e-9
     at_rows = np.searchsorted(grid, t)
     err = np.abs(batched.Y[at_rows] - X) / scale
@@ -339,13 +339,13 @@ def test_batched_local_pass_of_collocation_segments(di_problem):
     scale = np.array([np.ptp(x), np.ptp(v)] + [1.0] * len(funcs.integral_symbols))
     grid = I.dense_grid(t, segments, 3)
     starts = X[np.searchsorted(t, segments[:-1])]
-    batched = I.batched_local_pass(funcs, uf, grid, segments, starts, 1e-10, scale, 0.0)
+    batched = I.batched_local_pass(funcs, uf, grid, segments, starts, 1e-10, scale, I.Stiffness(t, 0 * t))
     assert batched is not None and batched.methods == {"DOP853 (batched)"}
     nq = len(funcs.integral_symbols)
 
     def from_rows(k, y_prev):
         return np.concatenate([starts[k], np.zeros(nq) if k == 0 else y_prev[2:]])
-    alone = I.integrate_pass(funcs, uf, grid, segments, from_rows, 1e-10, scale, 0.0)
+    alone = I.integrate_pass(funcs, uf, grid, segments, from_rows, 1e-10, scale, I.Stiffness(t, 0 * t))
     assert np.max(np.abs(batched.Y - alone.Y) / scale) < 1e-9
     at_rows = np.searchsorted(grid, t)
     err = np.abs(batched.Y[at_rows, :2] - X) / scale[:2]

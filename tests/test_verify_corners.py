@@ -159,7 +159,7 @@ def test_the_flight_through_the_projections_kinks_meets_the_integrators_toleranc
     integrated to 1e-13 with a hundredth of each piece as its largest step."""
     from scipy.integrate import solve_ivp
 
-    from ocdsl.verify.integrate import dense_grid, integrate_pass
+    from ocdsl.verify.integrate import Stiffness, dense_grid, integrate_pass
 
     ph = mixed.phases[0]
     funcs = PhaseFunctions(ph, {}, ph.integrals)
@@ -174,7 +174,7 @@ def test_the_flight_through_the_projections_kinks_meets_the_integrators_toleranc
     t, X = traj.time, traj.states["x"][:, None]
     breaks = np.asarray(traj.control_interpolation["breakpoints"])
     p = integrate_pass(funcs, uf, dense_grid(t, breaks, 3), breaks,
-                       lambda k, y: X[0] if k == 0 else y, 1e-10, np.ones(1), 0.0)
+                       lambda k, y: X[0] if k == 0 else y, 1e-10, np.ones(1), Stiffness(t, 0 * t))
     y = X[0].copy()
     for a, b in zip(breaks[:-1], breaks[1:]):
         u_of = uf.piece(0.5 * (a + b))

@@ -227,8 +227,16 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
     for ph in problem.phases:
         traj = result.phase(ph.name) if len(result.phases) > 1 or ph.name == result.phases[0].name \
             else result.phases[0]
-        runs[ph.name] = _verify_phase(ph, traj, declared_interpolation(traj, result.method), params,
-                                      settings, checks, tables)
+        try:
+            runs[ph.name] = _verify_phase(ph, traj, declared_interpolation(traj, result.method), params,
+                                          settings, checks, tables)
+        except IntegrationFailure as e:
+            if settings.open_loop:
+                raise
+            # a closed-loop run's phases are its laws, each simulated on its own: one law whose
+            # flight the integrators cannot finish (it diverged) fails alone (unseen29: LQR on
+            # x' = x^3 + u blew up and left the stable SDRE law `verification error`)
+            runs[ph.name] = _unflown_phase(ph, traj, e, tol, checks)
         notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n for n in runs[ph.name].notes]
         names_u = [c.name for c in ph.controls]
         if names_u and settings.open_loop:     # collocation advice; a feedback law may chatter
@@ -243,6 +251,20 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
     _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
     _reported_integral_checks(problem, result, runs, tol, checks)
     return checks, notes
+
+
+def _unflown_phase(ph, traj, failure: Exception, tol: float, checks: list[dict]) -> _PhaseRun:
+    """A phase the integrators could not fly: one failed row says where they stopped; its
+    ends and integrals are unknown (NaN), so whatever depends on them fails too."""
+    t = np.asarray(traj.time, float)
+    X = np.column_stack([np.asarray(traj.states[s.name], float) for s in ph.states]) if ph.states \
+        else np.zeros((len(t), 0))
+    checks.append(row("dynamics per piece", ph.name, math.inf, tol, str(failure).rstrip("."), "not flown"))
+    unknown = np.full(len(ph.states) + len(ph.integrals), np.nan)
+    run = _PhaseRun(t, X, state_scale(X), np.ones(len(ph.integrals)), unknown, unknown, None)
+    run.notes.append("the verification's integrators cannot fly this trajectory to its end (a law that "
+                     "diverges leaves nothing to check after that); the other laws are judged on their own")
+    return run
 
 
 def _reported_integral_checks(problem, result, runs, tol, checks) -> None:

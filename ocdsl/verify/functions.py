@@ -104,15 +104,20 @@ class PhaseFunctions:
             return np.full(len(y), np.nan)
 
     def fx(self, t, X, U, scale) -> np.ndarray:
-        """df/dx at the points (P, n, n), by forward differences of step 1e-7 x scale (for
-        the stiffness estimate only: cheaper than a symbolic Jacobian of a large model)."""
+        """df/dx at the points (P, n, n), by forward differences (for the stiffness estimate
+        only: cheaper than a symbolic Jacobian of a large model) of step 1e-7 x the state's
+        size at the point, at least its median size over the points (its scale where that is
+        0): a step of 1e-7 x its range over a trajectory that diverged to 7e26 at its end made
+        x' = x^3 + u look stiff (5e39) at x = 1.2."""
         f0 = self.f(t, X, U)
         J = np.empty((len(t), self.n, self.n))
+        typical = np.median(np.abs(X), axis=0) if len(X) else np.zeros(self.n)
         for j in range(self.n):
-            h = 1e-7 * scale[j]
+            size = np.maximum(np.abs(X[:, j]), typical[j])
+            h = 1e-7 * np.where(size > 0, size, scale[j])
             Xp = X.copy()
             Xp[:, j] += h
-            J[:, :, j] = (self.f(t, Xp, U) - f0) / h
+            J[:, :, j] = (self.f(t, Xp, U) - f0) / h[:, None]
         return J
 
     def augmented(self, t, Y, U) -> np.ndarray:
