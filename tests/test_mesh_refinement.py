@@ -975,3 +975,30 @@ def test_a_switch_in_the_last_segment_is_not_called_an_end_jump(tmp_path):
     res = run_file(tmp_path / "switch.yaml", None)
     assert not res.verified
     assert not any("extrapolate to" in n for n in res.verification["notes"]), res.verification["notes"]
+
+
+OSCILLATOR = """
+name: harmonic oscillator, minimum time
+model:
+  states: [x1, x2]
+  controls: [u]
+  dynamics: {x1: x2, x2: -x1 + u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x1(t0) == 5, x2(t0) == 0, x1(tf) == 0, x2(tf) == 0, 1 <= tf <= 20]
+  objective: minimize tf
+  guess: {tf: 8}
+method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-6}}
+"""
+
+
+def test_a_switch_whose_narrow_segment_touches_a_bound_once_is_located(tmp_path):
+    """Three switches from 3 segments: the second one's segment narrowed to 4e-3 and its
+    nodes, overshooting, touched the other bound at a single node; a switch needed runs of two
+    nodes on both sides with only interior values between, so it went unlocated on three
+    meshes and the refinement ended mesh_not_converged after 10 (J right to 2e-10). A single
+    bound node inside a transition of at most two segments no longer hides it."""
+    (tmp_path / "osc.yaml").write_text(OSCILLATOR)
+    res = run_file(tmp_path / "osc.yaml", None)
+    assert res.status == "optimal", res.message
+    assert res.verified and res.objective == pytest.approx(7.937411720585, rel=1e-6)

@@ -38,13 +38,17 @@ def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
         if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
             continue
         act = activity(U[:, j], lo, hi, active_tol)
-        at = [i for i in range(len(act)) if act[i] != 0]
-        for p, q in zip(at, at[1:]):
-            if act[p] == act[q] or act[p + 1:q].any():
+        # a switch ends a run of two nodes or more at one bound and starts such a run at the
+        # other; between them interior values, and single nodes at a bound only where the
+        # transition spans at most two segments (elsewhere they are the chattering of a
+        # singular arc): a narrow segment holding a switch whose nodes overshoot touched a
+        # bound once, and the switch went unlocated (harmonic oscillator from 3 segments: the
+        # second of three switches missed on three meshes, refinement not converged)
+        runs = [(p, q) for p, q in _bound_runs(act) if q > p]
+        for (_, p), (q, _) in zip(runs, runs[1:]):
+            if act[p] == act[q]:
                 continue
-            # a switch ends a run of two nodes at one bound and starts a run at the other
-            # (single nodes at a bound are the chattering of a singular arc)
-            if not (p >= 1 and act[p - 1] == act[p] and q + 1 < len(act) and act[q + 1] == act[q]):
+            if act[p + 1:q].any() and seg[q - 1] - seg[p + 1] > 1:
                 continue
             uA, uB = (lo, hi) if act[p] < 0 else (hi, lo)
             if q == p + 1 and seg[p] != seg[q]:
@@ -61,6 +65,19 @@ def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
             ts = a + (Q - uB * (b - a)) / (uA - uB)
             out.append(float(min(max(ts, a), b)))
     return sorted(set(out))
+
+
+def _bound_runs(act) -> list[tuple[int, int]]:
+    """(first, last) index of every run of equal nonzero activity."""
+    out, i = [], 0
+    while i < len(act):
+        k = i
+        while k + 1 < len(act) and act[k + 1] == act[i]:
+            k += 1
+        if act[i] != 0:
+            out.append((i, k))
+        i = k + 1
+    return out
 
 
 def _smooth_neighbours(mesh, k, errors) -> tuple[int, int] | None:
