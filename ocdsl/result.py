@@ -271,21 +271,23 @@ def _trajectory_file(phase: str, n_phases: int) -> str:
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
-    """Numbers as ``repr(float)`` (they read back bit for bit); a column of text (a law's
-    name, a status) as its text."""
+    """Numbers as ``repr(float)`` (they read back bit for bit), a column of integers (mesh
+    iterations, segment counts) as integers; a column of text (a law's name, a status) as
+    its text."""
     arrays = {k: np.atleast_1d(_column(v)) for k, v in columns.items()}
     n = max((len(a) for a in arrays.values()), default=0)
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(list(arrays))
         for i in range(n):
-            w.writerow([("" if i >= len(a) else str(a[i]) if a.dtype.kind in "USO" else repr(float(a[i])))
+            w.writerow([("" if i >= len(a) else str(a[i]) if a.dtype.kind in "USO"
+                         else str(int(a[i])) if a.dtype.kind in "iub" else repr(float(a[i])))
                         for a in arrays.values()])
 
 
 def _column(values) -> np.ndarray:
     a = np.asarray(values)
-    return a if a.dtype.kind in "US" else a.astype(str) if a.dtype.kind == "O" else a.astype(float)
+    return a if a.dtype.kind in "USiub" else a.astype(str) if a.dtype.kind == "O" else a.astype(float)
 
 
 def unusable_start(run_dir: str | os.PathLike) -> str | None:

@@ -102,6 +102,18 @@ def test_read_gives_back_the_written_result(tmp_path):
     assert back.sample(0.75)["u"] == pytest.approx(res.sample(0.75)["u"])
 
 
+def test_a_table_of_counts_is_written_as_integers_and_reads_back(tmp_path):
+    """mesh_history.csv said "iteration 1.0, segments 10.0": counts are written as counts."""
+    res = Result("demo", "optimal", objective=2.0, tf=2.0, phases=[_two_segment_phase()],
+                 tables={"mesh_history": {"iteration": np.array([1, 2]), "segments": np.array([10, 14]),
+                                          "max_error": np.array([2.5e-2, 1e-7])}})
+    folder = res.write(tmp_path / "run")
+    lines = (folder / "tables" / "mesh_history.csv").read_text().splitlines()
+    assert lines == ["iteration,segments,max_error", "1,10,0.025", "2,14,1e-07"]
+    back = ocdsl.read(folder).tables["mesh_history"]
+    assert back["segments"].tolist() == [10.0, 14.0] and back["max_error"].tolist() == [2.5e-2, 1e-7]
+
+
 @pytest.mark.ipopt
 def test_docstring_examples(tmp_path):
     pytest.importorskip("pandas")

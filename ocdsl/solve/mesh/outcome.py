@@ -157,7 +157,8 @@ def record(result, problem, spec, status: str, history: list, tables: dict, erro
         for e in es:
             for key in err_tab:
                 v = getattr(e, key)
-                err_tab[key].append(names.index(v) if key == "phase" else float(v))
+                err_tab[key].append(names.index(v) if key == "phase" else
+                                    int(v) if key in ("segment", "degree", "nonsmooth") else float(v))
     result.extra["mesh_history"] = history
     if confirmed.unregularised is not None:
         result.extra["unregularised"] = confirmed.unregularised.record()
