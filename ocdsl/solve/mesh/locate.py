@@ -40,17 +40,21 @@ def locate_switches(tr, pb, params: dict, active_tol: float) -> list[float]:
         act = activity(U[:, j], lo, hi, active_tol)
         # a switch ends a run of two nodes or more at one bound and starts such a run at the
         # other; between them interior values, and single nodes at a bound only where the
-        # transition spans at most two segments (elsewhere they are the chattering of a
-        # singular arc): a narrow segment holding a switch whose nodes overshoot touched a
-        # bound once, and the switch went unlocated (harmonic oscillator from 3 segments: the
-        # second of three switches missed on three meshes, refinement not converged)
+        # transition spans at most two segments and runs monotonically from the one bound to
+        # the other (else they are the chattering of a singular arc: Goddard's coarse mesh,
+        # 3.5, 0.46, 3.5, 2.7, 0, 0.32, 0 between full thrust and coast): a narrow segment
+        # holding a switch whose nodes overshot to the bound once hid the switch (harmonic
+        # oscillator from 3 segments: the second of three switches missed on three meshes,
+        # refinement not converged)
         runs = [(p, q) for p, q in _bound_runs(act) if q > p]
         for (_, p), (q, _) in zip(runs, runs[1:]):
             if act[p] == act[q]:
                 continue
-            if act[p + 1:q].any() and seg[q - 1] - seg[p + 1] > 1:
-                continue
             uA, uB = (lo, hi) if act[p] < 0 else (hi, lo)
+            if act[p + 1:q].any():
+                steps = np.diff(U[p:q + 1, j]) * np.sign(uB - uA)
+                if seg[q - 1] - seg[p + 1] > 1 or np.any(steps < -1e-3 * (hi - lo)):
+                    continue
             if q == p + 1 and seg[p] != seg[q]:
                 out.append(float(mesh.breakpoints[seg[q]]))
                 continue
