@@ -216,7 +216,7 @@ def _summary(result, out: Path) -> None:
         shown = result.message.splitlines() if result.status == "error" else result.message.splitlines()[:1]
         for line in shown:
             con.print(f"  {line}", markup=False)
-    for note in result.extra.get("notes", []):
+    for note in result.extra.get("notes", []) + list(v.get("caveats") or []):
         con.print(f"  note: {note}", markup=False)
     t = Table(show_header=False, box=None, padding=(0, 2))
     # a failed run's objective is its last iterate's (or the guess's): never shown as a result
