@@ -124,6 +124,37 @@ def test_integral_objective_exact_cubic(tmp_path):
     assert res.nlp["variables"] == 8       # control points of x only; tf fixed
 
 
+HOTELLING_FROM_5 = """
+name: Hotelling extraction from t = 5
+model:
+  states: [R]
+  controls: [q]
+  dynamics: {R: -q}
+problem:
+  time: {t0: 5, tf: 15}
+  constraints: [R(t0) == 60, R(tf) == 0, q >= 0]
+  objective: maximize integral(exp(-0.1*t)*(10*q - q**2/2))
+method: {transcription: flat-bspline, degree: 5, control_points: 20, collocation_points: 20}
+"""
+
+
+@pytest.mark.ipopt
+def test_an_integrand_of_t_in_a_phase_that_starts_later_sees_the_clock(tmp_path):
+    """unseen32: the flat back end measures a phase from its start, and integrated
+    exp(-0.1 t) from t = 0 in a phase from t0 = 5 (J 269.50, the value of the same problem
+    from 0; the verification refuted it). The optimum: e^(-0.1 t)(10 - q) = lambda, so
+    q = 10 - lambda e^(0.1 t), and R(15) = 0 gives lambda = 4 / (e^1.5 - e^0.5)."""
+    from scipy.integrate import quad
+
+    lam = 4.0 / (np.exp(1.5) - np.exp(0.5))
+    q = lambda t: 10.0 - lam * np.exp(0.1 * t)      # noqa: E731
+    assert q(15.0) > 0 and quad(q, 5.0, 15.0)[0] == pytest.approx(60.0, rel=1e-12)
+    exact = quad(lambda t: np.exp(-0.1 * t) * (10 * q(t) - q(t) ** 2 / 2), 5.0, 15.0, epsabs=1e-13)[0]
+    res = ocdsl.load(write(tmp_path, HOTELLING_FROM_5)).solve()
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(exact, rel=1e-7)
+
+
 @pytest.mark.ipopt
 def test_two_phases_free_start_linked(tmp_path):
     """Two linked phases, the second with a free start: same cubic optimum (12), the switch

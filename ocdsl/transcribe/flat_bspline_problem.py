@@ -268,18 +268,21 @@ class _Mapped:
 
         p = self.nlp.phases[phase_name]
         fm = self.flatmaps[phase_name]
-        e = integrand.xreplace({**fm.states, **fm.controls})
+        # TIME in the flat map is the time since the phase start: an integrand of t in a phase
+        # from t0 = 5 was integrated as if it started at 0 (J 269.50 for 163.46, unseen32)
+        start = sp.Symbol("__phase_t0")
+        e = integrand.xreplace({TIME: TIME + start}).xreplace({**fm.states, **fm.controls})
         if e.free_symbols & set(self.problem.free_parameters):
             raise FlatProblemError("free parameters inside an integral are not supported by flat-bspline")
         n = self.opts.degree + 1
         x, w = np.polynomial.legendre.leggauss(n)
         knots = np.linspace(0.0, 1.0, self.opts.n_ctrl - self.opts.degree + 1)
-        f = sp.lambdify(p.args, e, modules=[PYOMO_FUNCTIONS])
+        f = sp.lambdify(p.args + [start], e, modules=[PYOMO_FUNCTIONS])
         total = 0
         for a, b in zip(knots[:-1], knots[1:]):
             for xi, wi in zip(x, w):
                 tau = 0.5 * (a + b) + 0.5 * (b - a) * xi
-                total = total + float(0.5 * (b - a) * wi) * f(*p.values_at(float(tau)))
+                total = total + float(0.5 * (b - a) * wi) * f(*p.values_at(float(tau)), self.t0[phase_name])
         return total * p.tf
 
     def pyomo_of(self, s):
