@@ -155,6 +155,45 @@ def test_an_integrand_of_t_in_a_phase_that_starts_later_sees_the_clock(tmp_path)
     assert res.objective == pytest.approx(exact, rel=1e-7)
 
 
+PLANAR_QUADROTOR = """
+name: planar quadrotor, minimum energy
+parameters: {m: 1.0, Iz: 0.1, L: 0.2, g: 9.81}
+model:
+  states: [x, y, th, vx, vy, w]
+  controls: [u1, u2]
+  dynamics:
+    x: vx
+    y: vy
+    th: w
+    vx: -(u1 + u2)*sin(th)/m
+    vy: (u1 + u2)*cos(th)/m - g
+    w: L*(u1 - u2)/Iz
+problem:
+  time: {t0: 0, tf: 2}
+  constraints: [x(t0) == 0, y(t0) == 0, th(t0) == 0, vx(t0) == 0, vy(t0) == 0, w(t0) == 0,
+                x(tf) == 1, y(tf) == 0.5, th(tf) == 0, vx(tf) == 0, vy(tf) == 0, w(tf) == 0]
+  objective: minimize integral(u1**2 + u2**2)
+method: {transcription: flat-bspline, degree: 5, control_points: 12, collocation_points: 12}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_flat_map_singular_at_the_solution_names_where_not_a_zero_division(tmp_path, capsys):
+    """unseen32: the flatness search took (x, th) for the planar quadrotor, whose map divides
+    by sin(th), 0 in hover, where the solution starts and ends: the run ended
+    "ZeroDivisionError: float division by zero" after Pyomo logged the expression and NumPy
+    warned. It now says the map is singular where sin(th) vanishes and what to do, and
+    nothing else reaches the console."""
+    from ocdsl.api import run_file
+
+    res = run_file(write(tmp_path, PLANAR_QUADROTOR), None)
+    assert res.status == "error"
+    assert "`sin(th)` vanishes" in res.message and "outputs:" in res.message, res.message
+    assert "ZeroDivisionError" not in res.message
+    captured = capsys.readouterr()
+    assert "RuntimeWarning" not in captured.err and "evaluating object" not in captured.err + captured.out
+
+
 @pytest.mark.ipopt
 def test_two_phases_free_start_linked(tmp_path):
     """Two linked phases, the second with a free start: same cubic optimum (12), the switch

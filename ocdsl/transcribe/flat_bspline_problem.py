@@ -359,7 +359,13 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
                                       method.seed if seed is None else seed, verbose, progress,
                                       flies=lambda info: _flies(file, mp, nlp, info))
     with timer.measure("post"):
-        result = solved_result(file, mp, nlp, info)
+        try:
+            result = solved_result(file, mp, nlp, info)
+        except FlatSingularError as e:
+            # the planar quadrotor's outputs (x, th) divide by sin(th), 0 in hover (unseen32)
+            raise FlatSingularError(f"{e}. {singularity_hint(mp, problem) or 'The flat map is singular there'}; "
+                                    "or choose other flat outputs (`outputs:`), or a pseudospectral "
+                                    "transcription (`transcription: LGR`)") from None
         result.extra["starts"] = records
     if method.tolerance is not None:
         from .flat_bspline_refine import refine
@@ -383,7 +389,10 @@ def _flies(file, mp: "_Mapped", nlp, info) -> bool:
     """Whether the solution in the model passes the file's verification."""
     from ..verify import VerifySettings, attach_verification
 
-    res = solved_result(file, mp, nlp, info)
+    try:
+        res = solved_result(file, mp, nlp, info)
+    except FlatSingularError:
+        return False
     attach_verification(file.problem, res, VerifySettings.of(file.spec.verify))
     return res.verification.get("status") == "verified"
 
@@ -412,6 +421,23 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
             "away from zero (for a speed, `0.1 <= v`) keeps the outputs off it")
 
 
+class FlatSingularError(FlatProblemError):
+    """The flat map cannot be evaluated at the solution (it divides by zero there)."""
+
+
+def _value(expr, what: str) -> float:
+    """The number of a Pyomo expression of the flat map at the solution. The kinematic
+    bicycle's heading from rest is 2 atan(y' / (|(x', y')| + x')) with x' = y' = 0 at t0: Pyomo
+    logged the expression and the run ended "ZeroDivisionError: float division by zero"
+    (unseen32)."""
+    import pyomo.core as pyo
+
+    try:
+        return float(pyo.value(expr, exception=False))
+    except (ZeroDivisionError, ValueError, OverflowError, TypeError) as e:
+        raise FlatSingularError(f"the flat map cannot be evaluated at the solution: {what} ({e})") from None
+
+
 def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
     """The Result of a solved flat NLP: every state and control on ``dense_points`` per
     phase (at least 8 per knot span, so that the cubic through the rows that the run folder
@@ -425,7 +451,8 @@ def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
     phases, dense = [], {}
     for ph in problem.phases:
         p = nlp.phases[ph.name]
-        num = p.numeric(tau)
+        with np.errstate(all="ignore"):       # a singular flat map's inf or nan: the verification's
+            num = p.numeric(tau)
         t0 = float(pyo.value(mp.t0[ph.name]))
         traj = PhaseTrajectory(ph.name, num["t"] + t0,
                                {s.name: num[s.name] for s in ph.states},
@@ -437,7 +464,7 @@ def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
         phases.append(traj)
     values: dict[sp.Symbol, float] = {}
     for s in problem.boundary_values:
-        values[s] = float(pyo.value(mp.pyomo_of(s)))
+        values[s] = _value(mp.pyomo_of(s), s.name)
     tf = {}
     for ph in problem.phases:
         values[ph.t0_symbol] = float(pyo.value(mp.t0[ph.name]))
@@ -445,7 +472,7 @@ def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
     for s, v in mp.free.items():
         values[s] = float(pyo.value(v))
     for s, e in mp.integral_expr.items():
-        values[s] = float(pyo.value(e))
+        values[s] = _value(e, f"integral({problem.integrals[s][1]})")
     for name, v in file.parameters.items():
         values.setdefault(sp.Symbol(name, real=True), float(v))
     reduction = {}

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 from ..result import Result
-from .flat_bspline_problem import solved_result
+from .flat_bspline_problem import FlatSingularError, solved_result
 
 #: Ipopt options of a refined level, which starts at the previous level's solution: a small
 #: barrier parameter and bound push keep it there (seed 2, 45 -> 85 control points: 18
@@ -93,7 +93,11 @@ def refine(file, mp, first: Result, options: dict, verbose: bool,
         nlp = nxt.build()
         nxt.warm_from(current)
         info = ipopt.solve(nlp.model, {**REFINED_LEVEL_OPTIONS, **options}, verbose=verbose)
-        res = solved_result(file, nxt, nlp, info)
+        try:
+            res = solved_result(file, nxt, nlp, info)
+        except FlatSingularError as e:
+            stopped = (f"the level with {nxt.opts.n_ctrl} control points ended where {e}", False)
+            break
         attach_verification(file.problem, res, settings)
         levels.append(_level(res, nxt.opts, res.verification, time.perf_counter() - t))
         if res.status not in CONVERGED:
