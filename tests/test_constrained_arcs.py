@@ -70,7 +70,7 @@ def test_a_junction_on_a_breakpoint_passes_the_check(tmp_path):
     assert res.status == "optimal" and res.ok, res.message
     check = res.extra["bisection"]
     assert check["agrees"] is True and check["relative_differences"][0] < AGREEMENT_SHARE * 1e-5
-    assert len(notes) == 1 and "within a quarter of the tolerance" in notes[0]
+    assert len(notes) == 1 and "within a quarter of the verification's tolerance" in notes[0]
 
 
 def test_a_bound_that_never_binds_and_a_state_leaving_its_bound_from_rest_are_not_named(tmp_path):

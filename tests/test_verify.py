@@ -471,6 +471,21 @@ def test_a_flight_that_misses_while_every_piece_holds_does_not_say_refine():
 
 
 
+def test_a_run_that_refined_its_mesh_is_not_told_to_use_mesh():
+    """unseen32: `mesh: {tolerance: 1e-5}`, the verification's own tolerance, ended "optimal,
+    verification failed" (estimate 6.3e-6, the verification 1.66e-5 on that segment) with the
+    advice "refine the mesh (more segments or degree, or `mesh:`)"."""
+    from ocdsl.verify import _summary
+
+    settings = VerifySettings(tolerance=1e-5)
+    piece = {"name": "dynamics per piece", "value": 1.66e-5, "limit": 1e-5, "passed": False,
+             "where": "x2 at t = 0.0084", "phase": "main"}
+    assert "`mesh:`" in _summary([piece], [], settings, [piece])
+    said = _summary([piece], [], settings, [piece], mesh_tolerance=1e-5)
+    assert "mesh: {tolerance: 1e-06}" in said and "or `mesh:`" not in said
+    assert "max_iterations" in _summary([piece], [], settings, [piece], mesh_tolerance=1e-7)
+
+
 @pytest.mark.parametrize("scheme", ["LGL", "LGR-start"])
 def test_a_segment_whose_start_is_a_shared_node_keeps_its_own_control_there(tmp_path, scheme):
     """LGL and LGR-start collocate the control at a segment's start, which is the state node the

@@ -117,10 +117,10 @@ class Bisection:
         text += f"J = {first.objective:.10g} (relative difference {measured[0]:.1e}"
         if len(self.levels) < 2:
             if d[0] > self.tolerance:
-                return text + f", more than the tolerance {self.tolerance:g})"
+                return text + f", more than the verification's tolerance {self.tolerance:g})"
             if measured[0] > AGREEMENT_SHARE * self.tolerance:
                 return text + f"; |dJ| within Ipopt's accuracy {self.floor:g})"
-            return text + f", within a quarter of the tolerance {self.tolerance:g})"
+            return text + f", within a quarter of the verification's tolerance {self.tolerance:g})"
         second = self.levels[1]
         text += f"), and bisected again ({second.variables} variables) "
         if second.objective is None:
@@ -128,7 +128,7 @@ class Bisection:
         text += f"J = {second.objective:.10g} (relative difference {measured[1]:.1e}): "
         if self.error == math.inf:
             return text + "the differences do not shrink"
-        return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the tolerance {self.tolerance:g}"
+        return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the verification's tolerance {self.tolerance:g}"
 
 
 def _binding_rows(tr, controls: bool = False):
