@@ -782,3 +782,31 @@ def test_an_objective_held_to_a_size_far_above_j_says_how_far_j_is_verified(tmp_
     assert _check(v, "objective", "local")["precision"] == caveat and v["status"] == "verified"
     (tmp_path / "di.yaml").write_text(yaml.safe_dump(DI))
     assert not run_file(tmp_path / "di.yaml", None).verification["caveats"]
+
+
+SIR_ON_A_COARSE_MESH = """
+name: SIR vaccination, quadratic cost
+parameters: {beta: 0.5, gamma: 0.2, B: 2.0, umax: 1.0}
+model:
+  states: [S, I]
+  controls: [u]
+  dynamics: {S: -beta*S*I - u*S, I: beta*S*I - gamma*I}
+problem:
+  time: {t0: 0, tf: 20}
+  constraints: [S(t0) == 0.9, I(t0) == 0.1, 0 <= u <= umax]
+  objective: minimize integral(I + B*u**2/2)
+method: {transcription: LGR, segments: 3, degree: 3}
+"""
+
+
+def test_a_state_that_crosses_a_zero_its_dynamics_cannot_cross_is_named(tmp_path):
+    """unseen32: on a 3 x 3 mesh the NLP took I to -3.7 (J = -3.6 for a cost of positive
+    terms), and the advice was to refine the mesh. I' = I (beta S - gamma) vanishes at I = 0,
+    so the model keeps I positive: the summary says I crossed 0 and to bound it."""
+    from ocdsl.api import run_file
+
+    (tmp_path / "p.yaml").write_text(SIR_ON_A_COARSE_MESH)
+    v = run_file(tmp_path / "p.yaml", None).verification
+    assert v["status"] == "failed"
+    assert "I crosses 0" in v["summary"] and "`I >= 0`" in v["summary"], v["summary"]
+    assert not v["caveats"]        # J's precision is said of verified runs only

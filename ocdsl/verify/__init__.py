@@ -123,7 +123,7 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     mesh_tolerance = mesh.get("tolerance") if isinstance(mesh, dict) else None
     out["summary"] = _summary(failed, notes, settings, checks, mesh_tolerance) if failed else \
         f"verified: {len(judged)} checks within {settings.tolerance:g}" + _not_judged(checks)
-    out["caveats"] = [c["precision"] for c in checks if c.get("precision")]
+    out["caveats"] = [c["precision"] for c in checks if c.get("precision")] if not failed else []
     return out
 
 
@@ -255,6 +255,8 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
             # flight the integrators cannot finish (it diverged) fails alone (unseen29: LQR on
             # x' = x^3 + u blew up and left the stable SDRE law `verification error`)
             runs[ph.name] = _unflown_phase(ph, traj, e, tol, checks)
+        if any(c["phase"] == ph.name and c["name"].startswith("dynamics") and c["passed"] is False for c in checks):
+            runs[ph.name].notes[:0] = _sign_crossings(ph, runs[ph.name], tol)
         notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n for n in runs[ph.name].notes]
         names_u = [c.name for c in ph.controls]
         if names_u and settings.open_loop:     # collocation advice; a feedback law may chatter
@@ -269,6 +271,31 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
     _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
     _reported_integral_checks(problem, result, runs, tol, checks)
     return checks, notes
+
+
+def _sign_crossings(ph, run: _PhaseRun, tol: float) -> list[str]:
+    """A state whose rate vanishes where it does (x' = x g(...): x = 0 is a solution, so the
+    dynamics keep x's sign) that the rows take across 0 from a start off it: the NLP went where
+    the model cannot (unseen32: an SIR model on a coarse mesh, S' = -beta S I - u S, I =
+    -64, J = -3.6 for a cost of positive terms; the advice was to refine the mesh)."""
+    out = []
+    for j, (x, rate) in enumerate(zip(ph.states, ph.rhs())):
+        column = run.X[:, j]
+        x0 = float(column[0]) if len(column) else 0.0
+        if x0 == 0.0 or not np.any(np.sign(column) == -np.sign(x0)):
+            continue
+        if np.max(-np.sign(x0) * column) <= tol * float(run.scale_x[j]):
+            continue
+        try:
+            keeps_sign = sp.simplify(sp.sympify(rate).subs(x, 0)) == 0
+        except Exception:  # noqa: BLE001 - an advice only
+            keeps_sign = False
+        if keeps_sign:
+            low = float(np.min(column) if x0 > 0 else np.max(column))
+            out.append(f"{x.name} crosses 0 (to {low:.3g}) from {x0:.3g}, which its dynamics cannot do ({x.name}' "
+                       f"vanishes at {x.name} = 0): the NLP found a trajectory where the model is not; bound it "
+                       f"(`{x.name} {'>=' if x0 > 0 else '<='} 0`)")
+    return out
 
 
 def _unflown_phase(ph, traj, failure: Exception, tol: float, checks: list[dict]) -> _PhaseRun:
