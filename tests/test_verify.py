@@ -810,3 +810,32 @@ def test_a_state_that_crosses_a_zero_its_dynamics_cannot_cross_is_named(tmp_path
     assert v["status"] == "failed"
     assert "I crosses 0" in v["summary"] and "`I >= 0`" in v["summary"], v["summary"]
     assert not v["caveats"]        # J's precision is said of verified runs only
+
+
+ZERMELO_AGAINST_A_CURRENT = """
+name: Zermelo crossing against a uniform current
+model:
+  states: [x, y]
+  controls: [th]
+  parameters: {V: 1.0, w: 0.5}
+  dynamics: {x: V*cos(th) + w, y: V*sin(th)}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, y(t0) == 0, x(tf) == 0, y(tf) == 1, -3.2 <= th <= 3.2, 0.1 <= tf <= 10]
+  objective: minimize tf
+  guess: {th: 2.0, tf: 1.2}
+method: {transcription: LGR, segments: 5, degree: 4}
+"""
+
+
+def test_a_state_held_constant_by_cancelling_terms_is_measured_against_its_travel(tmp_path):
+    """unseen33 F13: heading into the current, x' = cos(th) + 0.5 = 0 all the way; the rows of x
+    are 1e-11 apart, and a miss of 1.5e-12 measured against the NLP's resolution (1e-7) failed
+    the exact answer (t_f = 2/sqrt(3) to 3e-8). Its terms move x by 1.15 over the crossing:
+    1e-3 of that is its scale."""
+    from ocdsl.api import run_file
+
+    (tmp_path / "p.yaml").write_text(ZERMELO_AGAINST_A_CURRENT)
+    res = run_file(tmp_path / "p.yaml", None)
+    assert res.objective == pytest.approx(2 / np.sqrt(3), rel=1e-7)
+    assert res.verification["status"] == "verified", res.verification["summary"]
