@@ -513,3 +513,39 @@ def test_figures_are_vector_files_written_0644(runs, solved_report):
             assert p.stat().st_mode & 0o777 == 0o644, (p, oct(p.stat().st_mode))
     finally:
         os.umask(old)
+
+
+def test_a_report_says_what_the_verification_did_not_judge_and_how_far_j_is_verified(tmp_path):
+    """unseen33 F15: a verified open-loop-unstable run's re-integration section showed only its
+    flight from x(t0), 5.6e9 off, with no word that the verification left it unjudged; F1: the
+    caveat that J was verified to 6.7e-2 of J (a cost in kelvin) reached the console, not the
+    report."""
+    from ocdsl.api import run_file
+
+    unstable = tmp_path / "unstable.yaml"
+    unstable.write_text("""
+name: unstable scalar LQ
+model: {states: [x], controls: [u], dynamics: {x: 10*x + u}}
+problem:
+  time: {t0: 0, tf: 5}
+  constraints: [x(t0) == 1]
+  objective: minimize integral(x**2 + u**2)
+method: {transcription: LGR, segments: 3, degree: 3, mesh: {tolerance: 1.0e-8, max_iterations: 15}}
+""")
+    run_file(unstable, tmp_path / "u")
+    html = make_report(tmp_path / "u", formats=("html",))[0].read_text()
+    assert html.count("Not judged by the verification") >= 2, "table and figure"
+    furnace = tmp_path / "furnace.yaml"
+    furnace.write_text("""
+name: furnace in kelvin with a cap
+parameters: {Tin: 1190, tau: 10, Tset: 1200, rho: 0.1}
+model: {states: [T], controls: [Q], dynamics: {T: (Tin - T)/tau + Q}}
+problem:
+  time: {t0: 0, tf: 20}
+  constraints: [T(t0) == 1199.9, T <= 1199.97]
+  objective: minimize integral((T - Tset)**2 + rho*(Q - 1)**2)
+method: {transcription: LG, segments: 4, degree: 3, mesh: {tolerance: 1.0e-6, max_iterations: 15}}
+""")
+    run_file(furnace, tmp_path / "f")
+    html = make_report(tmp_path / "f", formats=("html",))[0].read_text()
+    assert "of J, not 1e-05 of J" in html

@@ -124,3 +124,17 @@ def ocdsl_build() -> dict[str, str]:
         pass
     date = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     return {"version": __version__, "commit": commit, "date": date}
+
+
+def unjudged_flight(res: Result, phase: str | None) -> str:
+    """The sentence " Not judged: ..." where the verification left this phase's flight from
+    x(t0) unjudged (an open-loop-unstable phase, judged piece by piece): its line is that flight's
+    divergence, not a miss of the solution (unseen33 F15: a verified run's figure showed
+    only a flight 5.6e9 off, with no word why)."""
+    v = res.verification if isinstance(res.verification, dict) else {}
+    for c in v.get("checks") or []:
+        if c.get("name") == "dynamics from x(t0)" and c.get("passed") is None and \
+                (phase is None or c.get("phase") in (phase, None)):
+            return (" Not judged by the verification: " + str(c.get("not_judged", "")).split(":")[0]
+                    + "; the phase was judged piece by piece.")
+    return ""

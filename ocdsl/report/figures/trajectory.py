@@ -6,6 +6,7 @@ import numpy as np
 
 from ocdsl.angles import unwrap_finite
 from ocdsl.result import Result
+from ocdsl.report.status import unjudged_flight
 from ocdsl.report.figures.base import (
     FLAG_COLUMNS, HAMILTONIAN_KEYS, Fig, Series, MAX_PANELS, _bounds_of, _chunks, _grid_figures, _new_figure,
     _nonempty, _styled, axis_label, in_degrees, tex_name, time_label)
@@ -113,5 +114,5 @@ def fig_reintegration(res: Result) -> list[Fig]:
             suffix = f" ({ci + 1} of {len(chunks)})" if len(chunks) > 1 else ""
             out.append(Fig(f"reint-{tname}-{ci}",
                            f"Re-integrated trajectory{where} (line, from the optimal control) "
-                           f"over the collocated states (markers).{suffix}", fig))
+                           f"over the collocated states (markers).{suffix}{unjudged_flight(res, phase)}", fig))
     return out

@@ -50,7 +50,7 @@ def verification_table(res: Result) -> dict | None:
         rows.append([cell(what, "name"), cell(c.get("detail") or "", ""), cell(c.get("value"), "num", 3),
                      cell("≤", ""), cell(c.get("limit"), "num", 3), cell(c.get("where") or "", ""),
                      verdict(c.get("passed"))])
-    note = v.get("summary") or ""
+    note = " ".join([v.get("summary") or ""] + [f"Note: {c}." for c in v.get("caveats") or []])
     if v.get("mode") == "warn":
         note += " The file asks for verify: {mode: warn}: a failed check is reported but does not fail the run."
     if not rows:

@@ -6,6 +6,7 @@ from typing import Any
 import numpy as np
 
 from ocdsl.result import Result
+from ocdsl.report.status import unjudged_flight
 from ocdsl.report.tables.cells import cell, fmt, status_cell, table, truthy
 
 
@@ -84,5 +85,5 @@ def reintegration_table(res: Result) -> dict | None:
                          cell(rel, "num", 3), cell(float(abs(y_r[-1] - y_c[-1])), "num", 3)])
     return table("reintegration", "Re-integration: the dynamics integrated from the solution's initial "
                  "state with its controls (the verification's trajectory, from the run folder) against "
-                 "the solution's rows.",
+                 "the solution's rows." + unjudged_flight(res, None),
                  ["state", "max |deviation|", "relative to its range", "final deviation"], rows)
