@@ -549,3 +549,20 @@ method: {transcription: LG, segments: 4, degree: 3, mesh: {tolerance: 1.0e-6, ma
     run_file(furnace, tmp_path / "f")
     html = make_report(tmp_path / "f", formats=("html",))[0].read_text()
     assert "of J, not 1e-05 of J" in html
+
+
+def test_a_run_folder_changed_after_the_run_is_reported_as_changed(tmp_path):
+    """unseen33 F2: a row of trajectory.csv moved by 1 m and `ocdsl report` still printed
+    "verification verified, overall ok" over the edited data. The report now says which file
+    changed since ocdsl wrote it and that its verdicts are of the run, not of these files."""
+    run = solved_result().write(tmp_path / "run")
+    clean = make_report(run, formats=("html",))[0].read_text()
+    assert "changed since the run" not in clean
+    csv_path = run / "trajectory.csv"
+    lines = csv_path.read_text().splitlines()
+    cells = lines[2].split(",")
+    cells[1] = repr(float(cells[1]) + 1.0)
+    lines[2] = ",".join(cells)
+    csv_path.write_text("\n".join(lines) + "\n")
+    html = make_report(run, formats=("html",))[0].read_text()
+    assert "changed since the run" in html and "trajectory.csv changed after ocdsl wrote it" in html

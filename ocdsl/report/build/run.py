@@ -9,6 +9,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ocdsl import run_folder
 from ocdsl.result import Result
 from ocdsl.report import figures as F
 from ocdsl.report import status as S
@@ -215,6 +216,11 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
         raise ReportError(f"{run_dir}: not a run folder (no result.json)")
     res, notes = load_run(run_dir)
     doc = Doc()
+    changed = run_folder.changed_since_written(run_dir)
+    if changed:
+        notes = [f"{', '.join(changed)} changed after ocdsl wrote {'it' if len(changed) == 1 else 'them'}: the "
+                 "verdicts in this report are of the run as ocdsl wrote it, not of these files; run the "
+                 "problem file again for a report of a run"] + notes
     notes = notes + missing_notes(res)
     if res.status in GOOD:      # the problem first, as a paper would
         _problem_section(doc, res)
@@ -234,8 +240,11 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
         meta.append(("objective" if res.has_solution else "last iterate (not a solution)", T.fmt(res.objective)))
     if res.method.get("name") or res.method.get("method"):
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
+    marks = S.badges(res)
+    if changed:
+        marks.insert(0, S.Badge("run folder", "changed since the run", "fail", ", ".join(changed)))
     return _render(doc, title, prob.get("description", "") if not prob.get("phases") else "", meta,
-                   S.badges(res)), doc.files
+                   marks), doc.files
 
 def make_report(run_dir: str | os.PathLike, formats: Sequence[str] = ("html", "pdf"), *,
                 out_dir: str | os.PathLike | None = None, engine: str = "auto") -> list[Path]:
