@@ -284,31 +284,38 @@ def _scale(file: LoadedFile, tr) -> dict | None:
     return apply(tr, spec)
 
 
-def _result(file: LoadedFile, tr, info, timer, meshes, *, always_fly: bool = False) -> Result:
+def bare_result(file: LoadedFile, tr, info, meshes) -> tuple[Result, dict]:
+    """The solution in ``tr`` as a Result (rows, final times, parameters, objective), and the
+    values of the transcription's scalars: what the verification reads."""
     import pyomo.core as pyo
 
-    from .solve.costates import costates, path_multipliers
-    from .solve.failure_hints import failure_hints
     from .transcribe.solution import extract
 
     problem = file.problem
-    phases = extract(tr)
-    texts = {}
-    if info.status in ("optimal", "acceptable"):
-        for traj, lam, mu, ph in zip(phases, costates(tr), path_multipliers(tr), problem.phases):
-            traj.costates = lam
-            traj.extra.update(mu)       # mu_<k>: multiplier of phase.path[k] (costates.py)
-            if mu:
-                texts[ph.name] = {f"mu_{k}": c.text for k, c in enumerate(ph.path)}
     values = {s: _value(v) for s, v in tr.scalars.items()}
     tf = {ph.name: float(pyo.value(pb.block.tf)) for ph, pb in zip(problem.phases, tr.phases)}
-    result = Result(
+    return Result(
         name=file.spec.name, status=info.status, message=info.message, objective=info.objective,
         tf=tf["main"] if len(tf) == 1 and "main" in tf else tf,
         iterations=info.iterations, nlp=info.nlp,
         method={**file.method.model_dump(), "meshes": {k: m.describe() for k, m in meshes.items()}},
         parameters={**file.parameters, **{s.name: values[s] for s in problem.free_parameters}},
-        phases=phases, problem=problem.description)
+        phases=extract(tr), problem=problem.description), values
+
+
+def _result(file: LoadedFile, tr, info, timer, meshes, *, always_fly: bool = False) -> Result:
+    from .solve.costates import costates, path_multipliers
+    from .solve.failure_hints import failure_hints
+
+    problem = file.problem
+    result, values = bare_result(file, tr, info, meshes)
+    texts = {}
+    if info.status in ("optimal", "acceptable"):
+        for traj, lam, mu, ph in zip(result.phases, costates(tr), path_multipliers(tr), problem.phases):
+            traj.costates = lam
+            traj.extra.update(mu)       # mu_<k>: multiplier of phase.path[k] (costates.py)
+            if mu:
+                texts[ph.name] = {f"mu_{k}": c.text for k, c in enumerate(ph.path)}
     result.message += failure_hints(file, tr, info.status)
     if problem.free_parameters:
         result.extra["free_parameters"] = [s.name for s in problem.free_parameters]

@@ -968,6 +968,42 @@ def test_a_control_the_end_conditions_leave_free_at_tf_is_named_and_tied_by_the_
     assert tied[0] == {"main": ["end"]} and res.phases[0].controls["u"][-1] == pytest.approx(1.0, abs=1e-8)
 
 
+TWO_PHASE_TRANSFER = """
+name: two-phase minimum-time transfer (accelerate, brake)
+model:
+  states: [x, v]
+  controls: [u]
+  parameters: {a: 1}
+  dynamics: {x: v, v: a*u}
+phases:
+  accelerate:
+    parameters: {a: 1}
+    time: {t0: 0, tf: free}
+    constraints: [0 <= u <= 1, x(t0) == -1, v(t0) == 0, 0.01 <= tf <= 5]
+  brake:
+    parameters: {a: -1}
+    time: {t0: free, tf: free}
+    constraints: [0 <= u <= 1, x(tf) == 0, v(tf) == 0, 0.01 <= tf <= 10]
+links:
+  - continuous(accelerate, brake)
+objective: minimize brake.tf
+method: {transcription: LGR, segments: 4, degree: 4}
+"""
+
+
+def test_a_tied_end_control_that_moves_j_is_kept_where_it_verifies_and_the_untied_does_not(tmp_path):
+    """unseen33 F7: u at the end of the first phase, priced by nothing, jumped; tied, the
+    problem solved to J = 2 (exact, to 2e-10) and verified, yet the untied J = 1.999938 (below
+    the optimum, bought by the free node, not verified) was reported because J had moved by
+    more than the tolerance. The verification decides now, and the bisection check rebuilds
+    the tied problem (bisected untied, the free node's J came back: 1.999985, 1.999996)."""
+    (tmp_path / "p.yaml").write_text(TWO_PHASE_TRANSFER)
+    res = run_file(tmp_path / "p.yaml", None)
+    assert res.status == "optimal" and res.verified, (res.status, res.verification["summary"])
+    assert res.objective == pytest.approx(2.0, rel=1e-8)
+    assert any("verified where the untied one was not" in n for n in res.extra["notes"])
+
+
 def test_a_switch_in_the_last_segment_is_not_called_an_end_jump(tmp_path):
     """The same rule leaves a segment that holds a switch alone (its nodes are not smooth
     among themselves, so its end value may be right): the failure keeps its usual advice."""
