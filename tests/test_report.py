@@ -566,3 +566,14 @@ def test_a_run_folder_changed_after_the_run_is_reported_as_changed(tmp_path):
     csv_path.write_text("\n".join(lines) + "\n")
     html = make_report(run, formats=("html",))[0].read_text()
     assert "changed since the run" in html and "trajectory.csv changed after ocdsl wrote it" in html
+
+
+def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
+    """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
+    "State histories"; the figures of a run that did not end with a solution now say what
+    they show."""
+    res = solved_result()
+    res.status, res.message = "infeasible", "Ipopt: converged to a point of local infeasibility"
+    html = make_report(res.write(tmp_path / "run"), formats=("html",))[0].read_text()
+    assert "Not a solution: the run ended infeasible; drawn is its last iterate (not a solution)." in html
+    assert "last iterate (not a solution)" in html.split("<figure")[0]          # the header too

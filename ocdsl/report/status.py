@@ -138,3 +138,14 @@ def unjudged_flight(res: Result, phase: str | None) -> str:
             return (" Not judged by the verification: " + str(c.get("not_judged", "")).split(":")[0]
                     + "; the phase was judged piece by piece.")
     return ""
+
+
+def what_is_drawn(res: Result) -> str:
+    """What a run's rows are: a solution, a cut-short refinement's best completed mesh, or a
+    failed solve's last iterate (unseen33 F3: an infeasible run's last iterate and a solve
+    that never started's guess were drawn as "solution")."""
+    from ocdsl.result_views import best_completed_mesh
+
+    if res.has_solution:
+        return "solution"
+    return "best completed mesh" if best_completed_mesh(res) else "last iterate (not a solution)"

@@ -237,7 +237,7 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
     title = prob.get("name") or res.name
     meta = [("run", run_dir.name)]
     if res.objective is not None:     # a failed solve's last iterate is not the run's objective
-        meta.append(("objective" if res.has_solution else "last iterate (not a solution)", T.fmt(res.objective)))
+        meta.append(("objective" if res.has_solution else S.what_is_drawn(res), T.fmt(res.objective)))
     if res.method.get("name") or res.method.get("method"):
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
     marks = S.badges(res)

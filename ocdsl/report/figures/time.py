@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ocdsl.result import PhaseTrajectory, Result
+from ocdsl.report.status import what_is_drawn
 from ocdsl.report.figures.base import Series
 
 
@@ -28,8 +29,9 @@ def _phase_series(res: Result, attr: str, prefix: str = "") -> list[tuple[str, S
             if n not in names and n != skip:
                 names.append(n)
     multi = len(res.phases) > 1
-    return [(prefix + n, [(p.name if multi else "solution", phase_time(res, p), getattr(p, attr)[n])
+    return [(prefix + n, [(p.name if multi else what_is_drawn(res), phase_time(res, p), getattr(p, attr)[n])
                           for p in res.phases if n in getattr(p, attr)]) for n in names]
+
 
 
 def _sequential(res: Result) -> bool:

@@ -6,7 +6,7 @@ import numpy as np
 
 from ocdsl.angles import unwrap_finite
 from ocdsl.result import Result
-from ocdsl.report.status import unjudged_flight
+from ocdsl.report.status import unjudged_flight, what_is_drawn
 from ocdsl.report.figures.base import (
     FLAG_COLUMNS, HAMILTONIAN_KEYS, Fig, Series, MAX_PANELS, _bounds_of, _chunks, _grid_figures, _new_figure,
     _nonempty, _styled, axis_label, in_degrees, tex_name, time_label)
@@ -38,6 +38,9 @@ def fig_states_controls(res: Result) -> list[Fig]:
     units = res.problem.get("units") or {}
     out: list[Fig] = []
     note = _phases_note(res)
+    drawn = what_is_drawn(res)
+    if drawn != "solution":
+        note = f" Not a solution: the run ended {res.status}; drawn is its {drawn}." + note
     st = _phase_series(res, "states")
     st, bounds, st_units = in_degrees(st, _bounds_of(res.problem, [n for n, _ in st]), units, res.problem)
     st, wrapped = unwrapped(st, st_units)
