@@ -577,3 +577,16 @@ def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     html = make_report(res.write(tmp_path / "run"), formats=("html",))[0].read_text()
     assert "Not a solution: the run ended infeasible; drawn is its last iterate (not a solution)." in html
     assert "last iterate (not a solution)" in html.split("<figure")[0]          # the header too
+
+
+def test_the_expect_table_shows_the_error_its_tolerance_holds():
+    """unseen33 F5: "error 0.003 | rtol 0.001 | pass" for a relative error of 7.5e-4: under an
+    rtol the table shows the relative error, as the console does."""
+    from ocdsl.report.tables.cells import fmt
+    from ocdsl.report.tables.checks import expect_table
+
+    res = solved_result()
+    res.expect = [{"name": "tf", "reference": 4.0, "value": 4.003, "rtol": 1e-3, "atol": None, "compare": "equal",
+                   "error": 0.003, "relative_error": 7.5e-4, "passed": True}]
+    row = expect_table(res)["rows"][0]
+    assert [c["text"] for c in row][3] == fmt(7.5e-4, 3)
