@@ -200,6 +200,9 @@ def write_run(result: Result, out: str | Path, source: Path | None, force: bool 
               extra_dirs: dict[str, Path] | None = None, logs: Path | None = None) -> Path:
     """The run folder; ``logs``: a scratch folder of Ipopt output files (``confine_output_file``)
     whose files go in beside result.json."""
+    from .provenance import source as made_by
+
+    result.extra.setdefault("ocdsl", made_by())
     extra = {}
     if source is not None and source.exists():
         extra["problem.yaml"] = source.read_text()

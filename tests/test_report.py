@@ -590,3 +590,18 @@ def test_the_expect_table_shows_the_error_its_tolerance_holds():
                    "error": 0.003, "relative_error": 7.5e-4, "passed": True}]
     row = expect_table(res)["rows"][0]
     assert [c["text"] for c in row][3] == fmt(7.5e-4, 3)
+
+
+def test_a_run_folder_records_the_ocdsl_that_made_it_and_its_report_says_so(tmp_path):
+    """unseen33 F10: the report showed the commit of the ocdsl that built the report (896a2fa
+    for a run made at 11cf681), and result.json recorded none."""
+    from conftest import CONFIGS, ROOT
+    from ocdsl.api import run_file
+
+    run_file(CONFIGS / "double_integrator.yaml", tmp_path / "run")
+    made = json.loads((tmp_path / "run" / "result.json").read_text())["extra"]["ocdsl"]
+    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True)
+    if head.returncode == 0:
+        assert head.stdout.strip().startswith(made["commit"]) and len(made["commit"]) == 7
+    html = make_report(tmp_path / "run", formats=("html",))[0].read_text()
+    assert f"ocdsl {made['version']}, commit {made['commit']}" in html

@@ -240,6 +240,9 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
         meta.append(("objective" if res.has_solution else S.what_is_drawn(res), T.fmt(res.objective)))
     if res.method.get("name") or res.method.get("method"):
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))
+    made = res.extra.get("ocdsl") if isinstance(res.extra.get("ocdsl"), dict) else None
+    meta.append(("run by", f"ocdsl {made.get('version')}, commit {made.get('commit')}" if made else
+                 "an ocdsl that did not record itself"))
     marks = S.badges(res)
     if changed:
         marks.insert(0, S.Badge("run folder", "changed since the run", "fail", ", ".join(changed)))
