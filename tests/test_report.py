@@ -605,3 +605,17 @@ def test_a_run_folder_records_the_ocdsl_that_made_it_and_its_report_says_so(tmp_
         assert head.stdout.strip().startswith(made["commit"]) and len(made["commit"]) == 7
     html = make_report(tmp_path / "run", formats=("html",))[0].read_text()
     assert f"ocdsl {made['version']}, commit {made['commit']}" in html
+
+
+def test_a_fixed_mesh_runs_notes_and_diagnosis_are_its_own(tmp_path):
+    """unseen33 F6, F7: a fixed mesh whose bisection moved J was diagnosed "The mesh refinement
+    did not reach its tolerance" (no refinement ran), and the run's notes (the console's
+    `note:` lines) were only in the appendix's back-end table."""
+    res = solved_result()
+    res.method = {k: v for k, v in res.method.items() if k != "mesh"}
+    res.status, res.message = "mesh_not_converged", "J = 2 on this mesh but with every segment bisected ..."
+    res.extra["notes"] = ["the control at t_f jumped off its segment's other nodes; tied, J 1.99 -> 2"]
+    html = make_report(res.write(tmp_path / "run"), formats=("html",))[0].read_text()
+    assert "did not reach its tolerance" not in html and "On this fixed mesh J is the mesh's optimum" in html
+    note = html.find("tied, J 1.99 -&gt; 2")
+    assert 0 <= note < html.find("Appendix") or "Appendix" not in html

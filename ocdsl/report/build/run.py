@@ -81,7 +81,10 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
                 "max_iter": "The iteration limit was reached before convergence: raise it, refine the "
                             "initial guess, or scale the problem.",
                 "error": "The run stopped with an error before a solution was found.",
-                "mesh_not_converged": "The mesh refinement did not reach its tolerance.",
+                "mesh_not_converged": ("The mesh refinement did not reach its tolerance." if res.method.get("mesh")
+                                       else "On this fixed mesh J is the mesh's optimum, not the problem's: "
+                                            "bisecting every segment moved it by more than the verification's "
+                                            "tolerance."),
                 "unstable": "The closed loop diverged.",
                 "not_run": "This point was not run."}.get(res.status, "")
         b.append({"type": "diagnosis", "status": res.status, "message": res.message, "hint": hint})
@@ -221,7 +224,9 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
         notes = [f"{', '.join(changed)} changed after ocdsl wrote {'it' if len(changed) == 1 else 'them'}: the "
                  "verdicts in this report are of the run as ocdsl wrote it, not of these files; run the "
                  "problem file again for a report of a run"] + notes
-    notes = notes + missing_notes(res)
+    # the run's own notes, printed under the console's headline (unseen33 F7: only in the
+    # appendix's back-end table)
+    notes = notes + [str(n) for n in (res.extra.get("notes") or [])] + missing_notes(res)
     if res.status in GOOD:      # the problem first, as a paper would
         _problem_section(doc, res)
         _solution_section(doc, res, notes)
