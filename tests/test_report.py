@@ -618,3 +618,16 @@ def test_a_fixed_mesh_runs_notes_and_diagnosis_are_its_own(tmp_path):
     html = make_report(res.write(tmp_path / "run"), formats=("html",))[0].read_text()
     assert "did not reach its tolerance" not in html and "On this fixed mesh J is the mesh" in html
     assert html.count("tied, J 1.99 -&gt; 2") == 2      # the solution's notes and the appendix's table
+
+
+def test_a_column_is_the_same_in_every_row_only_when_its_values_are_equal():
+    """unseen33 F14: a mesh history's J 10.024880738 and 10.024937811 (57 times the mesh
+    tolerance apart) were "the same in every row: objective = 10.0249"; F11: J to six digits
+    hid the convergence the table documents."""
+    from ocdsl.report.tables.columns import column_table
+
+    t = column_table("mesh_history", "", {"iteration": np.array([1.0, 2.0]), "phase": np.array([0.0, 0.0]),
+                                          "objective": np.array([10.024880738, 10.024937811])},
+                     drop_constant=True)
+    assert "objective" in t["columns"] and "phase = 0" in t["note"]
+    assert [r[-1]["text"] for r in t["rows"]] == ["10.02488074", "10.02493781"]

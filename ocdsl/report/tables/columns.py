@@ -11,6 +11,20 @@ from ocdsl.report.tables.cells import cell, fmt, status_cell, table, truthy
 
 
 # -------------------------------------------------------------------- run tables
+def _number(v: Any) -> bool:
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _digits(column: str, digits: int) -> int:
+    """An objective column shows ten digits: a mesh history's J converging in its seventh
+    digit read 8.24621 three times (unseen33 F11)."""
+    return max(digits, 10) if column in ("objective", "J") or column.startswith("objective") else digits
+
+
 def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 40, digits: int = 6,
                  drop_constant: bool = False) -> dict | None:
     """A tables/<name>.csv (or study table) as rows; long tables are thinned evenly;
@@ -21,9 +35,11 @@ def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 4
     constant = []
     if drop_constant and max((len(v) for v in cols.values()), default=0) > 1:
         for c in names:
-            vals = {fmt(v) for v in cols[c]}
-            if len(vals) == 1:
-                constant.append(f"{c} = {vals.pop()}")
+            # equal values, not equal-looking ones: J 10.024880738 and 10.024937811 were "the same
+            # in every row" at six digits (unseen33 F14)
+            if len({repr(v) if isinstance(v, (str, bytes)) else repr(float(v)) if _number(v) else repr(v)
+                    for v in cols[c]}) == 1:
+                constant.append(f"{c} = {fmt(cols[c][0], _digits(c, digits))}")
         names = [c for c in names if not any(x.startswith(f"{c} = ") for x in constant)] or list(cols)
     n = max((len(v) for v in cols.values()), default=0)
     idx = list(range(n))
@@ -41,7 +57,7 @@ def column_table(key: str, caption: str, cols: dict[str, Any], max_rows: int = 4
             elif c == "pareto":
                 row.append({"text": "Pareto" if truthy(v) else "", "cls": "pass" if truthy(v) else ""})
             else:
-                row.append(cell(v, None, digits))
+                row.append(cell(v, None, _digits(c, digits)))
         rows.append(row)
     if constant:
         note = (note + " " if note else "") + "The same in every row: " + "; ".join(constant) + "."
