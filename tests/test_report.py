@@ -631,3 +631,17 @@ def test_a_column_is_the_same_in_every_row_only_when_its_values_are_equal():
                      drop_constant=True)
     assert "objective" in t["columns"] and "phase = 0" in t["note"]
     assert [r[-1]["text"] for r in t["rows"]] == ["10.02488074", "10.02493781"]
+
+
+def test_the_problem_is_typeset_with_the_names_a_paper_prints():
+    """unseen33 F11: "minimize tf" was set as the product t f, `Dc v^2 exp(-hc (h - 1))` as
+    products D c and h c."""
+    import sympy as sp
+
+    from ocdsl.symbolic.latex import latex
+
+    S = sp.Symbol
+    assert latex(S("tf")) == "t_{f}" and latex(S("brake.tf")) == r"t_{f}^{\mathrm{brake}}"
+    assert latex(-S("h(tf)")) == "- h(t_{f})"
+    assert latex(S("Dc") * S("v") ** 2) == r"\mathrm{Dc} v^{2}"
+    assert latex(S("theta") + S("x1") + S("v_max")) == r"\theta + v_{max} + x_{1}"

@@ -11,6 +11,7 @@ import pydantic
 import sympy as sp
 
 from ...hints import did_you_mean
+from ...symbolic.latex import latex
 from ...symbolic.model import TIME
 from ...symbolic.problem import INF, BoundaryValue, Constraint, FreeParameter, Objective, Phase, Problem
 from ..errors import ExprError, FollowOnError, Issue, SpecError, UnknownNames
@@ -370,7 +371,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                                 "parameters": {}, "units": {}, "positions": [], "links": list(self.spec.links)}
         for ph in phases:
             f = ph.model
-            shown = lambda e: sp.latex(e.xreplace(self.table_calls))  # noqa: E731  tables by name
+            shown = lambda e: latex(e.xreplace(self.table_calls))  # noqa: E731  tables by name
             dyn = {s.name: shown(f.dynamics[s]) for s in f.states}
             bounds = {s.name: [_num(b[0]), _num(b[1])] for s, b in {**ph.state_bounds, **ph.control_bounds}.items()}
             texts = self.spec.problem.constraints if self.spec.phases is None else self.spec.phases[ph.name].constraints
@@ -394,7 +395,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
                 desc["parameters"][name]["file"] = self.file_values[name]
         for s, fp in self.free.items():
             desc["parameters"][s.name] = {"value": fp.guess, "free": True, "bounds": [_num(fp.lower), _num(fp.upper)]}
-        desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": sp.latex(self.shown_integrals(obj.expr, phases))}
+        desc["objective"] = {"sense": obj.sense, "text": obj.text, "latex": latex(self.shown_integrals(obj.expr, phases))}
         return desc
 
     @staticmethod
