@@ -451,6 +451,7 @@ def report(run_dirs, out):
 
 def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
     from .report.build import ReportError, make_comparison_report, make_report
+    from .report.build.document import NotARunFolder
     from .run_folder import FolderError
 
     try:
@@ -461,7 +462,7 @@ def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
                 make_comparison_report([single], single)
         else:
             files = make_comparison_report(run_dirs, out or run_dirs[0].parent / "comparison")
-    except FolderError as e:
+    except (FolderError, NotARunFolder) as e:
         raise _SpecFailure(str(e)) from None
     except ReportError as e:
         raise click.ClickException(str(e)) from None

@@ -423,3 +423,14 @@ def test_a_resumed_study_refuses_a_users_point_folder_before_writing_anything(tm
         run_points(PROBLEM, out, points, serial=True, quiet=True, resume=True)
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
     assert (out / "points" / "p1" / "notes.txt").read_text() == "mine"
+
+
+def test_a_report_of_a_folder_that_is_not_a_run_is_a_usage_error(tmp_path):
+    """unseen33 F12: `ocdsl report` of a missing folder exited 2, of a folder that is not a run
+    folder 1: both are the caller's input, one line, exit 2."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "a.txt").write_text("x")
+    r = _ocdsl("report", mine, cwd=tmp_path)
+    assert r.returncode == 2 and "neither a run folder nor a study folder" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and sorted(p.name for p in mine.iterdir()) == ["a.txt"]

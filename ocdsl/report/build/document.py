@@ -14,6 +14,11 @@ from ocdsl.report import figures as F
 class ReportError(RuntimeError):
     """A report could not be written (bad input, or no PDF engine)."""
 
+
+class NotARunFolder(ReportError):
+    """The folder given to ``ocdsl report`` is not a run or study folder: the caller's input,
+    exit 2 like a missing folder (it was 1, unseen33 F12)."""
+
 # =============================================================================== document
 class Doc:
     """Sections of blocks, numbering tables, figures and equations in document order."""

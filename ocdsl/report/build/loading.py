@@ -12,7 +12,7 @@ import numpy as np
 
 from ocdsl.result import Result
 from ocdsl.report import figures as F
-from ocdsl.report.build.document import ReportError
+from ocdsl.report.build.document import NotARunFolder
 from ocdsl.report.tables.cells import GOOD_STATUS as GOOD
 
 
@@ -72,7 +72,7 @@ def _load_run(run_dir: Path) -> tuple[Result, list[str]]:
     try:
         data = json.loads((run_dir / "result.json").read_text())
     except Exception as exc:  # noqa: BLE001
-        raise ReportError(f"{run_dir}: not a readable run folder (result.json: {exc})") from exc
+        raise NotARunFolder(f"{run_dir}: not a readable run folder (result.json: {exc})") from exc
     fields = set(Result.__dataclass_fields__) - {"phases", "tables"}
     kw = {k: v for k, v in data.items() if k in fields}
     kw.setdefault("name", run_dir.name)

@@ -14,7 +14,7 @@ from ocdsl.result import Result
 from ocdsl.report import figures as F
 from ocdsl.report import status as S
 from ocdsl.report import tables as T
-from ocdsl.report.build.document import Doc, ReportError, _dynamics_latex, text_to_latex
+from ocdsl.report.build.document import Doc, NotARunFolder, ReportError, _dynamics_latex, text_to_latex
 from ocdsl.report.build.loading import GOOD, _is_run, load_run, missing_notes, reintegration_tables
 from ocdsl.report.build.output import _render, _write_outputs
 from ocdsl.report.build.pareto import _rows_of, pareto_criteria
@@ -216,7 +216,7 @@ def build_run_html(run_dir: str | os.PathLike) -> str:
 def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
     run_dir = Path(run_dir)
     if not _is_run(run_dir):
-        raise ReportError(f"{run_dir}: not a run folder (no result.json)")
+        raise NotARunFolder(f"{run_dir}: not a run folder (no result.json)")
     res, notes = load_run(run_dir)
     doc = Doc()
     changed = run_folder.changed_since_written(run_dir)

@@ -12,7 +12,7 @@ from ocdsl.result import Result
 from ocdsl.report import figures as F
 from ocdsl.report import status as S
 from ocdsl.report import tables as T
-from ocdsl.report.build.document import Doc, ReportError, _append
+from ocdsl.report.build.document import Doc, NotARunFolder, ReportError, _append
 from ocdsl.report.build.loading import GOOD, _find_runs, _is_run, load_run, read_study_table
 from ocdsl.report.build.output import _render, _write_outputs
 from ocdsl.report.build.pareto import STUDY_OUTPUT_COLS, pareto_criteria
@@ -33,7 +33,7 @@ def _build_comparison(run_dirs: Sequence[str | os.PathLike], title: str | None =
             rows, meta = read_study_table(d)
             runs = _find_runs(d)
             if not runs and not rows:
-                raise ReportError(f"{d}: neither a run folder nor a study folder (no result.json, no run folders)")
+                raise NotARunFolder(f"{d}: neither a run folder nor a study folder (no result.json, no run folders)")
             studies.append((d, rows, meta))
             entries += [(str(r.relative_to(d)) if len(run_dirs) == 1 else f"{d.name}/{r.relative_to(d)}", r)
                         for r in runs]
