@@ -434,3 +434,17 @@ def test_run_refuses_a_study_block_that_check_refuses(tmp_path):
     res = CliRunner().invoke(main, ["run", str(path), "--out", str(out)])
     assert res.exit_code == 2 and "sweep.yaml:14" in res.output and "'dd'" in res.output, res.output
     assert not out.exists()
+
+
+def test_a_studys_best_point_is_an_ok_one():
+    """unseen33 F4: study.json's "best" named p0000, whose verification failed, with 0 of 3
+    points ok: the best is among the points that are ok, and none when none is."""
+    from ocdsl.study.table import _Table
+
+    table = _Table.__new__(_Table)
+    table.sense = "minimize"
+    table.rows = {"p0000": {"id": "p0000", "status": "optimal", "objective": 2.0, "ok": False},
+                  "p0001": {"id": "p0001", "status": "optimal", "objective": 3.0, "ok": True}}
+    assert table.best()["id"] == "p0001"
+    table.rows["p0001"]["ok"] = False
+    assert table.best() is None

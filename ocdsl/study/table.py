@@ -61,7 +61,10 @@ class _Table:
                 "pending": len(st) - done}
 
     def best(self) -> dict[str, Any] | None:
-        good = [r for r in self.rows.values() if r["status"] in GOOD
+        """The best objective among the points that are ok (solved, verified, expect met): a
+        point that failed its verification is no study's best (unseen33 F4: "best: p0000"
+        with 0 of 3 points ok)."""
+        good = [r for r in self.rows.values() if r["status"] in GOOD and _point_ok(r)
                 and r["objective"] is not None and math.isfinite(r["objective"])]
         if not good:
             return None
