@@ -448,3 +448,14 @@ def test_a_studys_best_point_is_an_ok_one():
     assert table.best()["id"] == "p0001"
     table.rows["p0001"]["ok"] = False
     assert table.best() is None
+
+
+def test_a_long_point_message_is_cut_at_a_word_and_says_so():
+    """unseen33 F12: study.csv's messages stopped mid-word ("not th")."""
+    from ocdsl.study.points import _shortened
+
+    text = "not verified: dynamics per piece 0.0127 > 1e-05 " * 10
+    cut = _shortened(text)
+    assert cut.endswith("... (the point's result.json has it all)")
+    assert text.startswith(cut[: cut.index(" ...")]) and cut[: cut.index(" ...")].split()[-1] in text.split()
+    assert _shortened("short") == "short"

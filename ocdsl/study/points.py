@@ -170,7 +170,7 @@ def _summary(run_dir: Path) -> dict[str, Any]:
             "objective": _num(data.get("objective")),
             "tf": data.get("tf"), "iterations": data.get("iterations"),
             "wall_time_s": _num(wall.get("total")) if isinstance(wall, dict) else None,
-            "message": (_why_not_ok(data) + (data.get("message") or "").strip().split("\n", 1)[0])[:300],
+            "message": _shortened(_why_not_ok(data) + (data.get("message") or "").strip().split("\n", 1)[0]),
             "sense": sense}
 
 
@@ -216,3 +216,11 @@ def _finished(points_dir: Path, point: Point) -> dict | None:
         raise StudyError(f"{d} holds a different point than the study's {point.id} "
                          "(the study changed); use a new --out")
     return meta
+
+
+def _shortened(text: str, limit: int = 300) -> str:
+    """``text`` cut to ``limit`` characters at a word, marked: study.csv's messages stopped
+    mid-word ("not th", unseen33 F12)."""
+    if len(text) <= limit:
+        return text
+    return text[:limit].rsplit(" ", 1)[0].rstrip(",;:") + " ... (the point's result.json has it all)"
