@@ -645,3 +645,13 @@ def test_the_problem_is_typeset_with_the_names_a_paper_prints():
     assert latex(-S("h(tf)")) == "- h(t_{f})"
     assert latex(S("Dc") * S("v") ** 2) == r"\mathrm{Dc} v^{2}"
     assert latex(S("theta") + S("x1") + S("v_max")) == r"\theta + v_{max} + x_{1}"
+
+
+def test_the_summary_table_says_each_verdict_once(tmp_path):
+    """unseen33 F11: the summary table read "verified: verified: 7 checks within 1e-05"."""
+    from ocdsl.report.tables.solution import summary_table
+
+    res = solved_result()
+    res.verification = {"status": "verified", "summary": "verified: 7 checks within 1e-05", "checks": []}
+    texts = [r[1]["text"] for r in summary_table(res)["rows"]]
+    assert "verified: 7 checks within 1e-05" in texts and not any("verified: verified" in t for t in texts)

@@ -15,15 +15,18 @@ def badge_cell(b) -> dict[str, Any]:
 
 
 def summary_table(res: Result) -> dict:
-    from ocdsl.report.status import badges
+    from ocdsl.report.status import badges, what_is_drawn
 
     rows = []
     for b in badges(res):
         rows.append([cell(b.label, "name"), badge_cell(b)])
         if b.title:
-            rows[-1][1] = {**rows[-1][1], "text": f"{b.text}: {b.title}"}
+            # a title that starts with the verdict itself ("verified: 7 checks ...") is not
+            # prefixed with it again ("verified: verified: ...", unseen33 F11)
+            said = b.title if str(b.title).lower().startswith(str(b.text).lower()) else f"{b.text}: {b.title}"
+            rows[-1][1] = {**rows[-1][1], "text": said}
     sense = ((res.problem or {}).get("objective") or {}).get("sense")
-    label = "objective" if res.has_solution else "objective of the last iterate (not a solution)"
+    label = "objective" if res.has_solution else f"objective of the {what_is_drawn(res)}"
     rows.append([cell(label + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
     for label, v in time_rows(res):
         rows.append([cell(label, "name"), cell(v, "num", 10)])
