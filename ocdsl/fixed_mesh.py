@@ -99,9 +99,7 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
         # 3 x 3: optimal, verified, certificate pass, J 7.3e-5 off; one phase: refuted)
         flown = (result.certificate or {}).get("flown_control")
         # a flight that predicted a refuting gain and did not realise it judged nothing (unseen23 FC3)
-        # ... and a flight that was flown and missed its conditions (or ran out of its time
-        # budget, as a loaded machine made it: J 3e-4 off, `optimal`) proves nothing either
-        judged = flown is not None and not flown.get("inconclusive") and flown.get("feasible") is not False
+        judged = flown is not None and not flown.get("inconclusive")
         found = arcs.binding_arcs(tr, controls=not judged)
     if not found and judged:
         return []

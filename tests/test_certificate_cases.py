@@ -748,36 +748,13 @@ def test_a_fixed_mesh_whose_flight_proves_nothing_is_bisected(tmp_path):
     res = run_file(tmp_path / "fixed.yaml", None)
     assert res.objective - ISO_BEST > 1e-4                                  # the case: J off
     flown = res.certificate["flown_control"]
-    # judged nothing: inconclusive, or (its flights cut by their wall-clock budget on a loaded
-    # machine) infeasible; either way the bisection runs
-    assert flown["passed"] and ("not judged" in (flown.get("inconclusive") or "") or flown.get("feasible") is False)
+    assert flown["passed"] and "not judged" in flown["inconclusive"]
     from ocdsl.result import certificate_verdict
 
     # the wrong J's nodes may fail a node check as well (a failure outranks inconclusive)
     assert certificate_verdict(res.certificate) in ("inconclusive", "failed")
     assert res.status == "mesh_not_converged" and not res.ok
     assert res.extra["bisection"]["agrees"] is False
-
-
-def test_a_fixed_mesh_whose_flights_run_out_of_time_is_bisected(tmp_path, monkeypatch):
-    """The same run with the flights' wall-clock budget spent at once (a loaded machine: the
-    suite under load failed the test above): the correction's flights were cut short, the
-    check said "could not be corrected: not compared" and counted as a judge, so the
-    bisection was skipped and the run said `optimal` 3e-4 off. A check its budget cut judged
-    nothing: it is bisected, mesh_not_converged."""
-    from ocdsl.solve.certificate import flown_control
-
-    monkeypatch.setattr(flown_control, "FLIGHT_BUDGET_S", 1e-9)
-    text = (DATA / "iso_saturated.yaml").read_text().replace(
-        "  segments: 4\n  degree: 3\n  mesh: {tolerance: 1.0e-6, max_iterations: 14}\n",
-        "  segments: [0.0, 0.00843428544488147, 0.01686857088976294, 0.025302856334644408, 0.03373714177952588,\n"
-        "             0.04217142722440735, 0.04249592318259839, 0.75, 1.0]\n"
-        "  degree: [3, 3, 3, 3, 3, 1, 2, 3]\n")
-    (tmp_path / "fixed.yaml").write_text(text)
-    res = run_file(tmp_path / "fixed.yaml", None)
-    assert res.objective - ISO_BEST > 1e-4
-    assert "ran out of their time budget" in res.certificate["flown_control"]["inconclusive"]
-    assert res.status == "mesh_not_converged" and res.extra["bisection"]["agrees"] is False
 
 
 def test_a_refinement_with_final_conditions_flies_for_gains_near_its_own_tolerance(tmp_path):

@@ -316,25 +316,19 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     deadline = time.monotonic() + (FLIGHT_BUDGET_S if budget_s is None else budget_s)
     funcs = funcs or flight_functions(problem, result)
     first: list[float] = []      # the first flight's seconds: a flight 20 times as long has left the domain
-    # whether the wall-clock budget cut a flight: what such a check says depends on the machine's
-    # load, so it judges nothing (a loaded machine's fixed-mesh run: `optimal`, J 3e-4 off)
-    out_of_time: list[bool] = []
 
     def fly(t_fly, U, cuts_fly, stretch=1.0):
         start = time.monotonic()
         remaining = deadline - start
         if first:
             remaining = min(remaining, max(FLIGHT_SHARE_S, 20.0 * first[0]))
-        if remaining <= 0.0:        # (the share after the first flight is never below 0.2 s)
-            out_of_time.append(True)
+        if remaining <= 0.0:
             return Flight(math.nan, math.inf, "the flights' time budget", 0)
         try:
             with time_budget(remaining):
                 flight = fly_control(problem, result, t_fly, U, cuts_fly, stretch=stretch, rtol=rtol,
                                      funcs=funcs)
         except IntegrationFailure as exc:
-            if time.monotonic() >= deadline:
-                out_of_time.append(True)
             flight = Flight(math.nan, math.inf, f"the flight ({exc})", 0)
         if not first:
             first.append(time.monotonic() - start)
@@ -362,8 +356,6 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
             # the pass (its bisection would judge solutions, such as seed 0's, it cannot refine)
             if mesh_tolerance is not None:
                 _doubted(out, predicted, limit, "could not be corrected onto the final conditions")
-            if out_of_time:
-                out["inconclusive"] = "its flights ran out of their time budget: not judged"
             return out
         flight, switches = corrected.flight, corrected.switches
     else:
@@ -380,8 +372,6 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     if not feasible:
         out["note"] = (f"the flown control misses {flight.where} by {flight.violation:.1e} (relative): "
                        "its objective bounds nothing")
-        if out_of_time:
-            out["inconclusive"] = "its flights ran out of their time budget: not judged"
     elif out["passed"] and gain < -limit and not _state_bound_binds(ph, traj):
         _doubted(out, predicted, limit, f"gives J = {flight.objective:.10g}, worse than the claim by {-gain:.1e}")
     elif not out["passed"]:
