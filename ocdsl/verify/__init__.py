@@ -255,7 +255,9 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
             # flight the integrators cannot finish (it diverged) fails alone (unseen29: LQR on
             # x' = x^3 + u blew up and left the stable SDRE law `verification error`)
             runs[ph.name] = _unflown_phase(ph, traj, e, tol, checks)
-        if any(c["phase"] == ph.name and c["name"].startswith("dynamics") and c["passed"] is False for c in checks):
+        dynamics_failed = any(c["phase"] == ph.name and c["name"].startswith("dynamics") and c["passed"] is False
+                              for c in checks)
+        if dynamics_failed:
             runs[ph.name].notes[:0] = _sign_crossings(ph, runs[ph.name], tol)
         notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n for n in runs[ph.name].notes]
         names_u = [c.name for c in ph.controls]
@@ -266,8 +268,7 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
                                                   mesh=(result.method or {}).get("mesh") is not None)
                       + (end_control_jumps(tr, Ur, names_u, (traj.control_interpolation or {}).get("breakpoints"),
                                            mesh=(result.method or {}).get("mesh") is not None)
-                         if any(c["phase"] == ph.name and c["name"].startswith("dynamics") and c["passed"] is False
-                                for c in checks) else [])]
+                         if dynamics_failed else [])]
     _boundary_checks(problem, result, runs, params, tol, checks, settings.open_loop)
     _reported_integral_checks(problem, result, runs, tol, checks)
     return checks, notes
@@ -287,7 +288,9 @@ def _sign_crossings(ph, run: _PhaseRun, tol: float) -> list[str]:
         if np.max(-np.sign(x0) * column) <= tol * float(run.scale_x[j]):
             continue
         try:
-            keeps_sign = sp.simplify(sp.sympify(rate).subs(x, 0)) == 0
+            # the rate at x = 0 as SymPy evaluates it (0 for x g(...)); no simplify: on seed 1's
+            # model it factored polynomials for tens of seconds
+            keeps_sign = sp.sympify(rate).subs(x, 0) == 0
         except Exception:  # noqa: BLE001 - an advice only
             keeps_sign = False
         if keeps_sign:
@@ -344,14 +347,14 @@ def _travel_floor(ph, funcs, uf, t, X, scale_x) -> np.ndarray:
     flat = [j for j in range(funcs.n) if np.ptp(X[:, j]) < scale_x[j]]
     if not flat:
         return scale_x
-    from .objective_size import _terms
+    from .objective_size import additive_terms
 
     rates = ph.rhs()
     U = controls_at(uf, t, X)
     args = [TIME, *ph.states, *ph.controls]
     out = scale_x.copy()
     for j in flat:
-        size = sp.Add(*(sp.Abs(term) for term in _terms(ph.substitute(rates[j]))))
+        size = sp.Add(*(sp.Abs(term) for term in additive_terms(ph.substitute(rates[j]))))
         if size.free_symbols - set(args):
             continue
         with np.errstate(all="ignore"):

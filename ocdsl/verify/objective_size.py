@@ -24,7 +24,7 @@ from .checks import evaluate
 EXPAND_LIMIT = 200       # operations above which an expression's terms are its top-level ones
 
 
-def _terms(expr: sp.Expr) -> tuple:
+def additive_terms(expr: sp.Expr) -> tuple:
     """The additive terms of ``expr``, expanded while it is small."""
     if sp.count_ops(expr) <= EXPAND_LIMIT:
         expr = sp.expand(expr)
@@ -47,7 +47,7 @@ def _integrals(ph, traj, params: dict) -> dict:
     exprs = []
     for L in ph.integrals.values():
         e = substitute_numbers(ph.substitute(L), subs)
-        exprs += [e, sp.Add(*(sp.Abs(term) for term in _terms(e)))]
+        exprs += [e, sp.Add(*(sp.Abs(term) for term in additive_terms(e)))]
     fns = family(args, ("objective_size", exprs), lambda: {"v": (exprs, "numpy")})
     t = np.asarray(traj.time, float)
     cols = [t] + [np.asarray(traj.states[s.name], float) for s in ph.states] \
@@ -82,7 +82,7 @@ def objective_scale(problem, result) -> float:
             point[s] = float(finite[0] if bv.which == "t0" else finite[-1]) if len(finite) else math.nan
         J = sp.sympify(problem.objective.expr)
         total = 0.0
-        for term in _terms(J):
+        for term in additive_terms(J):
             if term.free_symbols & set(integral_terms):
                 continue
             total += abs(evaluate(term, point))
