@@ -102,9 +102,6 @@ class Stiffness:
         padded = np.append(self.rho, -np.inf)
         return np.maximum.reduceat(padded, np.column_stack([i0, i1 + 1]).ravel())[::2]
 
-    def over(self, a: float, b: float) -> float:
-        return float(self.per_piece([a, b])[0])
-
     def stiff(self, breaks) -> bool:
         """Some piece of ``breaks`` is stiff."""
         return bool(np.any(self.per_piece(breaks) * np.diff(np.asarray(breaks, float)) > STIFF))
@@ -189,10 +186,11 @@ def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:
     out = Pass(grid, Y)
     atol = rtol * scale
     y_prev = None
+    stiffness = rho.per_piece(breaks)       # once: a closed loop has thousands of pieces
     for k, (a, b) in enumerate(zip(breaks[:-1], breaks[1:])):
         sel = np.flatnonzero((grid >= a) & (grid <= b))
         y0 = starts(k, y_prev)
-        first = "Radau" if rho.over(a, b) * (b - a) > STIFF else "DOP853"
+        first = "Radau" if stiffness[k] * (b - a) > STIFF else "DOP853"
         for method in dict.fromkeys((first, "Radau", "LSODA")):
             sol, ok = _piece(funcs, uf, a, b, y0, grid[sel], rtol, atol, method)
             if ok:
