@@ -325,7 +325,7 @@ def _result(file: LoadedFile, tr, info, timer, meshes, *, always_fly: bool = Fal
     if info.status in ("optimal", "acceptable"):
         result.extra["boundary_multipliers"] = boundary_multipliers(tr)
     result.expect = check_expectations(file, values, info.objective)
-    _certify(file, result, always_fly, timer.breakdown().get("solve", 0.0))
+    _certify(file, result, always_fly)
     return result
 
 
@@ -361,10 +361,10 @@ def boundary_multipliers(tr) -> list[dict]:
     return out
 
 
-def _certify(file: LoadedFile, result: Result, always_fly: bool = False, solve_s: float = 0.0) -> None:
+def _certify(file: LoadedFile, result: Result, always_fly: bool = False) -> None:
     """Attach the optimality certificate when the module is available and the solve converged
-    (``always_fly``: the flown control's J wanted whatever gain it predicts, mesh/drive.py;
-    ``solve_s``: the run's solve time so far, which sets the flown control's time budget)."""
+    (``always_fly``: the flown control's J wanted whatever gain it predicts, mesh/drive.py; the
+    flights' step budget follows the last solve's size, ``flight_budget``)."""
     if result.status not in ("optimal", "acceptable"):
         return
     from .solve.certificate.flown_control import flight_budget
@@ -374,7 +374,7 @@ def _certify(file: LoadedFile, result: Result, always_fly: bool = False, solve_s
         mesh = getattr(file.method, "mesh", None)
         result.certificate = certify_result(file.problem, result, file.spec.verify.tolerance,
                                             mesh.tolerance if mesh is not None else None, always_fly,
-                                            flight_budget_s=flight_budget(solve_s))
+                                            flight_budget_steps=flight_budget(result.iterations, (result.nlp or {}).get("variables")))
     except Exception as e:  # the certificate must never lose a solved run
         result.certificate = {"error": f"{type(e).__name__}: {e}", "passed": False}
 

@@ -86,10 +86,10 @@ def _shared_control_nodes(traj) -> list[float]:
 
 def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
                    mesh_tolerance: float | None = None, always_fly: bool = False,
-                   flight_budget_s: float | None = None) -> dict:
+                   flight_budget_steps: int | None = None) -> dict:
     """The certificate per phase; ``tolerance``: the verification's, which a missing end arc's
     predicted gain in J (relative to J's size, verify/objective_size.py) must stay under; ``mesh_tolerance``: a ``mesh:``
-    run's, ``always_fly`` and ``flight_budget_s`` (``flown_control``)."""
+    run's, ``always_fly`` and ``flight_budget_steps`` (``flown_control``)."""
     # the objective's own size, which the checks that can refute J measure against (and the
     # bisection after them: run.py)
     result.extra["objective_scale"] = objective_scale(problem, result)
@@ -174,7 +174,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
         # a feasible trajectory better than the claim, from the minimum principle's control
         try:
             flown = flown_control(problem, result, L, params, tolerance, mesh_tolerance, always_fly,
-                                  flight_budget_s) if len(problem.phases) == 1 else None
+                                  flight_budget_steps) if len(problem.phases) == 1 else None
         except Exception as exc:  # noqa: BLE001  (it can only refute: a failure of its own keeps the other checks' verdict)
             flown = {"passed": True, "note": f"the minimum principle's control could not be flown: "
                                              f"{type(exc).__name__}: {exc}"}

@@ -52,7 +52,35 @@ def time_budget(seconds: float):
         _DEADLINE.reset(token)
 
 
+class StepBudget:
+    """A count of integrator steps (right-hand-side calls for SciPy's stiff fallbacks) a flight
+    may take: unlike a wall-clock budget, what it cuts is the same on a quiet and a loaded
+    machine (a flight cut by the clock under load turned a fixed mesh's verdict, unseen suite)."""
+
+    def __init__(self, limit: int):
+        self.limit, self.used = int(limit), 0
+
+
+_STEPS: contextvars.ContextVar[StepBudget | None] = contextvars.ContextVar("verify_steps", default=None)
+
+
+@contextlib.contextmanager
+def step_budget(limit: int):
+    budget = StepBudget(limit)
+    token = _STEPS.set(budget)
+    try:
+        yield budget
+    finally:
+        _STEPS.reset(token)
+
+
 def _check_deadline(tt: float) -> None:
+    budget = _STEPS.get()
+    if budget is not None:
+        budget.used += 1
+        if budget.used > budget.limit:
+            raise IntegrationFailure(f"the flight ran out of its budget of {budget.limit} integrator steps "
+                                     f"at t = {tt:.6g}")
     if time.monotonic() > _DEADLINE.get():
         raise IntegrationFailure(f"the re-integration ran out of its time budget at t = {tt:.6g} "
                                  "(the trajectory may leave the model's domain; `verify: {time_limit}`)")

@@ -49,17 +49,27 @@ PREDICTED_SHARE_CORRECTED = 1.0
 PATH_AWAY = 1e-3
 # the flight integrates at rtol 1e-9: a gain below this share of 1 + |J| may be its own error
 FLIGHT_RESOLUTION = 1e-7
-# wall seconds all of one check's flights may take: a corrected control can fly the model out of
-# its domain (the moon lander's mass towards zero), where a stiff integrator at rtol 1e-11 went
-# on for minutes (unseen18: mesh_moon_landing did not end); a flight past it counts as failed
-FLIGHT_BUDGET_S = 10.0
-FLIGHT_SHARE_S = 0.2       # ... and each flight after the first at most 20 times the first, or this
+# integrator steps all of one check's flights may take: a corrected control can fly the model out
+# of its domain (the moon lander's mass towards zero), where a stiff integrator at rtol 1e-11
+# went on for minutes (unseen18: mesh_moon_landing did not end); a flight past it counts as
+# failed. Counted in steps, not seconds, so that a loaded machine cuts the same flights as a
+# quiet one (a wall-clock budget cut a fixed mesh's flights under load: its check said "not
+# compared", the bisection was skipped, `optimal` with J 3e-4 off)
+FLIGHT_STEPS_MIN = 6_000       # about 0.7 s of flights here
+FLIGHT_STEPS_MAX = 80_000      # about 10 s (Goddard's corrected flights took 10 s after a 0.08 s solve)
+FLIGHT_SHARE_STEPS = 1_600     # ... and each flight after the first at most 20 times the first, or this
+# the wall clock only as a guard against a flight that hangs inside one step: what it cuts
+# judges nothing (``inconclusive``), as it depends on the machine's load
+FLIGHT_WALL_S = 60.0
 
 
-def flight_budget(solve_s: float) -> float:
-    """The flights' budget for a run whose solve took ``solve_s``: twice that, at least 0.5 s, at
-    most FLIGHT_BUDGET_S (Goddard's corrected flights took 10 s after a 0.08 s solve)."""
-    return min(FLIGHT_BUDGET_S, max(0.5, 2.0 * float(solve_s)))
+def flight_budget(iterations: int | None, variables: int | None) -> int:
+    """The flights' step budget for a run whose last solve took ``iterations`` Ipopt iterations
+    on ``variables`` NLP variables: about twice that solve's time in flights (an iteration costs
+    about 0.6 ms + 2.5 us per variable here, a step 0.12 ms), at least FLIGHT_STEPS_MIN, at
+    most FLIGHT_STEPS_MAX; a deterministic stand-in for the solve's seconds."""
+    work = int(iterations or 0) * (10.0 + 0.05 * int(variables or 0))
+    return int(min(FLIGHT_STEPS_MAX, max(FLIGHT_STEPS_MIN, work)))
 
 
 def _quadratic_in_controls(model, params, lagrange) -> bool:
@@ -237,14 +247,14 @@ def _state_bound_binds(ph, traj) -> bool:
 
 def flown_control(problem: Problem, result: Result, lagrange, params: dict, tolerance: float,
                   mesh_tolerance: float | None = None, always_fly: bool = False,
-                  budget_s: float | None = None) -> dict[str, Any] | None:
+                  budget_steps: int | None = None) -> dict[str, Any] | None:
     """The check's record (``params``: the phase's parameter values, as the certificate's): the
     claimed and the flown objective, the gain, the flown trajectory's worst violation; ``passed``
     False when it is feasible and better than the claim by more than ``tolerance`` x (1 + |J|). None where the check does not apply. With a
     ``mesh_tolerance`` (a ``mesh:`` run, which refines again on a gain above it, mesh/flown.py)
     the control is also flown for predicted gains near that tolerance; ``always_fly``: whatever
     gain it predicts (the flown J then bounds what other meshes' J can be, mesh/flown.py);
-    ``budget_s``: wall seconds for all its flights (default FLIGHT_BUDGET_S). ``inconclusive``
+    ``budget_steps``: integrator steps for all its flights (default FLIGHT_STEPS_MAX). ``inconclusive``
     (a reason) where it predicts a gain above the tolerance that its flight does not realise
     (``_doubted``)."""
     if len(problem.phases) != 1 or result.objective is None or not math.isfinite(float(result.objective)):
@@ -308,30 +318,35 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
                 "note": f"H's minimiser gains {predicted:.1e} over the solution's control to first order, "
                         f"below the {share * wanted:.1e} a flight would need: not flown"}
     t_tab, U_tab, cuts = _tabulate(tt, U_min, G_min, bounds, corners)
-    from ...verify.integrate import IntegrationFailure, time_budget
+    from ...verify.integrate import IntegrationFailure, step_budget, time_budget
 
     # J to 1e-3 of the tolerance is all the comparison needs (the verification's own flight
     # integrates at 1e-10); a correction onto final conditions needs them met to below that
     rtol = min(1e-11 if late else 1e-9, 1e-4 * tolerance)
-    deadline = time.monotonic() + (FLIGHT_BUDGET_S if budget_s is None else budget_s)
+    steps_left = [FLIGHT_STEPS_MAX if budget_steps is None else int(budget_steps)]
+    deadline = time.monotonic() + FLIGHT_WALL_S
     funcs = funcs or flight_functions(problem, result)
-    first: list[float] = []      # the first flight's seconds: a flight 20 times as long has left the domain
+    first: list[int] = []        # the first flight's steps: a flight 20 times as long has left the domain
+    out_of_time: list[bool] = []
 
     def fly(t_fly, U, cuts_fly, stretch=1.0):
-        start = time.monotonic()
-        remaining = deadline - start
+        allowed = steps_left[0]
         if first:
-            remaining = min(remaining, max(FLIGHT_SHARE_S, 20.0 * first[0]))
-        if remaining <= 0.0:
-            return Flight(math.nan, math.inf, "the flights' time budget", 0)
-        try:
-            with time_budget(remaining):
-                flight = fly_control(problem, result, t_fly, U, cuts_fly, stretch=stretch, rtol=rtol,
-                                     funcs=funcs)
-        except IntegrationFailure as exc:
-            flight = Flight(math.nan, math.inf, f"the flight ({exc})", 0)
+            allowed = min(allowed, max(FLIGHT_SHARE_STEPS, 20 * first[0]))
+        if allowed <= 0:
+            return Flight(math.nan, math.inf, "the flights' step budget", 0)
+        with step_budget(allowed) as used:
+            try:
+                with time_budget(deadline - time.monotonic()):
+                    flight = fly_control(problem, result, t_fly, U, cuts_fly, stretch=stretch, rtol=rtol,
+                                         funcs=funcs)
+            except IntegrationFailure as exc:
+                if time.monotonic() >= deadline:
+                    out_of_time.append(True)
+                flight = Flight(math.nan, math.inf, f"the flight ({exc})", 0)
+        steps_left[0] -= used.used
         if not first:
-            first.append(time.monotonic() - start)
+            first.append(used.used)
         return flight
 
     def gain_of(flight) -> float:
@@ -356,6 +371,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
             # the pass (its bisection would judge solutions, such as seed 0's, it cannot refine)
             if mesh_tolerance is not None:
                 _doubted(out, predicted, limit, "could not be corrected onto the final conditions")
+            if out_of_time:
+                out["inconclusive"] = f"its flights ran past the {FLIGHT_WALL_S:g} s guard: not judged"
             return out
         flight, switches = corrected.flight, corrected.switches
     else:
@@ -372,6 +389,8 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     if not feasible:
         out["note"] = (f"the flown control misses {flight.where} by {flight.violation:.1e} (relative): "
                        "its objective bounds nothing")
+        if out_of_time:
+            out["inconclusive"] = f"its flights ran past the {FLIGHT_WALL_S:g} s guard: not judged"
     elif out["passed"] and gain < -limit and not _state_bound_binds(ph, traj):
         _doubted(out, predicted, limit, f"gives J = {flight.objective:.10g}, worse than the claim by {-gain:.1e}")
     elif not out["passed"]:
