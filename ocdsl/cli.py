@@ -82,7 +82,8 @@ def main() -> None:
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="override a constant parameter")
 @click.option("--seed", type=int, default=None, help="seed of random initial guesses")
 @click.option("--warm-start", type=click.Path(file_okay=False, exists=True), help="start from a previous run folder")
-@click.option("--report", is_flag=True, help="also write report.html and report.pdf")
+@click.option("--report", is_flag=True, help="also write the report (report.html and report.pdf, or the "
+              "file's `report: {formats}`; `report: {enabled: true}` writes it without this flag)")
 @click.option("--verbose", "-v", is_flag=True, help="show Ipopt's own log")
 @click.option("--quiet", "-q", is_flag=True, help="no progress line and no summary")
 @click.option("--force", is_flag=True, help="replace an earlier ocdsl folder of another kind at --out "
@@ -124,7 +125,7 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
         if not quiet:
             _summary(result, out)
         sys.exit(143 if interrupted_by() == "SIGTERM" else 130)
-    if report:
+    if report or _report_enabled(out):
         _make_reports([out], None)
     if not quiet:
         _summary(result, out)
@@ -445,20 +446,27 @@ def study(file, out, workers, serial, scheduler, resume, force, quiet, no_cache)
 @click.argument("run_dirs", nargs=-1, required=True, type=click.Path(file_okay=False, exists=True))
 @click.option("--out", type=click.Path(file_okay=False), help="folder of a comparison report")
 def report(run_dirs, out):
-    """Write report.html and report.pdf for a run folder, or one comparison report for several."""
+    """Write report.html and report.pdf for a run folder (the formats of its file's `report:`), or
+    one comparison report for several."""
     _make_reports([Path(d) for d in run_dirs], Path(out) if out else None)
+
+
+def _report_enabled(folder: Path) -> bool:
+    from .run_folder import requested_report
+
+    return requested_report(folder)[0]
 
 
 def _make_reports(run_dirs: list[Path], out: Path | None) -> None:
     from .report.build import ReportError, make_comparison_report, make_report
     from .report.build.document import NotARunFolder
-    from .run_folder import FolderError
+    from .run_folder import FolderError, requested_report
 
     try:
         if len(run_dirs) == 1 and out is None:
             single = run_dirs[0]
             # a study folder (no result.json of its own) gets a comparison report inside it
-            files = make_report(single) if (single / "result.json").exists() else \
+            files = make_report(single, requested_report(single)[1]) if (single / "result.json").exists() else \
                 make_comparison_report([single], single)
         else:
             files = make_comparison_report(run_dirs, out or run_dirs[0].parent / "comparison")

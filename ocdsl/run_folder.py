@@ -405,3 +405,25 @@ def atomic_write_text(path: Path, text: str | bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+REPORT_FORMATS = ("html", "pdf")
+
+
+def requested_report(folder: Path) -> tuple[bool, tuple[str, ...]]:
+    """The ``report:`` block of the problem file the run folder holds (``problem.yaml``):
+    whether ``ocdsl run`` writes the report without ``--report`` (``enabled``) and in which
+    ``formats`` (unseen33: `formats: [html]` was ignored, the PDF written too). Read from the
+    folder, so that ``ocdsl report`` of the run asks for the same; both formats where the file
+    says nothing (the file was validated when it ran)."""
+    import yaml
+
+    try:
+        block = (yaml.safe_load((Path(folder) / "problem.yaml").read_text()) or {}).get("report") or {}
+    except (OSError, yaml.YAMLError, AttributeError):
+        return False, REPORT_FORMATS
+    if not isinstance(block, dict):
+        return False, REPORT_FORMATS
+    formats = tuple(f for f in REPORT_FORMATS if f in (block.get("formats") or REPORT_FORMATS))
+    return bool(block.get("enabled", False)), formats or REPORT_FORMATS
+

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ocdsl.report import make_comparison_report, make_index, make_report
-from ocdsl.report.build import build_run_html
+from ocdsl.report.build import build_comparison_html, build_run_html
 from ocdsl.report.build.pareto import pareto_criteria
 from ocdsl.result import PhaseTrajectory, Result
 
@@ -361,3 +361,156 @@ def test_a_pareto_table_shows_its_labels_and_families_as_text():
     shown = _pareto_labels(tab, {"labels": ["e.1", "e.2"], "families": ["a", "b"]})
     assert shown["label"] == ["e.1", "e.2"] and shown["family"] == ["a", "b"]
     assert "label_major" not in shown and "family_id" not in shown and list(shown["fuel"]) == [1.0, 0.5]
+
+
+def test_a_controller_report_says_what_the_run_did(tmp_path):
+    """unseen33 F8: x' = x + u, LQR (gain 1 + sqrt 2) saturated at |u| <= 0.5 from x = 3, where
+    the plant outruns the saturated command: the comparison table said "overshoot 0 %" for a
+    response that never came back, the controls table gave u no bounds although every command
+    was clipped to 0.5 (and the figure's caption promised dashed bounds that were not drawn),
+    the laws were listed as "phases", and the robustness sweep's verdict was only a raw CSV."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "sat.yaml"
+    path.write_text("""name: saturated scalar LQR
+model:
+  states: [x]
+  controls: [u]
+  parameters: {a: 1}
+  dynamics: {x: a*x + u}
+controller:
+  type: [lqr, sdre]
+  Q: [1]
+  R: [1]
+  saturation: 0.5
+  simulate: {x0: {x: 3}, horizon: 20, step: 0.01}
+  robustness: {parameters: [a], factors: [0.1, 2]}
+""")
+    res = run_file(path, tmp_path / "r")
+    assert res.status == "unstable"
+    html = build_run_html(tmp_path / "r")
+    rows = _table(html, "Controller comparison")
+    over = rows[0].index("overshoot [%]")
+    assert [r[over] for r in rows[1:]] == ["—", "—"]
+    controls = _table(html, "Controls of the problem")
+    assert controls[0] == ["name", "unit", "lower bound", "upper bound"]          # no column of laws
+    assert [c.replace("−", "-") for c in controls[1][2:]] == ["-0.5", "0.5"]
+    cap = next(c for c in _captions(html) if c.startswith("Closed-loop control histories"))
+    assert "dashed: the saturation" in cap
+    svg = _svgs(html)[_captions(html).index(cap)]
+    assert "stroke-dasharray" in svg
+    # at a = 0.1 the saturated command wins (0.1 x 3 < 0.5: x = 5 - 2 exp(t / 10) reaches the
+    # linear region at t = 8.7), at a = 2 it cannot (6 > 0.5)
+    rob = _table(html, "Robustness")
+    assert [(r[0], r[1], r[2]) for r in rob[1:]] == [("0.1", "lqr", "yes"), ("0.1", "sdre", "yes"),
+                                                     ("2", "lqr", "no"), ("2", "sdre", "no")]
+    assert "lqr regulates at 0.1; sdre regulates at 0.1." in html
+    assert "tables/robustness.csv" not in html and "Phases of the solution" not in html
+
+
+def test_the_files_report_block_chooses_the_formats(tmp_path):
+    """unseen33 F11: `report: {formats: [html]}` was ignored (`--report` and `ocdsl report`
+    wrote the PDF too); `enabled: true` writes the report without `--report`."""
+    import os
+    import subprocess
+    import sys
+
+    path = tmp_path / "di.yaml"
+    path.write_text("""name: double integrator
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0]
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 2, degree: 4}
+report: {formats: [html], enabled: true}
+""")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    cli = [sys.executable, "-m", "ocdsl.cli"]
+    run = subprocess.run([*cli, "run", str(path), "--out", str(tmp_path / "r")], capture_output=True, text=True,
+                         cwd=tmp_path, env=env)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert (tmp_path / "r" / "report.html").is_file() and not (tmp_path / "r" / "report.pdf").exists()
+    (tmp_path / "r" / "report.html").unlink()
+    again = subprocess.run([*cli, "report", str(tmp_path / "r")], capture_output=True, text=True, cwd=tmp_path,
+                           env=env)
+    assert again.returncode == 0 and again.stdout.split() == ["wrote", str(tmp_path / "r" / "report.html")], again
+    assert not (tmp_path / "r" / "report.pdf").exists()
+
+
+def test_a_comparison_and_a_study_say_which_runs_are_not_ok(tmp_path):
+    """unseen33 F4: the comparison table had no verification or ok column, a max_iter run's
+    last iterate sat in the objective column and was drawn like the solutions; a study's sweep
+    figure drew three optimal but unverified points as a clean line, and no point's
+    diagnosis was in the report."""
+    t = np.linspace(0.0, 1.0, 11)
+    kinds = {"good": ("optimal", "verified", 1.0), "unverified": ("optimal", "failed", 1.1),
+             "stopped": ("max_iter", "not_run", 7.0)}
+    folders = []
+    for name, (status, checked, J) in kinds.items():
+        res = Result(name=name, status=status, objective=J, tf=1.0, message="Maximum number of iterations exceeded."
+                     if status == "max_iter" else "",
+                     phases=[PhaseTrajectory("main", t, {"x": J * t}, {"u": 0 * t + J})],
+                     verification={"status": checked, "tolerance": 1e-5, "checks": [],
+                                   "summary": f"{checked}: dynamics per piece 3.2e-03 > 1e-05"},
+                     problem={"name": "p", "phases": {"main": {"states": ["x"], "controls": ["u"]}}})
+        folders.append(res.write(tmp_path / name))
+    html = build_comparison_html(folders)
+    rows = {r[0]: r for r in _table(html, "Compared runs")[1:]}
+    head = _table(html, "Compared runs")[0]
+    at = {c: head.index(c) for c in ("verification", "ok", "objective")}
+    assert [rows["good"][at["ok"]], rows["unverified"][at["ok"]], rows["stopped"][at["ok"]]] == ["yes", "no", "no"]
+    assert rows["unverified"][at["verification"]] == "failed"
+    assert rows["stopped"][at["objective"]] == "7 (last iterate)" and rows["good"][at["objective"]] == "1"
+    assert "unverified (optimal, not ok): failed: dynamics per piece" in html
+    svg = "".join(_svgs(html))
+    assert "stopped (last iterate)" in svg and "unverified (not ok)" in svg
+
+    study = tmp_path / "study"
+    study.mkdir()
+    (study / "study.json").write_text(json.dumps({"name": "s", "spec": {"sweep": {"grid": {"a": [1, 2, 3]}}}}))
+    with open(study / "study.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["id", "a", "status", "ok", "verification", "objective", "message"])
+        for i, a in enumerate((1, 2, 3)):
+            w.writerow([f"p{i}", a, "optimal", False, "failed", 2.0 * a, "verification failed; certificate failed."])
+    html = build_comparison_html([study])
+    svg = _svgs(html)[[i for i, c in enumerate(_captions(html)) if c.startswith("Study outputs")][0]]
+    assert "converged, not ok" in svg
+    assert html.count("verification failed; certificate failed.") == 3
+
+
+def test_a_pareto_sets_report_shows_the_set_not_one_point(tmp_path):
+    """unseen33 F9: the report of an epsilon Pareto set (min int u^2 with t_f <= eps for the
+    rest-to-rest double integrator, J = 12 / eps^3) said "objective: 0.1875" (one point's
+    energy) in its header and summary, and had neither the file's description nor who ran it."""
+    from ocdsl.study.pareto_run import run_pareto
+
+    path = tmp_path / "front.yaml"
+    path.write_text("""name: energy-time front
+description: min int u^2 with T <= eps gives J = 12/eps^3.
+model:
+  states: [x, v]
+  controls: [u]
+  parameters: {eps: 2.0}
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= 10, tf <= eps]
+  objective: minimize integral(u**2)
+  guess: {tf: 2}
+method: {transcription: LGR, segments: 2, degree: 4}
+pareto:
+  method: epsilon
+  solver: nlp
+  objectives: {energy: integral(u**2), time: tf}
+  epsilon: {objective: time, values: [1, 2, 4], parameter: eps}
+""")
+    run_pareto(path, tmp_path / "front")
+    html = build_run_html(tmp_path / "front")
+    head = html.split("</header>")[0]
+    assert "Pareto set: 3 solutions, 3 Pareto-optimal" in head and "objective:" not in head
+    assert "run by: ocdsl" in head
+    assert "gives J = 12/eps^3" in html.split("</header>")[1]
+    summary = _table(html, "Solution summary")
+    assert not any(r and r[0].startswith("objective") for r in summary)

@@ -29,7 +29,7 @@ from ocdsl.symbolic.model import Model
 
 from .lqr import ControlError, LQRController
 from .sdre import SDREController
-from .simulate import metrics, simulate
+from .simulate import metrics, saturation_limits, simulate
 from .theta_d import ThetaDController
 
 
@@ -63,14 +63,24 @@ def make_controller(kind: str, num: sdcmod.NumericSDC, spec: ControllerSpec):
     raise ValueError(f"unknown controller type {kind!r}")
 
 
-def _problem(model: Model, sdc: sdcmod.SDC) -> dict:
+def _problem(model: Model, sdc: sdcmod.SDC, saturation=None) -> dict:
+    """The run's problem description; a ``saturation`` is written as the controls' bounds
+    (``bounds_are: saturation``), which the closed loop clips every command to: the report
+    tabulates and draws them (unseen33: bounds "—" beside a command held at -10 N m)."""
     f = model.rhs()
+    controls = [str(u) for u in model.controls]
+    try:
+        lo, hi = saturation_limits(saturation, len(controls))
+    except ValueError:          # said by the simulation, which the run reports
+        lo = hi = None
+    bounds = {} if lo is None else {c: [float(a), float(b)] for c, a, b in zip(controls, lo, hi)}
     return {"name": model.name, "description": model.description,
             "phases": {"main": {"states": [str(s) for s in model.states],
-                                "controls": [str(u) for u in model.controls],
+                                "controls": controls,
                                 "dynamics_latex": {str(s): sp.latex(f[i]) for i, s in enumerate(model.states)},
-                                "bounds": {}, "constraints": [], "constraints_latex": [],
+                                "bounds": bounds, "constraints": [], "constraints_latex": [],
                                 "t0": 0.0, "tf": None}},
+            **({"bounds_are": "saturation"} if bounds else {}),
             "parameters": {str(k): {"value": v, "free": False} for k, v in model.parameters.items()},
             "units": dict(model.units), "positions": list(model.positions),
             "sdc": {"method": sdc.method, "controlled_states": [str(s) for s in sdc.states],
@@ -97,7 +107,7 @@ def run_one(model: Model, spec: ControllerSpec, kind: str, sdc: sdcmod.SDC,
         method["theta_d"] = spec.theta_d.model_dump()
     params = {str(k): float(v) for k, v in model.default_parameters().items()}
     params.update({str(k): float(v) for k, v in (parameters or {}).items()})
-    problem = _problem(model, sdc)
+    problem = _problem(model, sdc, spec.saturation)
     problem["phases"]["main"]["tf"] = sim_spec.horizon
     problem["display_units"] = {n: "deg" for n in degree_inputs(sim_spec.x0)}
     try:
@@ -251,4 +261,4 @@ def robustness_sweep(model: Model, spec: ControllerSpec | dict, factors: Sequenc
                   f"all of {laws} stable for factors {list(factors)} on {list(scaled)}",
                   method={"type": "robustness", "laws": laws, "scaled": list(scaled), "factors": list(factors)},
                   parameters=nominal, wall_time_s={"total": time.perf_counter() - t0},
-                  problem=_problem(model, sdc), extra={"runs": per_run}, tables={"robustness": cols})
+                  problem=_problem(model, sdc, spec.saturation), extra={"runs": per_run}, tables={"robustness": cols})

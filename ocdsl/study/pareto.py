@@ -312,8 +312,11 @@ class ParetoSet:
         return checks
 
     def summary(self, name: str, wall_time_s: float | None = None,
-                expect: dict[str, Any] | None = None) -> Result:
-        """One Result for the whole set: the table, families, labels, warnings, expect checks."""
+                expect: dict[str, Any] | None = None, problem: dict[str, Any] | None = None) -> Result:
+        """One Result for the whole set: the table, families, labels, warnings, expect checks,
+        and the problem its points solve (its report's problem section; unseen33 F9: absent)."""
+        from ..provenance import source as made_by
+
         front = self.front()
         return Result(
             verification=self.verification(),
@@ -323,12 +326,12 @@ class ParetoSet:
             message="; ".join(self.warnings),
             objective=None if not front else float(front[0].objectives[self.objectives[0]]),
             wall_time_s={} if wall_time_s is None else {"total": float(wall_time_s)},
-            method={"pareto": self.method, **self.info},
+            method={"pareto": self.method, **self.info}, problem=dict(problem or {}),
             tables={"pareto": self.numeric_table()} if self.points else {},
             extra={"objectives": list(self.objectives), "senses": list(self.senses),
                    "families": self.families(), "labels": [p.label for p in self.points],
                    "pareto_labels": [p.label for p in front], "n_solutions": len(self.points),
-                   "warnings": list(self.warnings)},
+                   "warnings": list(self.warnings), "ocdsl": made_by()},
         )
 
     def verification(self) -> dict[str, Any]:
@@ -357,7 +360,7 @@ class ParetoSet:
         swapped into place as one folder (ocdsl/run_folder.py)."""
         study_dir = Path(study_dir)
         with run_folder.assemble(study_dir, "pareto", force=force) as tmp:
-            self.summary(name, wall_time_s, expect).write_contents(tmp, {"pareto.csv": self.to_csv()})
+            self.summary(name, wall_time_s, expect, problem).write_contents(tmp, {"pareto.csv": self.to_csv()})
             for p, res in zip(self.points, self.results(name, method, problem)):
                 res.write(tmp / "points" / (p.label or f"point{id(p)}"))
         return study_dir

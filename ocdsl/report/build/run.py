@@ -32,7 +32,7 @@ def _problem_section(doc: Doc, res: Result) -> None:
     doc.table(b, doc.guard("controls table", lambda: T.variables_table(res, "controls")))
     doc.table(b, doc.guard("parameters table", lambda: T.parameters_table(res)))
     phases = prob.get("phases") or {}
-    multi = len(phases) > 1
+    multi = len(phases) > 1 and not (res.extra or {}).get("laws")     # a controller file's laws share the plant
     groups: dict[str, list[str]] = {}      # phases with the same equations are typeset once
     for pname, info in phases.items():
         key = json.dumps({k: info.get(k) for k in ("dynamics_latex", "expressions_latex", "constraints",
@@ -92,7 +92,8 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
         b.append({"type": "note", "text": n})
     doc.table(b, doc.guard("summary table", lambda: T.summary_table(res)))
     doc.table(b, doc.guard("wall-time table", lambda: T.wall_time_table(res)))
-    doc.table(b, doc.guard("phases table", lambda: T.phases_table(res)))
+    if not (res.extra or {}).get("laws"):       # a controller file's runs are tabulated in their section
+        doc.table(b, doc.guard("phases table", lambda: T.phases_table(res)))
     doc.table(b, doc.guard("expect table", lambda: T.expect_table(res)))
     doc.table(b, doc.guard("verification table", lambda: T.verification_table(res)))
     doc.table(b, doc.guard("certificate table", lambda: T.certificate_table(res.certificate)))
@@ -159,6 +160,7 @@ def _tables_sections(doc: Doc, res: Result) -> None:
         doc.table(b, doc.guard("controller table", lambda: T.controller_table(res)))
         doc.table(b, doc.guard("closed-loop table", lambda: T.closed_loop_table(res.tables, res.problem, res.extra)))
         doc.guard("closed-loop figures", lambda: doc.figures(b, F.fig_closed_loop(res.tables, res.problem)))
+        doc.table(b, doc.guard("robustness table", lambda: T.robustness_table(res)))
     mh = doc.guard("mesh history", lambda: _mesh_table(res))
     if mh:
         b = doc.section("mesh", "Mesh refinement")
@@ -179,6 +181,7 @@ def _tables_sections(doc: Doc, res: Result) -> None:
             if crit:
                 doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, res.problem.get("units"))))
     other = [n for n in sorted(res.tables) if n not in ("mesh_history", "mesh_error")
+             and not (n in ("robustness", "controllers") and cl)
              and not n.startswith(("closed_loop_", "reintegration"))
              and not (n.startswith("pareto") or "pareto" in res.tables[n])]
     if other:
@@ -241,7 +244,10 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
     prob = res.problem or {}
     title = prob.get("name") or res.name
     meta = [("run", run_dir.name)]
-    if res.objective is not None:     # a failed solve's last iterate is not the run's objective
+    front = res.extra.get("pareto_labels")
+    if isinstance(front, list):       # a Pareto set has no one objective (unseen33 F9: its first point's)
+        meta.append(("Pareto set", f"{res.extra.get('n_solutions', '?')} solutions, {len(front)} Pareto-optimal"))
+    elif res.objective is not None:   # a failed solve's last iterate is not the run's objective
         meta.append(("objective" if res.has_solution else S.what_is_drawn(res), T.fmt(res.objective)))
     if res.method.get("name") or res.method.get("method"):
         meta.append(("method", str(res.method.get("name") or res.method.get("method"))))

@@ -13,6 +13,7 @@ from ocdsl.report import figures as F
 from ocdsl.report import status as S
 from ocdsl.report import tables as T
 from ocdsl.report.build.document import Doc, NotARunFolder, ReportError, _append
+from ocdsl.report.tables import finite_or_none
 from ocdsl.report.build.loading import GOOD, _find_runs, _is_run, load_run, read_study_table
 from ocdsl.report.build.output import _render, _write_outputs
 from ocdsl.report.build.pareto import STUDY_OUTPUT_COLS, pareto_criteria
@@ -60,10 +61,15 @@ def _build_comparison(run_dirs: Sequence[str | os.PathLike], title: str | None =
         for lab, r in zip(labels, results):
             if r.status not in GOOD and r.message:
                 b.append({"type": "note", "text": f"{lab} ({r.status}): {r.message}"})
+            elif not r.ok:
+                b.append({"type": "note", "text": f"{lab} ({r.status}, not ok): "
+                                                  + ((r.verification or {}).get("summary") or r.message or "")})
         shown = [(lab, r) for lab, r in zip(labels, results) if r.phases][:40]
         if shown:
             for lab, r in shown:
-                r.name = lab
+                # the legend says which lines are no solution (unseen33 F4: a max_iter run's last
+                # iterate drawn like the solutions)
+                r.name = lab + ("" if r.ok else " (last iterate)" if r.status not in GOOD else " (not ok)")
             doc.guard("comparison figures", lambda: doc.figures(b, F.fig_compare_runs([r for _, r in shown])))
             if len(shown) < sum(bool(r.phases) for r in results):
                 b.append({"type": "note", "text": f"Figures show the first {len(shown)} runs with a trajectory."})
@@ -186,11 +192,16 @@ def _study_section(doc: Doc, folder: Path, rows: list[dict], meta: dict, results
     swept, how = swept_parameters(meta)
     if rows:
         cols = study_columns(rows, swept)
+        if "objective" in cols and "status" in cols:
+            # a failed solve's J is its last iterate's (unseen33 F4: printed like a solution's)
+            cols["objective"] = [v if str(st) in GOOD or finite_or_none(v) is None
+                                 else f"{T.fmt(float(v), 8)} (last iterate)"
+                                 for v, st in zip(cols["objective"], cols["status"])]
         doc.table(b, doc.guard("study table", lambda: T.column_table(
-            f"study-{folder.name}", "Study table (study.csv), one row per point; the solver's message "
-            "is given below for the points that did not converge.", cols, max_rows=60, drop_constant=True)))
+            f"study-{folder.name}", "Study table (study.csv), one row per point; the message is given "
+            "below for the points that are not ok.", cols, max_rows=60, drop_constant=True)))
         for r in rows:
-            if str(r.get("status")) not in GOOD and r.get("message"):
+            if (str(r.get("status")) not in GOOD or not T.truthy(r.get("ok", True))) and r.get("message"):
                 b.append({"type": "note", "text": f"{r.get('id', '?')} ({r.get('status')}): "
                                                   f"{str(r['message']).splitlines()[0][:300]}"})
         if any("pareto" in r for r in rows):

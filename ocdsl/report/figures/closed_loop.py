@@ -43,8 +43,11 @@ def fig_closed_loop(tables: dict[str, dict[str, np.ndarray]], problem: dict, lab
     out += _grid_figures("cl-states", "Closed-loop state responses, one line per controller.", st, st_units)
     ct = [(n, [(label_prefix + c, tab["t"], tab[n]) for c, tab in cl.items() if n in tab]) for n in controls]
     if ct:
-        out += _grid_figures("cl-controls", "Closed-loop control histories (dashed: control bounds).",
-                             ct, units, _bounds_of(problem, controls), step=True)
+        bounds = _bounds_of(problem, controls)
+        drawn = any(b is not None for lohi in bounds.values() for b in lohi)
+        what = "the saturation" if problem.get("bounds_are") == "saturation" else "the control bounds"
+        out += _grid_figures("cl-controls", "Closed-loop control histories"
+                             + (f" (dashed: {what})." if drawn else "."), ct, units, bounds, step=True)
     timing = [(nm, np.asarray(tab["timing"], float)) for nm, tab in zip(names, cl.values()) if "timing" in tab]
     timing = [(nm, a[np.isfinite(a)] * 1e3) for nm, a in timing if _nonempty(a)]
     if timing:

@@ -6,7 +6,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ocdsl.result import Result
-from ocdsl.report.tables import finite_or_none
+from ocdsl.report.tables import finite_or_none, truthy
 from ocdsl.report.figures.base import (
     Fig, _bounds_of, _grid_figures, _new_figure, _styled, axis_label, unit_tex)
 from ocdsl.report.figures.time import phase_time
@@ -15,8 +15,9 @@ from ocdsl.report.figures.time import phase_time
 @_styled
 def fig_sweep(rows: list[dict[str, Any]], param: str, outputs: Sequence[str], units: dict | None = None,
               objective_label: str = "objective") -> list[Fig]:
-    """Outputs (objective, t_f per phase) against the swept parameter; points that did not
-    converge marked x."""
+    """Outputs (objective, t_f per phase) against the swept parameter: the ok points joined,
+    converged points that are not ok (verification or certificate failed) as open circles,
+    points that did not converge as x (unseen33 F4: unverified points drawn as a clean line)."""
     outputs = [o for o in outputs if any(finite_or_none(r.get(o)) is not None for r in rows)]
     if not outputs:
         return []
@@ -24,14 +25,19 @@ def fig_sweep(rows: list[dict[str, Any]], param: str, outputs: Sequence[str], un
     fig, axes = _new_figure(len(outputs))
     good = ("optimal", "acceptable", "feasible", "stable")
     for ax, o in zip(axes, outputs):
-        pts = [(float(r[param]), float(r[o]), str(r.get("status", "optimal")) in good) for r in rows
-               if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None]
-        ok = sorted((x, y) for x, y, g in pts if g)
-        bad = [(x, y) for x, y, g in pts if not g]
+        pts = [(float(r[param]), float(r[o]), str(r.get("status", "optimal")) in good, truthy(r.get("ok", True)))
+               for r in rows if finite_or_none(r.get(param)) is not None and finite_or_none(r.get(o)) is not None]
+        ok = sorted((x, y) for x, y, g, k in pts if g and k)
+        doubtful = [(x, y) for x, y, g, k in pts if g and not k]
+        bad = [(x, y) for x, y, g, _ in pts if not g]
         if ok:
-            ax.plot([p[0] for p in ok], [p[1] for p in ok], marker="o", markersize=3, label="converged")
+            ax.plot([p[0] for p in ok], [p[1] for p in ok], marker="o", markersize=3, label="ok")
+        if doubtful:
+            ax.plot([p[0] for p in doubtful], [p[1] for p in doubtful], "o", markerfacecolor="none",
+                    color="#d35400", label="converged, not ok")
         if bad:
             ax.plot([p[0] for p in bad], [p[1] for p in bad], "x", color="#c0392b", label="not converged")
+        if doubtful or bad:
             ax.legend(fontsize=7, frameon=False)
         ax.set_xlabel(axis_label(param, units))
         if o == "objective":

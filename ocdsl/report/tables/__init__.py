@@ -15,7 +15,7 @@ from ocdsl.report.tables.cells import cell, finite_or_none, fmt, table, truthy
 from ocdsl.report.tables.checks import (
     certificate_table, compare_text, expect_table, switch_table, tolerance_text, verification_table)
 from ocdsl.report.tables.columns import column_table, reintegration_table
-from ocdsl.report.tables.controller import closed_loop_table, controller_table
+from ocdsl.report.tables.controller import closed_loop_table, controller_table, robustness_table
 from ocdsl.report.tables.details import extra_table, starts_table
 from ocdsl.report.tables.problem import method_table, parameters_table, phases_table, variables_table
 from ocdsl.report.tables.solution import summary_table, wall_time_table
@@ -23,6 +23,6 @@ from ocdsl.report.tables.studies import expect_comparison_table, runs_table
 
 __all__ = ["cell", "certificate_table", "closed_loop_table", "column_table", "compare_text", "controller_table",
            "expect_comparison_table", "expect_table", "extra_table", "finite_or_none", "fmt", "method_table",
-           "parameters_table", "phases_table", "reintegration_table", "runs_table", "starts_table",
+           "parameters_table", "phases_table", "reintegration_table", "robustness_table", "runs_table", "starts_table",
            "summary_table", "switch_table", "table", "tolerance_text", "truthy", "variables_table",
            "verification_table", "wall_time_table"]

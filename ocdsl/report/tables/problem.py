@@ -24,7 +24,8 @@ def variables_table(res: Result, kind: str) -> dict | None:
         for p in res.phases:
             for n in getattr(p, kind):
                 seen.setdefault((n, None), {"phases": [], "bounds": None})["phases"].append(p.name)
-    multi = len(problem.get("phases") or {}) > 1
+    # a controller file's "phases" are its laws, on one plant: a column of them says nothing
+    multi = len(problem.get("phases") or {}) > 1 and not (res.extra or {}).get("laws")
     rows = []
     for (n, _), e in seen.items():
         lo, hi = (e["bounds"] if isinstance(e["bounds"], (list, tuple)) and len(e["bounds"]) == 2
@@ -37,7 +38,10 @@ def variables_table(res: Result, kind: str) -> dict | None:
             row.append(cell(", ".join(e["phases"]), ""))
         rows.append(row)
     cols = ["name", "unit", "lower bound", "upper bound"] + (["phases"] if multi else [])
-    return table(kind, f"{kind.capitalize()} of the problem.", cols, rows)
+    saturation = kind == "controls" and problem.get("bounds_are") == "saturation"
+    return table(kind, f"{kind.capitalize()} of the problem"
+                 + ("; the bounds are the controllers' saturation, to which every command is clipped." if saturation
+                    else "."), cols, rows)
 
 
 def parameters_table(res: Result) -> dict | None:

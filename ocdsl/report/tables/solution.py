@@ -27,7 +27,12 @@ def summary_table(res: Result) -> dict:
             rows[-1][1] = {**rows[-1][1], "text": said}
     sense = ((res.problem or {}).get("objective") or {}).get("sense")
     label = "objective" if res.has_solution else f"objective of the {what_is_drawn(res)}"
-    rows.append([cell(label + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
+    front = res.extra.get("pareto_labels")
+    if isinstance(front, list):     # a set has no one objective (unseen33 F9: its first point's)
+        rows.append([cell("Pareto set", "name"),
+                     cell(f"{res.extra.get('n_solutions', '?')} solutions, {len(front)} Pareto-optimal", "")])
+    else:
+        rows.append([cell(label + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
     for label, v in time_rows(res):
         rows.append([cell(label, "name"), cell(v, "num", 10)])
     rows.append([cell("iterations", "name"), cell(res.iterations)])

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from ocdsl.result import Result
-from ocdsl.report.tables.cells import cell, finite_or_none, fmt, status_cell, table, verdict
+from ocdsl.report.tables.cells import GOOD_STATUS, cell, finite_or_none, fmt, status_cell, table, verdict
 
 
 # ----------------------------------------------------------------------- studies
@@ -23,15 +23,23 @@ def runs_table(results: list[Result], labels: list[str] | None = None) -> dict |
         if isinstance(tf, dict):
             tf = sum(v for v in tf.values() if finite_or_none(v) is not None) if tf else None
         n_ok = sum(bool(c.get("passed")) for c in r.expect)
-        row = [cell(lab, "name"), status_cell(r.status), cell(r.objective, "num", 8), cell(tf, "num", 8),
+        # a failed solve's J is its last iterate's (unseen33 F4: printed like a solution's)
+        solved = r.status in GOOD_STATUS
+        objective = (cell(r.objective, "num", 8) if solved or finite_or_none(r.objective) is None
+                     else cell(f"{fmt(r.objective, 8)} (last iterate)", ""))
+        checked = (r.verification or {}).get("status") or "—"
+        row = [cell(lab, "name"), status_cell(r.status), {"text": checked, "cls": "pass" if checked in ("verified", "not_applicable") else "fail"},
+               {"text": "yes" if r.ok else "no", "cls": "pass" if r.ok else "fail"}, objective, cell(tf, "num", 8),
                cell(r.iterations), cell((r.nlp or {}).get("variables")),
                cell((r.wall_time_s or {}).get("total"), "num", 4),
                ({"text": f"{n_ok}/{len(r.expect)}", "cls": "pass" if n_ok == len(r.expect) else "fail"}
                 if r.expect else cell(None))]
         row += [cell(r.parameters.get(k)) for k in varying]
         rows.append(row)
-    return table("runs", "Compared runs.", ["run", "status", "objective", "t_f", "iterations",
-                                            "NLP variables", "wall time [s]", "checks"] + varying, rows)
+    return table("runs", "Compared runs: the solver's status, the independent verification, whether the run "
+                 "is ok (its exit code 0), and a failed solve's objective marked as its last iterate's.",
+                 ["run", "status", "verification", "ok", "objective", "t_f", "iterations",
+                  "NLP variables", "wall time [s]", "checks"] + varying, rows)
 
 
 def expect_comparison_table(results: list[Result], labels: list[str]) -> dict | None:
