@@ -28,6 +28,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .blas import blas_threads
+from .lqr import ControlError
 
 INTEGRATORS = ("rk4", "euler", "rk45", "dop853")
 
@@ -96,6 +97,15 @@ def simulate(plant: Callable[[np.ndarray, np.ndarray], np.ndarray],
                          saturation, stable_ratio, blowup)
 
 
+def _diverged(x: np.ndarray, limit: float) -> bool:
+    """A state past the floats or past ``limit`` in norm (without NumPy's overflow warning on
+    the console: a state near 1e300 squared)."""
+    if not np.all(np.isfinite(x)):
+        return True
+    with np.errstate(over="ignore"):
+        return bool(np.linalg.norm(x) > limit)
+
+
 def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrator, saturation,
               stable_ratio, blowup) -> SimResult:
     if integrator not in INTEGRATORS:
@@ -139,9 +149,18 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
     nsat = 0
     for k in range(nsteps + 1):
         tk = k * dt
+        # diverged before the law sees the state: an SDRE law handed x = inf (x' = x^3 + u
+        # escaping in finite time) raised LinAlgError and the whole run was `error` (unseen35)
+        if k > 0 and _diverged(zc[:nz][idx], blowup * x0n):
+            status, message, last = "unstable", f"state diverged at t = {tk:.4g}", k - 1
+            break
         if k % every == 0:
             c0, w0 = time.thread_time(), time.perf_counter()
-            uraw = np.asarray(controller(tk, zc[:nz]), float)
+            try:
+                uraw = np.asarray(controller(tk, zc[:nz]), float)
+            except (np.linalg.LinAlgError, ValueError) as exc:
+                raise ControlError(f"the law could not be evaluated at t = {tk:.4g}, where the state is "
+                                   f"{np.array2string(zc[:nz], precision=4)}: {type(exc).__name__}: {exc}") from None
             w1, c1 = time.perf_counter(), time.thread_time()
             times.append(w1 - w0)
             cpus.append(c1 - c0)
@@ -150,9 +169,6 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
                 nsat += 1
         T[k], Z[k], U[k], Uraw[k], C[k] = tk, zc[:nz], u, uraw, zc[nz]
         if k == nsteps:
-            break
-        if not np.all(np.isfinite(zc)) or np.linalg.norm(zc[:nz][idx]) > blowup * x0n:
-            status, message, last = "unstable", f"state diverged at t = {tk:.4g}", k
             break
         if integrator == "rk4":
             k1 = rhs(zc, u)
