@@ -176,6 +176,8 @@ def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool, f
     if not quiet:
         flags = table.get("pareto", [])
         click.echo(f"{len(results)} solutions, {sum(bool(f) for f in flags)} Pareto-optimal; study folder {out}")
+        for warning in (summary.get("extra") or {}).get("warnings") or []:
+            click.echo(f"  note: {warning}")
         verdict = summary.get("verification") or {}
         if verdict.get("summary") and verdict.get("status") != "not_applicable":
             click.echo(f"  verification: {verdict['summary']}")

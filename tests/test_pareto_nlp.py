@@ -257,3 +257,39 @@ def test_mesh_in_an_nlp_pareto_file_is_one_error_at_load():
         load_pareto(Path(__file__).parent / "data" / "pareto_epsilon_with_mesh.yaml")
     assert "pareto_epsilon_with_mesh.yaml:12" in str(e.value) and "`mesh:` is not applied" in str(e.value)
 
+
+
+def test_an_epsilon_bound_no_solve_meets_is_said(tmp_path):
+    """unseen35 P29: rest-to-rest with |u| <= 1 (minimum time 2) swept over eps = 1.5, 1.8,
+    2.5, 4: the two infeasible bounds left no row, no folder and no word ("2 solutions").
+    The set now says which bounds gave no solution, in result.json, on the console and in the
+    report."""
+    import json
+
+    from ocdsl.report.build import build_run_html
+    from ocdsl.study.pareto_run import run_pareto
+
+    path = tmp_path / "front.yaml"
+    path.write_text("""name: bounded energy-time front
+model:
+  states: [x, v]
+  controls: [u]
+  parameters: {eps: 3}
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, -1 <= u <= 1, 0.5 <= tf <= eps]
+  objective: minimize integral(u**2)
+  guess: {tf: 3}
+method: {transcription: LGR, segments: 8, degree: 4}
+pareto:
+  method: epsilon
+  solver: nlp
+  objectives: {energy: integral(u**2), T: tf}
+  epsilon: {objective: T, parameter: eps, values: [1.5, 1.8, 2.5, 4.0]}
+""")
+    run_pareto(path, tmp_path / "front")
+    summary = json.loads((tmp_path / "front" / "result.json").read_text())
+    said = " ".join(summary["extra"]["warnings"])
+    assert "epsilon = 1.5, 1.8 (2 of 4 bounds)" in said
+    assert "epsilon = 1.5, 1.8 (2 of 4 bounds)" in build_run_html(tmp_path / "front")

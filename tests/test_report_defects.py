@@ -48,6 +48,31 @@ def test_pareto_axes_are_the_results_objectives(tmp_path):
     assert caps and "(t_mot, t_sum)" in caps[0]
 
 
+@pytest.mark.parametrize("senses", [("maximize", "minimize"), ("minimize", "minimize"),
+                                    ("minimize", "maximize"), ("maximize", "maximize")])
+def test_a_pareto_front_is_joined_through_dominated_corners_only(senses):
+    """unseen35 P43: range (maximised) against time (minimised), x(T) = T^2 / 4: the min-min
+    staircase joined the points through corners such as (range 1.0, time 1.5), better than
+    both neighbours, drawing an unattainable region as the front. Each corner of the drawn
+    staircase is now dominated by a point of the set, whatever the senses."""
+    from matplotlib.cbook import STEP_LOOKUP_MAP
+
+    from ocdsl.report.figures.pareto import fig_pareto
+
+    better = [1.0 if s == "maximize" else -1.0 for s in senses]
+    # a trade-off: improving the first criterion worsens the second
+    t = np.linspace(1.0, 3.0, 5)
+    a = t ** 2 / 4 * better[0]
+    b = -t * better[1]
+    rows = [{"a": x, "b": y, "pareto": 1} for x, y in zip(a, b)]
+    fig = fig_pareto(rows, ("a", "b"), senses=senses)[0].figure
+    line = next(ln for ln in fig.axes[0].get_lines() if ln.get_label() == "Pareto set")
+    xs, ys = STEP_LOOKUP_MAP[line.get_drawstyle()](*line.get_data())
+    for cx, cy in zip(xs, ys):
+        assert any((x - cx) * better[0] >= -1e-12 and (y - cy) * better[1] >= -1e-12 for x, y in zip(a, b)), \
+            (senses, cx, cy)
+
+
 # ------------------------------------------------------------------------ sweeps
 def _sweep_folder(folder: Path, swept: dict, rows: list[dict]) -> Path:
     folder.mkdir(parents=True)

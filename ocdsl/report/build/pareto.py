@@ -34,3 +34,14 @@ def pareto_criteria(rows: list[dict], meta: dict) -> tuple[str, str] | None:
     numeric = [k for k in rows[0] if k not in STUDY_OUTPUT_COLS and k != "t"
                and sum(T.finite_or_none(r.get(k)) is not None for r in rows) >= max(1, len(rows) // 2)]
     return (numeric[0], numeric[1]) if len(numeric) >= 2 else None
+
+
+def pareto_senses(criteria: tuple[str, str], meta: dict) -> tuple[str, str]:
+    """Each criterion's sense from a Pareto run's ``objectives`` and ``senses`` (result.json's
+    extra, or study.json); minimize where not said."""
+    names, senses = meta.get("objectives"), meta.get("senses")
+    if isinstance(names, list) and isinstance(senses, list) and len(names) == len(senses):
+        by = {str(n): str(s) for n, s in zip(names, senses)}
+        return by.get(criteria[0], "minimize"), by.get(criteria[1], "minimize")
+    return "minimize", "minimize"
+

@@ -17,7 +17,7 @@ from ocdsl.report import tables as T
 from ocdsl.report.build.document import Doc, NotARunFolder, ReportError, _dynamics_latex, text_to_latex
 from ocdsl.report.build.loading import GOOD, _is_run, load_run, missing_notes, reintegration_tables
 from ocdsl.report.build.output import _render, _write_outputs
-from ocdsl.report.build.pareto import _rows_of, pareto_criteria
+from ocdsl.report.build.pareto import _rows_of, pareto_criteria, pareto_senses
 
 
 # ============================================================================ sections
@@ -179,7 +179,8 @@ def _tables_sections(doc: Doc, res: Result) -> None:
             shown = _pareto_labels(tab, res.extra or {})
             doc.table(b, doc.guard(f"table {name}", lambda: T.column_table(name, f"Solutions ({name}).", shown)))
             if crit:
-                doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, res.problem.get("units"))))
+                doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(
+                    rows, crit, res.problem.get("units"), senses=pareto_senses(crit, res.extra or {}))))
     other = [n for n in sorted(res.tables) if n not in ("mesh_history", "mesh_error")
              and not (n in ("robustness", "controllers") and cl)
              and not n.startswith(("closed_loop_", "reintegration"))
@@ -230,6 +231,7 @@ def _build_run(run_dir: Path) -> tuple[str, dict[str, bytes]]:
     # the run's own notes, printed under the console's headline (unseen33 F7: only in the
     # appendix's back-end table)
     notes = notes + [str(n) for n in (res.extra.get("notes") or [])] + missing_notes(res)
+    notes += [str(w) for w in (res.extra.get("warnings") or []) if isinstance(res.extra.get("pareto_labels"), list)]
     if res.status in GOOD:      # the problem first, as a paper would
         _problem_section(doc, res)
         _solution_section(doc, res, notes)

@@ -16,7 +16,7 @@ from ocdsl.report.build.document import Doc, NotARunFolder, ReportError, _append
 from ocdsl.report.tables import finite_or_none
 from ocdsl.report.build.loading import GOOD, _find_runs, _is_run, load_run, read_study_table
 from ocdsl.report.build.output import _render, _write_outputs
-from ocdsl.report.build.pareto import STUDY_OUTPUT_COLS, pareto_criteria
+from ocdsl.report.build.pareto import STUDY_OUTPUT_COLS, pareto_criteria, pareto_senses
 from ocdsl.report.build.run import _problem_section
 
 
@@ -208,7 +208,8 @@ def _study_section(doc: Doc, folder: Path, rows: list[dict], meta: dict, results
             crit = pareto_criteria(rows, meta)
             if crit:
                 units = next((r.problem.get("units") for r in results if r.problem), {})
-                doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(rows, crit, units)))
+                doc.guard("Pareto figure", lambda: doc.figures(b, F.fig_pareto(
+                    rows, crit, units, senses=pareto_senses(crit, meta))))
             else:
                 b.append({"type": "note", "text": "The study has Pareto flags but its two criteria could "
                                                   "not be identified (name them in study.json: criteria)."})
