@@ -220,11 +220,14 @@ def test_unrestricted_front_study(tmp_path):
         assert m <= best + 1e-6, (e, m, best)
 
 
-@pytest.mark.parametrize("block, message", [
-    ("method: weighted\n  weights: {values: [[1, 0.5], [1, 2]]}", "method weighted runs with solver: closed_form only"),
-    ("method: enumerate\n  window: {tf: {range: [0.5, 4], starts: 3}}", "needs every control fixed"),
+@pytest.mark.parametrize("block, message, line", [
+    ("method: weighted\n  weights: {values: [[1, 0.5], [1, 2]]}", "method weighted runs with solver: closed_form only", 9),
+    ("method: enumerate\n  window: {tf: {range: [0.5, 4], starts: 3}}", "needs every control fixed", 9),
+    # unseen35 P44: `check` said ok, `run` refused without a line
+    ("method: epsilon\n  epsilon: {objective: T, values: [1, 2]}", "method epsilon sets each bound through a parameter",
+     10),
 ])
-def test_nlp_pareto_methods_it_cannot_run_are_refused_at_check(tmp_path, block, message):
+def test_nlp_pareto_methods_it_cannot_run_are_refused_at_check(tmp_path, block, message, line):
     """unseen12 F5: `weighted` with `solver: nlp`, and `enumerate` with a free control,
     passed `ocdsl check` and ended `run` in a traceback. Refused at the method's line."""
     from ocdsl.spec.errors import SpecError
@@ -245,7 +248,7 @@ pareto:
     with pytest.raises(SpecError) as e:
         load_pareto(f)
     (issue,) = e.value.issues
-    assert issue.line == 9 and message in issue.message, issue
+    assert issue.line == line and message in issue.message, issue
 
 
 def test_mesh_in_an_nlp_pareto_file_is_one_error_at_load():

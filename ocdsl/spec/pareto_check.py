@@ -49,6 +49,7 @@ def check_sections(path: str | Path, located: Located, solver: str, method: str 
                                            "the points: remove it and choose segments that resolve them, or run "
                                            "single points with `ocdsl run` and `mesh:`")])
         if method == "epsilon":
+            _epsilon_parameter(located, loaded)
             _epsilon_objectives(located, loaded)
         if method == "enumerate":
             free = [f"{ph.name}.{c}" if len(loaded.problem.phases) > 1 else str(c)
@@ -65,6 +66,24 @@ def check_sections(path: str | Path, located: Located, solver: str, method: str 
     stand_in, lines = _stand_in(doc, located)
     synthetic = Located(located.file, stand_in, lines, located._text)
     _Compiler(Path(path), synthetic, validate(synthetic), {}).compile()
+
+
+def _epsilon_parameter(located: Located, loaded) -> None:
+    """solver nlp's epsilon method sets each bound through a parameter of the file (`tf <= eps`):
+    without one, `check` said ok and `run` refused with no line (unseen35 P44)."""
+    eps = (located.data.get("pareto") or {}).get("epsilon") or {}
+    name = eps.get("parameter") if isinstance(eps, dict) else None
+    known = sorted(str(k) for k in loaded.parameters)
+    if not name:
+        raise SpecError([located.issue(("pareto", "epsilon"), "with solver: nlp, method epsilon sets each "
+                                       "bound through a parameter of the file: give `parameter:` (e.g. "
+                                       "`epsilon: {objective: T, parameter: eps, ...}` with `tf <= eps` among "
+                                       "the constraints)" + (f"; the file's parameters: {', '.join(known)}"
+                                                             if known else ""))])
+    if str(name) not in known:
+        raise SpecError([located.issue(("pareto", "epsilon", "parameter"), f"epsilon.parameter `{name}` is not "
+                                       f"a parameter of the file (give it under `parameters:` and bound the "
+                                       f"objective with it, e.g. `tf <= {name}`)")])
 
 
 def _epsilon_objectives(located: Located, loaded) -> None:
@@ -99,9 +118,11 @@ def _epsilon_objectives(located: Located, loaded) -> None:
             raise SpecError([located.issue(("pareto", "objectives", key),
                                            f"with solver: nlp the objectives after the first are read from the "
                                            f"phases' final times and durations (tf, phase.duration, numbers, + - "
-                                           f"* /); `{key}: {text}` is not: make it the file's objective and the "
-                                           f"first Pareto objective, and bound the other by the epsilon "
-                                           f"parameter")]) from None
+                                           f"* /); `{key}: {text}` is not. Where one of the two objectives is a "
+                                           f"time, make the other the file's objective and the first Pareto "
+                                           f"objective; for two objectives that are not times, sweep a bound "
+                                           f"with `ocdsl study` (a constraint such as `{text} <= eps` in the "
+                                           f"file, docs/studies.md)")]) from None
 
 
 def _stand_in(doc: dict[str, Any], located: Located) -> tuple[dict, dict]:
