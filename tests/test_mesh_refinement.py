@@ -1030,3 +1030,33 @@ def test_a_switch_whose_narrow_segment_touches_a_bound_once_is_located(tmp_path)
     res = run_file(tmp_path / "osc.yaml", None)
     assert res.status == "optimal", res.message
     assert res.verified and res.objective == pytest.approx(7.937411720585, rel=1e-6)
+
+
+def test_a_small_objective_is_not_waived_by_an_absolute_floor(tmp_path):
+    """unseen34 F0: x' = u, u <= 1, cost 1e-8 (u^2/2 - (t - 1) u) over two phases (H's
+    minimiser u = min(1, t - 1), J* = -17/24 x 1e-8). One mesh met the tolerance at J =
+    -6.953e-9, its bisection found the exact -7.0833e-9 (1.8 % away), and the run said
+    `optimal, verified`, exit 0: "|dJ| within Ipopt's accuracy 1e-09", a floor of 10 x tol
+    absolute, as the refinement's bisection was given no size of the objective. Measured
+    against the objective's own size, the difference fails."""
+    path = tmp_path / "small.yaml"
+    path.write_text("""name: corner problem in two phases, cost x 1e-8
+model: {states: [x], controls: [u], dynamics: {x: u}}
+phases:
+  early:
+    time: {t0: 0, tf: 1}
+    constraints: [x(t0) == 0, u <= 1]
+    objective: integral(1.0e-8*(u**2/2 - (t - 1)*u))
+  late:
+    time: {t0: 1, tf: 2.5}
+    constraints: [u <= 1]
+    objective: integral(1.0e-8*(u**2/2 - (t - 1)*u))
+links:
+  - continuous(early, late)
+objective: minimize 0
+method: {transcription: LGR, segments: 2, degree: 3, mesh: {tolerance: 1.0e-8}}
+""")
+    res = ocdsl.load(path).solve()
+    exact = -17 / 24 * 1e-8
+    assert abs(res.objective - exact) > 1e-2 * abs(exact)                  # the case: J off
+    assert res.status == "mesh_not_converged" and res.extra["bisection"]["agrees"] is False, res.message

@@ -98,7 +98,8 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
         # (``unchanged_binding_segments``): their agreement says nothing of it.
         with timer.measure("mesh"):
             bisected = bisection_check(file, tr_c, info_c.objective, meshes_c, verbose=verbose, progress=progress,
-                                       build_model=lambda ms, g: rebuild(ms, guesses=g), options=options)
+                                       build_model=lambda ms, g: rebuild(ms, guesses=g), options=options,
+                                       objective_scale=_objective_scale(file, tr_c, info_c, meshes_c))
         if bisected.agrees is False and unchanged:
             status = "mesh_not_converged"
             message = (f"the meshes within tolerance agree in J ({message}), but every one of them holds "
@@ -125,3 +126,20 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
         if flat:
             notes.append(flat)
     return Confirmed(status, message, tr_c, info_c, meshes_c, unreg, bisected, notes)
+
+
+def _objective_scale(file, tr, info, meshes) -> float | None:
+    """The objective's terms' size at the chosen solution (verify/objective_size.py), which
+    sets the bisection's floor of Ipopt's accuracy: without it the floor was 10 x tol
+    absolute, and a J of 7e-9 (a cost in small units) passed a bisection 1.8 % away as
+    "within Ipopt's accuracy 1e-9", exit 0 (unseen34 F0; a 10 m relocation in SI units,
+    J = 1.2e-6, 3.8 % away, likewise)."""
+    from ...run import bare_result
+    from ...verify.objective_size import objective_scale
+
+    try:
+        result, _ = bare_result(file, tr, info, meshes)
+        return objective_scale(file.problem, result)
+    except Exception:  # noqa: BLE001  (without a scale the floor is the absolute one, as before)
+        return None
+
