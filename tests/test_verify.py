@@ -839,3 +839,37 @@ def test_a_state_held_constant_by_cancelling_terms_is_measured_against_its_trave
     res = run_file(tmp_path / "p.yaml", None)
     assert res.objective == pytest.approx(2 / np.sqrt(3), rel=1e-7)
     assert res.verification["status"] == "verified", res.verification["summary"]
+
+
+def test_a_phase_the_optimum_collapses_is_verified(tmp_path):
+    """unseen34 F3: rest to rest over x = 1 with |u| <= 1 in three phases (go, hold, stop) and
+    no minimum length: the optimum (t_f = 2) collapses hold and stop, whose end times came out
+    1e-9 before their starts. The verification said "internal error: the rows' times must
+    increase strictly" (exit 1 on a J right to 2e-9). A collapsed phase is checked as a phase
+    of no duration, its states and times on the whole problem's scales."""
+    import ocdsl
+
+    path = tmp_path / "collapse.yaml"
+    path.write_text("""name: an optional middle phase the optimum collapses
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+phases:
+  go:
+    time: {t0: 0, tf: free}
+    constraints: [-1 <= u <= 1, x(t0) == 0, v(t0) == 0, tf <= 5]
+  hold:
+    time: {t0: free, tf: free}
+    constraints: [-1 <= u <= 1, tf <= 5]
+  stop:
+    time: {t0: free, tf: free}
+    constraints: [-1 <= u <= 1, x(tf) == 1, v(tf) == 0, tf <= 5]
+links:
+  - continuous(go, hold)
+  - continuous(hold, stop)
+objective: minimize stop.tf
+method: {transcription: LGR, segments: 2, degree: 4}
+""")
+    res = ocdsl.load(path).solve()
+    assert abs(res.objective - 2.0) < 1e-7
+    assert res.tf["hold"] - res.tf["go"] < 0                          # the case: out of order by ~1e-9
+    assert res.verification["status"] == "verified", res.verification["summary"]
+    assert res.status == "optimal" and res.ok
