@@ -491,3 +491,53 @@ controller:
     v = res.verification
     assert v["status"] == "failed" and "traceback" not in v
     assert "escapes in finite time" in v["summary"]
+
+
+def test_stability_is_judged_per_state_not_over_mixed_units(tmp_path):
+    """unseen35 F16: a cart with its position in mm (p' = 1000 v, v' = F, LQR Q = diag(1e-6,
+    1), R = 100, |F| <= 2) from v = 1 m/s: the position's transient (1420 mm) passed 1000 x
+    ||x(0)|| = 1000 and the regulated loop was "unstable, state diverged at t = 1.41" with a
+    truncated J of 11.10 (1/2 x0' P x0 = 22.91); conversely a fast loop in mm beside an
+    attitude that barely moves (th' = 1e-4 tau, th = 0.2994 of 0.3 rad at the end) was
+    "stable": 0.3 <= 0.01 x ||(1000 mm, 0.3 rad)||. Each state is now judged against its own
+    scale."""
+    import numpy as np
+    import scipy.linalg as sla
+
+    from ocdsl.api import run_file
+
+    cart = tmp_path / "cart.yaml"
+    cart.write_text("""name: cart in mm
+model:
+  states: [p_mm, v]
+  controls: [F]
+  dynamics: {p_mm: 1000*v, v: F}
+controller:
+  type: lqr
+  Q: [1.0e-6, 1]
+  R: [100]
+  saturation: 2
+  simulate: {x0: {v: 1}, horizon: 90, step: 0.01}
+""")
+    res = run_file(cart, None)
+    A, B = np.array([[0.0, 1000.0], [0.0, 0.0]]), np.array([[0.0], [1.0]])
+    P = sla.solve_continuous_are(A, B, np.diag([1e-6, 1.0]), np.array([[100.0]]))
+    x0 = np.array([0.0, 1.0])
+    assert res.status == "stable", res.message
+    # |F| = K x0 = 0.1 < 2 at the start: unsaturated, so J is the Riccati value (rk4, dt 0.01)
+    assert res.extra["lqr"]["cost"] == pytest.approx(0.5 * x0 @ P @ x0, rel=1e-3)
+
+    slow = tmp_path / "slow.yaml"
+    slow.write_text("""name: fast loop in mm, slow attitude in rad
+model:
+  states: [p_mm, th]
+  controls: [F, tau]
+  dynamics: {p_mm: -p_mm + 1000*F, th: 0.0001*tau}
+controller:
+  type: lqr
+  Q: [1.0e-6, 1]
+  R: [1, 1]
+  simulate: {x0: {p_mm: 1000, th: 0.3}, horizon: 20, step: 0.01}
+""")
+    res = run_file(slow, None)
+    assert res.status == "unstable" and "|th|" in res.message and "not regulated" in res.message, res.message

@@ -128,7 +128,7 @@ def run_one(model: Model, spec: ControllerSpec, kind: str, sdc: sdcmod.SDC,
     bands = [to_number(b) for b in sim_spec.settle_bands]
     try:
         sim = simulate(num.f, ctrl, z0, num.index, Q, R, sim_spec.horizon, sim_spec.step,
-                       sim_spec.update, sim_spec.integrator, spec.saturation, sim_spec.stable_ratio)
+                       sim_spec.update, sim_spec.integrator, spec.saturation, sim_spec.stable_ratio, names=names)
     except ControlError as exc:
         return Result(name=f"{model.name}:{label}", status="unstable", message=str(exc),
                       method=method, parameters=params, problem=problem,
