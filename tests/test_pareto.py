@@ -460,3 +460,16 @@ def test_epsilon_front_first_objective_as_written_is_the_nlps(tmp_path):
         cells = dict(zip(head, row.split(",")))
         T = float(cells["time"])
         assert abs(float(cells["energy"]) - 12 / T ** 3) <= 1e-6 * 12 / T ** 3
+
+
+def test_objectives_equal_to_the_solvers_noise_are_ties():
+    """unseen35 F3: an epsilon front of (miss, T) where every point past T = 1 reaches the
+    target: misses of 2.1e-17, 5.7e-18, 1.1e-18 and 4.0e-19 (all zero) with longer and
+    longer times were each "Pareto-optimal", each 1e-17 better in miss than the last. Within
+    1e-9 of an objective's spread over the set they are ties, and only the shortest stays."""
+    values = [[0.25, 0.5], [0.0625, 0.75], [2.1e-17, 1.1023], [5.7e-18, 1.7283], [1.1e-18, 2.3166],
+              [4.0e-19, 2.8809]]
+    assert P.nondominated(values).tolist() == [True, True, True, False, False, False]
+    # a real trade-off far below 1e-9 of the spread in absolute terms is kept when it is the spread
+    tiny = [[1e-12, 2.0], [0.5e-12, 3.0]]
+    assert P.nondominated(tiny).tolist() == [True, True]

@@ -100,6 +100,10 @@ class ParetoPoint:
 # objectives that differ by rounding only are ties: four solves of one solution whose J differed
 # in the last bit were flagged dominated by one another (unseen22 FA2)
 ROUNDING = 1e-12
+# objectives that differ by less than this share of their spread over the set are ties: a
+# solver's noise (a final miss of 2e-17 against 6e-18, both zero, made every longer point
+# "Pareto-optimal", unseen35 F3)
+SPREAD_NOISE = 1e-9
 
 
 def nondominated(values: Sequence[Sequence[float]], senses: Sequence[str] | None = None,
@@ -107,7 +111,8 @@ def nondominated(values: Sequence[Sequence[float]], senses: Sequence[str] | None
     """Mask of the non-dominated rows of ``values`` (n points x m objectives).
 
     Row j dominates row i when it is no worse in every objective and better by more than
-    ``tol`` (plus ``ROUNDING`` of the larger magnitude) in at least one. ``senses`` are
+    ``tol`` (plus ``ROUNDING`` of the larger magnitude and ``SPREAD_NOISE`` of the
+    objective's spread over the rows) in at least one. ``senses`` are
     ``"minimize"`` (default) or ``"maximize"``. Non-finite rows are never Pareto and never
     dominate. Equal rows do not dominate each other (de-duplicate first if they are the
     same solution).
@@ -121,11 +126,12 @@ def nondominated(values: Sequence[Sequence[float]], senses: Sequence[str] | None
         F = F * sign
     finite = np.all(np.isfinite(F), axis=1)
     mask = finite.copy()
+    spread = np.ptp(F[finite], axis=0) if finite.any() else np.zeros(m)
     for i in range(n):
         if not finite[i]:
             continue
         others = F[finite]
-        margin = tol + ROUNDING * np.maximum(np.abs(others), np.abs(F[i]))
+        margin = tol + SPREAD_NOISE * spread + ROUNDING * np.maximum(np.abs(others), np.abs(F[i]))
         no_worse = np.all(others <= F[i] + margin, axis=1)
         better = np.any(others < F[i] - margin, axis=1)
         if np.any(no_worse & better):
