@@ -539,3 +539,29 @@ pareto:
     assert "gives J = 12/eps^3" in html.split("</header>")[1]
     summary = _table(html, "Solution summary")
     assert not any(r and r[0].startswith("objective") for r in summary)
+
+
+def test_a_comparison_of_controller_runs_gives_each_laws_cost(tmp_path):
+    """unseen35 F8: comparing two controller runs (lqr and sdre each) showed "—" as their
+    objective and drew their laws as "r02, r02, r02b, r02b" in the compared runs' figures.
+    The table gives each law's J, and the laws are drawn once, named, in the closed-loop
+    comparison."""
+    t = np.linspace(0, 5, 51)
+    folders = []
+    for run, k in (("r1", 1.0), ("r2", 2.0)):
+        extra, tables, phases = {"laws": ["lqr", "sdre"]}, {}, []
+        for law, J in (("lqr", 6.17 * k), ("sdre", 6.16 * k)):
+            extra[law] = {"status": "stable", "cost": J}
+            tables[f"closed_loop_{law}"] = {"t": t, "x": np.exp(-k * t), "u": -np.exp(-k * t)}
+            phases.append(PhaseTrajectory(law, t, {"x": np.exp(-k * t)}, {"u": -np.exp(-k * t)}))
+        res = Result(name=run, status="stable", tables=tables, extra=extra, phases=phases,
+                     problem={"name": "p", "phases": {law: {"states": ["x"], "controls": ["u"]}
+                                                       for law in ("lqr", "sdre")}})
+        folders.append(res.write(tmp_path / run))
+    html = build_comparison_html(folders)
+    rows = {r[0]: r for r in _table(html, "Compared runs")[1:]}
+    head = _table(html, "Compared runs")[0]
+    assert rows["r2"][head.index("objective")] == "lqr 12.34, sdre 12.32"
+    caps = _captions(html)
+    assert any(c.startswith("Closed-loop state responses") for c in caps)
+    assert not any("compared runs" in c for c in caps), caps

@@ -64,7 +64,10 @@ def _build_comparison(run_dirs: Sequence[str | os.PathLike], title: str | None =
             elif not r.ok:
                 b.append({"type": "note", "text": f"{lab} ({r.status}, not ok): "
                                                   + ((r.verification or {}).get("summary") or r.message or "")})
-        shown = [(lab, r) for lab, r in zip(labels, results) if r.phases][:40]
+        # a controller file's phases are its laws' closed loops: drawn in the closed-loop
+        # comparison, each law named (unseen35 F8: legends "r02, r02, r02b, r02b")
+        shown = [(lab, r) for lab, r in zip(labels, results)
+                 if r.phases and not isinstance((r.extra or {}).get("laws"), list)][:40]
         if shown:
             for lab, r in shown:
                 # the legend says which lines are no solution (unseen33 F4: a max_iter run's last

@@ -27,6 +27,10 @@ def runs_table(results: list[Result], labels: list[str] | None = None) -> dict |
         solved = r.status in GOOD_STATUS
         objective = (cell(r.objective, "num", 8) if solved or finite_or_none(r.objective) is None
                      else cell(f"{fmt(r.objective, 8)} (last iterate)", ""))
+        laws = (r.extra or {}).get("laws")
+        if r.objective is None and isinstance(laws, list):
+            # a controller file's runs have a J per law, not one (unseen35 F8: "—")
+            objective = cell(", ".join(f"{law} {fmt((r.extra.get(law) or {}).get('cost'), 8)}" for law in laws), "")
         checked = (r.verification or {}).get("status") or "—"
         row = [cell(lab, "name"), status_cell(r.status), {"text": checked, "cls": "pass" if checked in ("verified", "not_applicable") else "fail"},
                {"text": "yes" if r.ok else "no", "cls": "pass" if r.ok else "fail"}, objective, cell(tf, "num", 8),
