@@ -541,3 +541,29 @@ controller:
 """)
     res = run_file(slow, None)
     assert res.status == "unstable" and "|th|" in res.message and "not regulated" in res.message, res.message
+
+
+def test_a_given_sdc_entry_that_is_not_finite_is_named(tmp_path):
+    """unseen35 F10: `sdc: given` with A "2,1" = g*sin(th)/th (0/0 at th = 0) ended `error` with
+    LAPACK's "SVD did not converge". The law's error names the entry and the point."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "given.yaml"
+    path.write_text("""name: pendulum with a given SDC that is 0/0 at the origin
+model:
+  states: [th, w]
+  controls: [u]
+  parameters: {g: 9.81}
+  dynamics: {th: w, w: g*sin(th) + u}
+controller:
+  type: sdre
+  Q: [1, 1]
+  R: [1]
+  sdc: given
+  A: {"1,2": "1", "2,1": "g*sin(th)/th"}
+  B: {"2,1": "1"}
+  simulate: {x0: {th: 0.5, w: 0}, horizon: 5, step: 0.01}
+""")
+    res = run_file(path, None)
+    assert res.status == "error"
+    assert "A[2,1] is not finite" in res.message and "th=0" in res.message, res.message

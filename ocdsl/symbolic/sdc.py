@@ -417,9 +417,20 @@ def pbh_unstabilisable(A: np.ndarray, B: np.ndarray, rtol: float = 1e-9) -> list
 def check_pointwise(num: NumericSDC, points: Sequence[np.ndarray]) -> list[PointCheck]:
     """Controllability rank and stabilisability of (A(z), B(z)) at full plant states z."""
     out = []
+    names = [str(s) for s in num.sdc.model.states]
     for z in points:
         z = np.asarray(z, float)
-        A, B = num.A(z), num.B(z)
+        with np.errstate(all="ignore"):
+            A, B = np.asarray(num.A(z), float), np.asarray(num.B(z), float)
+        for label, M in (("A", A), ("B", B)):
+            bad = np.argwhere(~np.isfinite(M))
+            if bad.size:
+                # a given entry such as g*sin(th)/th is 0/0 at th = 0: said, not LAPACK's "SVD did
+                # not converge" (unseen35 F10)
+                i, j = (int(k) + 1 for k in bad[0])
+                at = ", ".join(f"{n}={v:.4g}" for n, v in zip(names, z))
+                raise SDCError(f"{label}[{i},{j}] is not finite ({M[i - 1, j - 1]}) at {at}: an entry such as "
+                               "sin(th)/th is 0/0 there; write it so that it has a value there, or use `sdc: auto`")
         out.append(PointCheck(z, controllability_rank(A, B), A.shape[0],
                               not pbh_unstabilisable(A, B), pbh_unstabilisable(A, B)))
     return out
