@@ -416,3 +416,19 @@ problem:
         compile_file(p)
     (issue,) = e.value.issues
     assert issue.line == 8 and "controller" in issue.message and "10*pi/180" in issue.message, issue.message
+
+
+def test_a_free_parameter_as_a_time_says_how_to_write_it(tmp_path):
+    """unseen34 F9: `tf: T` with T a declared free parameter said "unknown name 'T'"; T is known,
+    it only cannot set a time. The error says so, with the way to write it."""
+    from ocdsl.spec.compile import load
+    from ocdsl.spec.errors import SpecError
+
+    path = tmp_path / "t.yaml"
+    path.write_text("name: t\nparameters:\n  T: {value: 2, free: true, bounds: [1, 3]}\nmodel:\n  states: [x]\n"
+                    "  controls: [u]\n  dynamics: {x: u}\nproblem:\n  time: {t0: 0, tf: T}\n"
+                    "  constraints: [x(t0) == 0, x(tf) == 1]\n  objective: minimize integral(u**2) + T\n")
+    with pytest.raises(SpecError) as e:
+        load(path)
+    (issue,) = e.value.issues
+    assert issue.line == 9 and "T is a free parameter, which cannot set a time; write `tf: free`" in issue.message

@@ -40,6 +40,13 @@ class PhaseCompiler:
         try:
             e = parse_expression(value, Scope(names)).xreplace({s: sp.Float(v) for s, v in constants.items()})
         except ExprError as err:
+            free = sorted(s.name for s in getattr(self, "free", {}) if re.search(rf"\b{re.escape(s.name)}\b", value))
+            if free:
+                # a known name, only not a constant (unseen34 F9: "unknown name 'T'" for a free T)
+                self.issue(loc, f"`{value}`: {', '.join(free)} is a free parameter, which cannot set a time; "
+                                f"write `{loc[-1]}: free` and a constraint (e.g. `{loc[-1]} == {value}` among the "
+                                "phase's constraints)")
+                return None
             self.issue(loc, f"`{value}`: {err.message}; a time is a number, `free`, or an expression of "
                             "the file's constant parameters" + did_you_mean(value, list(names)))
             return None      # as if free: no knock-on error (a constant objective `minimize tf`)
