@@ -735,18 +735,23 @@ def test_a_refinement_blind_to_a_corner_is_refined_again_where_the_flight_proves
     assert any("its flight did not realise" in n for n in res.extra["notes"])
 
 
-def test_a_fixed_mesh_whose_flight_proves_nothing_is_bisected(tmp_path):
-    """unseen23 FC3: the same problem on FC2's wrong final mesh (no `mesh:`): the flight that
-    did not realise its predicted gain counted as having judged J, so the bisection check was
-    skipped: `optimal`, exit 0, J 3.0e-4 off. Now the certificate says inconclusive and the
-    bisection finds J moving by 3e-4: mesh_not_converged."""
+def _fc2_wrong_mesh(tmp_path):
+    """iso_saturated.yaml on unseen23 FC2's wrong final mesh, as a fixed mesh (J 3.0e-4 off)."""
     text = (DATA / "iso_saturated.yaml").read_text().replace(
         "  segments: 4\n  degree: 3\n  mesh: {tolerance: 1.0e-6, max_iterations: 14}\n",
         "  segments: [0.0, 0.00843428544488147, 0.01686857088976294, 0.025302856334644408, 0.03373714177952588,\n"
         "             0.04217142722440735, 0.04249592318259839, 0.75, 1.0]\n"
         "  degree: [3, 3, 3, 3, 3, 1, 2, 3]\n")
     (tmp_path / "fixed.yaml").write_text(text)
-    res = run_file(tmp_path / "fixed.yaml", None)
+    return tmp_path / "fixed.yaml"
+
+
+def test_a_fixed_mesh_whose_flight_proves_nothing_is_bisected(tmp_path):
+    """unseen23 FC3: the same problem on FC2's wrong final mesh (no `mesh:`): the flight that
+    did not realise its predicted gain counted as having judged J, so the bisection check was
+    skipped: `optimal`, exit 0, J 3.0e-4 off. Now the certificate says inconclusive and the
+    bisection finds J moving by 3e-4: mesh_not_converged."""
+    res = run_file(_fc2_wrong_mesh(tmp_path), None)
     assert res.objective - ISO_BEST > 1e-4                                  # the case: J off
     flown = res.certificate["flown_control"]
     assert flown["passed"] and "not judged" in flown["inconclusive"]
@@ -773,13 +778,7 @@ def test_a_fixed_mesh_judged_the_same_on_a_loaded_machine(tmp_path, monkeypatch)
     slow = types.SimpleNamespace(monotonic=lambda: 20.0 * real_time.monotonic())
     monkeypatch.setattr(fc, "time", slow)
     monkeypatch.setattr(integrate, "time", slow)
-    text = (DATA / "iso_saturated.yaml").read_text().replace(
-        "  segments: 4\n  degree: 3\n  mesh: {tolerance: 1.0e-6, max_iterations: 14}\n",
-        "  segments: [0.0, 0.00843428544488147, 0.01686857088976294, 0.025302856334644408, 0.03373714177952588,\n"
-        "             0.04217142722440735, 0.04249592318259839, 0.75, 1.0]\n"
-        "  degree: [3, 3, 3, 3, 3, 1, 2, 3]\n")
-    (tmp_path / "fixed.yaml").write_text(text)
-    res = run_file(tmp_path / "fixed.yaml", None)
+    res = run_file(_fc2_wrong_mesh(tmp_path), None)
     assert res.objective - ISO_BEST > 1e-4
     assert "not judged" in res.certificate["flown_control"]["inconclusive"]
     assert res.status == "mesh_not_converged" and res.extra["bisection"]["agrees"] is False
