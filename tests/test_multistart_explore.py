@@ -55,15 +55,20 @@ def _cartpole(tmp_path, method: str, name: str = "cartpole.yaml"):
 @pytest.mark.ipopt
 def test_cartpole_starts_leave_the_straight_line_basin(tmp_path):
     """Mesh 10 x 5 as unseen5's file: start 0 is the single start bit for bit (58.81, the
-    straight-line guess's basin); the perturbed starts reach the lower minimum."""
+    straight-line guess's basin); the perturbed starts reach the lower minimum. Neither run is
+    `optimal`: their J is the 10 x 5 mesh's (the single start 6.4e-5 above its bisected mesh,
+    the best 2.2e-4 below the mesh-converged 57.94478); both once said `optimal`, as the flight
+    that could not be corrected onto the final conditions counted as a check of J."""
     multi = ocdsl.load(_cartpole(tmp_path, "{transcription: LGR, segments: 10, degree: 5, starts: 8, seed: 0}")).solve()
     one = ocdsl.load(_cartpole(tmp_path, "{transcription: LGR, segments: 10, degree: 5}", "one.yaml")).solve()
     rows = multi.extra["starts"]
     assert [r["seed"] for r in rows] == [None, 1, 2, 3, 4, 5, 6, 7]
     assert rows[0]["objective"] == one.objective and rows[0]["iterations"] == one.iterations
-    assert rows[0]["status"] == one.status == "optimal"
+    assert rows[0]["status"] == "optimal" and one.status == "mesh_not_converged"   # Ipopt's; the run's
+    assert one.extra["bisection"]["agrees"] is False
     assert abs(one.objective - OTHER) < 1e-2              # the single start's local minimum
-    assert multi.status == "optimal" and multi.objective < OTHER - 0.5, rows
+    assert multi.status == "mesh_not_converged" and multi.objective < OTHER - 0.5, rows
+    assert multi.extra["bisection"]["levels"][0]["objective"] == pytest.approx(BEST, rel=1e-4)
     assert multi.objective <= min(r["objective"] for r in rows if r["status"] == "optimal")
     assert sum(abs(r["objective"] - multi.objective) < 1e-6 for r in rows) >= 2, rows
 

@@ -14,6 +14,19 @@ from conftest import CONFIGS
 pytestmark = [pytest.mark.slow, pytest.mark.ipopt]
 
 
+def _the_meshs_optimum(res):
+    """The paper's meshes do not converge J: bisected, the minimum time falls (20 x 3 LG:
+    25.87271 -> 25.87046, 8.7e-5; the digest's 40 x 3 value is 25.870465), so ocdsl reports
+    the mesh's optimum as `mesh_not_converged`, with the bisected J; the paper's numbers are
+    still reproduced (the expect checks). It once said `optimal`: its flown-control check,
+    which could not be corrected onto the twelve final conditions, counted as a check of J."""
+    assert res.status == "mesh_not_converged", res.message
+    bisection = res.extra["bisection"]
+    assert bisection["agrees"] is False and bisection["levels"][0]["objective"] < res.objective
+    assert "this mesh's optimum" in res.message
+    assert all(c["passed"] for c in res.expect), res.expect
+
+
 @pytest.fixture(scope="module")
 def main_run(tmp_path_factory):
     """The 20 x 3 main scenario, solved once with its run folder (the fine mesh starts from it)."""
@@ -23,8 +36,9 @@ def main_run(tmp_path_factory):
 
 def test_main_scenario_and_certificate(main_run):
     res, _ = main_run
-    assert res.status == "optimal"
+    _the_meshs_optimum(res)
     assert abs(res.tf - 25.8727) <= 5e-4
+    assert abs(res.extra["bisection"]["levels"][0]["objective"] - 25.870465) <= 5e-5
     cert = res.certificate
     assert abs(cert["hamiltonian"]["mean"] + 1) <= 2e-3
     assert cert["hamiltonian"]["max_deviation"] <= 3e-2
@@ -58,7 +72,7 @@ def test_fine_mesh_warm_start(main_run):
     """40 x 3 LG (120 nodes) warm-started from the 20 x 3 run folder through the API."""
     _, folder = main_run
     res = ocdsl.load(CONFIGS / "seed0_fine.yaml").solve(warm_start=folder)
-    assert res.status == "optimal"
+    _the_meshs_optimum(res)
     assert sum(len(p.time) for p in res.phases) >= 100
     assert res.method["meshes"]["main"]["segments"] * res.method["meshes"]["main"]["degrees"][0] >= 100
     assert 25.868 <= res.tf <= 25.873
@@ -75,7 +89,7 @@ def test_fine_mesh_warm_start(main_run):
 
 def test_exact_euler_form():
     res = ocdsl.load(CONFIGS / "seed0_exact_euler.yaml").solve()
-    assert res.status == "optimal"
+    _the_meshs_optimum(res)
     assert abs(res.tf - 25.8731) <= 5e-4
 
 
@@ -84,7 +98,7 @@ def test_exact_euler_form():
     (20, 4, 0, 26.1674, "at_most"), (25, -5, -5, 28.7185, "at_most")])
 def test_table4_row(x0, y0, z0, paper, mode):
     res = ocdsl.load(CONFIGS / "seed0_table4.yaml", parameters={"x0": x0, "y0": y0, "z0": z0}).solve()
-    assert res.status == "optimal"
+    assert res.status == "mesh_not_converged" and res.extra["bisection"]["agrees"] is False, res.message
     # the file-level parameters x0, y0, z0 once made the certificate raise KeyError: 'x0'
     assert res.certificate["passed"], res.certificate.get("failed") or res.certificate.get("error")
     assert res.verification["status"] in ("verified", "failed")    # a verdict, never an error
