@@ -473,3 +473,19 @@ def test_objectives_equal_to_the_solvers_noise_are_ties():
     # a real trade-off far below 1e-9 of the spread in absolute terms is kept when it is the spread
     tiny = [[1e-12, 2.0], [0.5e-12, 3.0]]
     assert P.nondominated(tiny).tolist() == [True, True]
+
+
+def test_a_closed_form_file_with_a_method_it_cannot_run_is_refused_at_check(tmp_path):
+    """unseen35 F6: seed 4's case A with `method: weighted` passed `ocdsl check` and `run`
+    refused it without a line ("closed_form exists for the two-burn programme ... with method
+    enumerate"). Refused at the method's line by check and run alike."""
+    text = (Path(__file__).parents[1] / "configs" / "seed4_case_A.yaml").read_text()
+    assert "method: enumerate" in text
+    path = tmp_path / "weighted.yaml"
+    path.write_text(text.replace("method: enumerate", "method: weighted\n  weights: {num: 11}", 1))
+    from ocdsl.spec.errors import SpecError
+
+    with pytest.raises(SpecError) as e:
+        load_pareto(path)
+    line = next(i for i, ln in enumerate(path.read_text().splitlines(), 1) if "method: weighted" in ln)
+    assert f"weighted.yaml:{line}" in str(e.value) and "runs method enumerate only" in str(e.value)
