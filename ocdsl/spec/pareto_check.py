@@ -67,17 +67,18 @@ def check_sections(path: str | Path, located: Located, solver: str, method: str 
                                        f"(the two-burn programme's roots); method {method} from a file: use "
                                        f"solver: nlp with method epsilon (weighted sums are the Python API's, "
                                        f"ocdsl.study.pareto.weighted with your own solve_point)")])
-    use = (doc.get("model") or {}).get("use") if isinstance(doc.get("model"), dict) else None
-    if use != "relative_motion_secular":
-        raise SpecError([located.issue(("model",), "solver: closed_form exists for the two-burn programme of "
-                                       "`model: {use: relative_motion_secular}` only; for another model use "
-                                       "solver: nlp")])
     unknown = [k for k in doc if k not in _CLOSED_FORM_KEYS]
     if unknown:
         raise SpecError([located.issue((unknown[0],), f"unknown key '{unknown[0]}' in a closed-form Pareto file")])
     stand_in, lines = _stand_in(doc, located)
     synthetic = Located(located.file, stand_in, lines, located._text)
     _Compiler(Path(path), synthetic, validate(synthetic), {}).compile()
+    # a model that compiles but is not the two-burn programme's (after the compile's own errors)
+    use = (doc.get("model") or {}).get("use") if isinstance(doc.get("model"), dict) else None
+    if use != "relative_motion_secular":
+        raise SpecError([located.issue(("model",), "solver: closed_form exists for the two-burn programme of "
+                                       "`model: {use: relative_motion_secular}` only; for another model use "
+                                       "solver: nlp")])
 
 
 def _epsilon_parameter(located: Located, loaded) -> None:
