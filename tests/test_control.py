@@ -567,3 +567,12 @@ controller:
     res = run_file(path, None)
     assert res.status == "error"
     assert "A[2,1] is not finite" in res.message and "th=0" in res.message, res.message
+
+
+def test_a_check_time_past_the_horizon_is_refused():
+    """unseen35 F12: a check time past the horizon gave a NaN column in silence: an error of
+    the file."""
+    base = _load("seed3_attitude.yaml")["controller"]
+    sim = {**base["simulate"], "check_times": [2 * float(base["simulate"]["horizon"])]}
+    with pytest.raises(ValidationError, match="past the horizon"):
+        ControllerSpec.model_validate({**base, "simulate": sim})

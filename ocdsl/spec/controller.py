@@ -130,6 +130,11 @@ class SimulateSpec(_Strict):
                 raise ValueError(f"simulate.update ({self.update}) must be a multiple of simulate.step ({self.step})")
         if self.step > self.horizon:
             raise ValueError("simulate.step is longer than the horizon")
+        # a check time past the horizon gave a NaN column in silence (unseen35 F12)
+        late = [t for t in self.check_times if float(t) > self.horizon]
+        if late:
+            raise ValueError(f"simulate.check_times {late} lie past the horizon {self.horizon:g}: "
+                             "nothing is simulated there")
         return self
 
     def initial_state(self, names: list[str]) -> np.ndarray:
