@@ -277,4 +277,3 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
         if not good:
             break
     return check
-

@@ -374,7 +374,8 @@ def _certify(file: LoadedFile, result: Result, always_fly: bool = False) -> None
         mesh = getattr(file.method, "mesh", None)
         result.certificate = certify_result(file.problem, result, file.spec.verify.tolerance,
                                             mesh.tolerance if mesh is not None else None, always_fly,
-                                            flight_budget_steps=flight_budget(result.iterations, (result.nlp or {}).get("variables")))
+                                            flight_budget_steps=flight_budget(result.iterations,
+                                                                              (result.nlp or {}).get("variables")))
     except Exception as e:  # the certificate must never lose a solved run
         result.certificate = {"error": f"{type(e).__name__}: {e}", "passed": False}
 

@@ -426,4 +426,3 @@ def requested_report(folder: Path) -> tuple[bool, tuple[str, ...]]:
         return False, REPORT_FORMATS
     formats = tuple(f for f in REPORT_FORMATS if f in (block.get("formats") or REPORT_FORMATS))
     return bool(block.get("enabled", False)), formats or REPORT_FORMATS
-

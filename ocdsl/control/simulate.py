@@ -195,10 +195,10 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
         # still swings at full amplitude passed when tf fell on a zero crossing (unseen12 F2:
         # closed-loop poles -5e-7 +- 1i, ||x(tf)|| = 1e-3 ||x(0)||)
         tail = slice(min(int(0.9 * nsteps), last), last + 1)
-        X = Z[:, idx]
-        scale = np.maximum(np.abs(X[0]), np.max(np.abs(X), axis=0))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.where(scale > 0, np.max(np.abs(X[tail]), axis=0) / np.where(scale > 0, scale, 1.0), 0.0)
+        X = np.abs(Z[:, idx])
+        scale = np.max(X, axis=0)                   # the run's peak, which holds |x_i(0)|
+        with np.errstate(invalid="ignore"):
+            ratio = np.max(X[tail], axis=0) / np.where(scale > 0, scale, np.inf)   # 0 for a state never moved
         ratio = np.where(np.isfinite(ratio), ratio, math.inf)
         worst = int(np.argmax(ratio)) if ratio.size else 0
         xf = float(ratio[worst]) if ratio.size else 0.0

@@ -189,4 +189,3 @@ def _stand_in(doc: dict[str, Any], located: Located) -> tuple[dict, dict]:
 
 def _durations(text: Any) -> Any:
     return re.sub(r"\b([A-Za-z_]\w*)\.duration\b", r"\1.tf", text) if isinstance(text, str) else text
-

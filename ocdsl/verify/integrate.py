@@ -225,25 +225,19 @@ ESCAPE = 1e3       # a failed piece whose states grew past this many times their
 def _escape(sol, scale: np.ndarray) -> tuple[float, str] | None:
     """(time, what) where a failed piece's states left the floats or grew past ESCAPE times
     ``scale`` (the trajectory's own sizes), else None."""
-    peak = getattr(sol, "peak", None)      # a stiff integrator's, between its reported points
+    peak = getattr(sol, "peak", None)      # a stiff integrator's largest |state|, between its reported points
     if peak is not None:
-        size = np.asarray(peak, float)[:len(scale)]
-        if not np.all(np.isfinite(size)):
-            return float(sol.reached), "the floating-point range"
-        if np.any(size > ESCAPE * np.maximum(np.asarray(scale, float), 1e-300)):
-            return float(sol.reached), f"{ESCAPE:g} times its scale"
-    Y = np.asarray(sol.y, float)[:len(scale)]
+        Y, t = np.asarray(peak, float)[:len(scale), None], np.array([float(sol.reached)])
+    else:
+        Y, t = np.asarray(sol.y, float)[:len(scale)], np.asarray(sol.t, float)
     if Y.size == 0:
         return None
-    bad = ~np.all(np.isfinite(Y), axis=0)
-    what = "the floating-point range"
-    if not bad.any():
-        bad = np.any(np.abs(Y) > ESCAPE * np.maximum(np.asarray(scale, float), 1e-300)[:, None], axis=0)
-        what = f"{ESCAPE:g} times its scale"
-    if not bad.any():
-        return None
-    t = np.asarray(sol.t, float)
-    return (float(t[np.flatnonzero(bad)[0]]) if len(t) == Y.shape[1] else float(t[-1])), what
+    limit = ESCAPE * np.maximum(np.asarray(scale, float), 1e-300)[:, None]
+    for bad, what in ((~np.all(np.isfinite(Y), axis=0), "the floating-point range"),
+                      (np.any(np.abs(Y) > limit, axis=0), f"{ESCAPE:g} times its scale")):
+        if bad.any():
+            return (float(t[np.flatnonzero(bad)[0]]) if len(t) == Y.shape[1] else float(t[-1])), what
+    return None
 
 
 def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:

@@ -44,4 +44,3 @@ def pareto_senses(criteria: tuple[str, str], meta: dict) -> tuple[str, str]:
         by = {str(n): str(s) for n, s in zip(names, senses)}
         return by.get(criteria[0], "minimize"), by.get(criteria[1], "minimize")
     return "minimize", "minimize"
-

@@ -13,7 +13,6 @@ from ocdsl.report import figures as F
 from ocdsl.report import status as S
 from ocdsl.report import tables as T
 from ocdsl.report.build.document import Doc, NotARunFolder, ReportError, _append
-from ocdsl.report.tables import finite_or_none
 from ocdsl.report.build.loading import GOOD, _find_runs, _is_run, load_run, read_study_table
 from ocdsl.report.build.output import _render, _write_outputs
 from ocdsl.report.build.pareto import STUDY_OUTPUT_COLS, pareto_criteria, pareto_senses
@@ -197,7 +196,7 @@ def _study_section(doc: Doc, folder: Path, rows: list[dict], meta: dict, results
         cols = study_columns(rows, swept)
         if "objective" in cols and "status" in cols:
             # a failed solve's J is its last iterate's (unseen33 F4: printed like a solution's)
-            cols["objective"] = [v if str(st) in GOOD or finite_or_none(v) is None
+            cols["objective"] = [v if str(st) in GOOD or T.finite_or_none(v) is None
                                  else f"{T.fmt(float(v), 8)} (last iterate)"
                                  for v, st in zip(cols["objective"], cols["status"])]
         doc.table(b, doc.guard("study table", lambda: T.column_table(

@@ -33,7 +33,6 @@ def _phase_series(res: Result, attr: str, prefix: str = "") -> list[tuple[str, S
                           for p in res.phases if n in getattr(p, attr)]) for n in names]
 
 
-
 def _sequential(res: Result) -> bool:
     """Phases one after another in time (not alternatives over the same interval, as the
     controllers of a controller file are)."""

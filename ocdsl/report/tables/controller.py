@@ -118,15 +118,16 @@ def robustness_table(res: Result) -> dict | None:
     norm = f"|{states[0]}|" if len(states) == 1 else "max over the states of |x|"
     heads = [_threshold_label(k, unit)[1] if k.startswith("settling_time@")
              else f"max {norm} after t = {k.split('@', 1)[1]}" + (f" [{unit}]" if unit else "") for k in extra_cols]
+    def at(column: str, i: int):
+        return tab[column][i] if column in tab else None
+
     rows = []
     for i, factor in enumerate(tab["factor"]):
         for law in laws:
             held = float(tab[f"{law}.stable"][i]) == 1.0
             rows.append([cell(f"{float(factor):g}"), cell(law, "name"), cell("yes" if held else "no", ""),
-                         cell(tab.get(f"{law}.cost", [None] * (i + 1))[i], "num", 6),
-                         cell(tab.get(f"{law}.peak_control", [None] * (i + 1))[i], "num", 4),
-                         *[cell(finite_or_none(tab[f"{law}.{k}"][i]) if f"{law}.{k}" in tab else None, "num", 4)
-                           for k in extra_cols]])
+                         cell(at(f"{law}.cost", i), "num", 6), cell(at(f"{law}.peak_control", i), "num", 4),
+                         *[cell(finite_or_none(at(f"{law}.{k}", i)), "num", 4) for k in extra_cols]])
     verdicts = "; ".join(
         f"{law} regulates at "
         + (", ".join(f"{float(f):g}" for f, v in zip(tab["factor"], tab[f"{law}.stable"]) if float(v) == 1.0)

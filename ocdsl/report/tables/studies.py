@@ -32,7 +32,8 @@ def runs_table(results: list[Result], labels: list[str] | None = None) -> dict |
             # a controller file's runs have a J per law, not one (unseen35 F8: "—")
             objective = cell(", ".join(f"{law} {fmt((r.extra.get(law) or {}).get('cost'), 8)}" for law in laws), "")
         checked = (r.verification or {}).get("status") or "—"
-        row = [cell(lab, "name"), status_cell(r.status), {"text": checked, "cls": "pass" if checked in ("verified", "not_applicable") else "fail"},
+        verification = {"text": checked, "cls": "pass" if checked in ("verified", "not_applicable") else "fail"}
+        row = [cell(lab, "name"), status_cell(r.status), verification,
                {"text": "yes" if r.ok else "no", "cls": "pass" if r.ok else "fail"}, objective, cell(tf, "num", 8),
                cell(r.iterations), cell((r.nlp or {}).get("variables")),
                cell((r.wall_time_s or {}).get("total"), "num", 4),

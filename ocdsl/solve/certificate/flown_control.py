@@ -245,6 +245,14 @@ def _state_bound_binds(ph, traj) -> bool:
     return False
 
 
+def _guarded(out: dict, out_of_time: list) -> dict:
+    """``out``, ``inconclusive`` where the wall-clock guard cut a flight (what it cuts depends
+    on the machine's load)."""
+    if out_of_time:
+        out["inconclusive"] = f"its flights ran past the {FLIGHT_WALL_S:g} s guard: not judged"
+    return out
+
+
 def flown_control(problem: Problem, result: Result, lagrange, params: dict, tolerance: float,
                   mesh_tolerance: float | None = None, always_fly: bool = False,
                   budget_steps: int | None = None) -> dict[str, Any] | None:
@@ -374,9 +382,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
             # 1.7e-5 when bisected, seed 0's 8.7e-5)
             if mesh_tolerance is not None:
                 _doubted(out, predicted, limit, "could not be corrected onto the final conditions")
-            if out_of_time:
-                out["inconclusive"] = f"its flights ran past the {FLIGHT_WALL_S:g} s guard: not judged"
-            return out
+            return _guarded(out, out_of_time)
         flight, switches = corrected.flight, corrected.switches
     else:
         flight, switches = fly(t_tab, U_tab, cuts), cuts
@@ -393,8 +399,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
         out["judged"] = False
         out["note"] = (f"the flown control misses {flight.where} by {flight.violation:.1e} (relative): "
                        "its objective bounds nothing")
-        if out_of_time:
-            out["inconclusive"] = f"its flights ran past the {FLIGHT_WALL_S:g} s guard: not judged"
+        _guarded(out, out_of_time)
     elif out["passed"] and gain < -limit and not _state_bound_binds(ph, traj):
         _doubted(out, predicted, limit, f"gives J = {flight.objective:.10g}, worse than the claim by {-gain:.1e}")
     elif not out["passed"]:

@@ -142,4 +142,3 @@ def _objective_scale(file, tr, info, meshes) -> float | None:
         return objective_scale(file.problem, result)
     except Exception:  # noqa: BLE001  (without a scale the floor is the absolute one, as before)
         return None
-
