@@ -408,26 +408,9 @@ def test_objectives_equal_to_rounding_are_ties():
     assert list(P.nondominated(same + [[3.0000000029774436, J * (1 - 1e-9)]])) == [False, False, False, True]
 
 
-EPSILON_FRONT = """name: Energy-time front
-parameters: {eps: 2.0}
-model:
-  states: [x, v]
-  controls: [u]
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: free}
-  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= 3, tf <= eps]
-  objective: minimize integral(u**2)
-  guess: {tf: 2}
-method: {transcription: LGR, segments: 2, degree: 4}
-pareto:
-  method: epsilon
-  solver: nlp
-  objectives:
-    energy: integral(u ** 2)
-    time: tf
-  epsilon: {objective: time, values: {from: 1, to: 3, num: 3}, parameter: eps, chains: 1}
-"""
+# the minimum-energy rest-to-rest transfer with T <= eps (J = 12 / eps^3); also the Pareto
+# report's test (test_report_defects)
+EPSILON_FRONT = (Path(__file__).parent / "data" / "pareto_energy_time.yaml").read_text()
 
 
 @pytest.mark.parametrize("old,new,words", [

@@ -507,30 +507,11 @@ def test_a_comparison_and_a_study_say_which_runs_are_not_ok(tmp_path):
 
 def test_a_pareto_sets_report_shows_the_set_not_one_point(tmp_path):
     """unseen33 F9: the report of an epsilon Pareto set (min int u^2 with t_f <= eps for the
-    rest-to-rest double integrator, J = 12 / eps^3) said "objective: 0.1875" (one point's
+    rest-to-rest double integrator, J = 12 / eps^3, eps = 1, 2, 3) said "objective: 0.1875" (one point's
     energy) in its header and summary, and had neither the file's description nor who ran it."""
     from ocdsl.study.pareto_run import run_pareto
 
-    path = tmp_path / "front.yaml"
-    path.write_text("""name: energy-time front
-description: min int u^2 with T <= eps gives J = 12/eps^3.
-model:
-  states: [x, v]
-  controls: [u]
-  parameters: {eps: 2.0}
-  dynamics: {x: v, v: u}
-problem:
-  time: {t0: 0, tf: free}
-  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= 10, tf <= eps]
-  objective: minimize integral(u**2)
-  guess: {tf: 2}
-method: {transcription: LGR, segments: 2, degree: 4}
-pareto:
-  method: epsilon
-  solver: nlp
-  objectives: {energy: integral(u**2), time: tf}
-  epsilon: {objective: time, values: [1, 2, 4], parameter: eps}
-""")
+    path = Path(__file__).parent / "data" / "pareto_energy_time.yaml"
     run_pareto(path, tmp_path / "front")
     html = build_run_html(tmp_path / "front")
     head = html.split("</header>")[0]
