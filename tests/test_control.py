@@ -576,3 +576,16 @@ def test_a_check_time_past_the_horizon_is_refused():
     sim = {**base["simulate"], "check_times": [2 * float(base["simulate"]["horizon"])]}
     with pytest.raises(ValidationError, match="past the horizon"):
         ControllerSpec.model_validate({**base, "simulate": sim})
+
+
+@pytest.mark.parametrize("horizon, step", [(1.234, 0.1), (10.5 * np.pi, 0.01), (2.0, 0.15)])
+def test_the_simulation_ends_on_its_horizon(horizon, step):
+    """unseen35 F12: a horizon that is not a whole number of steps ended at the nearest whole
+    step (1.234 with step 0.1 ended at 1.2, in silence); the last step is now shortened onto it.
+    x' = -x with a zero control is exp(-t): the cost and the end state say where the run ended."""
+    res = simulate(lambda z, u: -z, lambda t, z: np.zeros(1), [1.0], [0], np.eye(1), np.eye(1),
+                   horizon, step)
+    assert res.t[-1] == pytest.approx(horizon, abs=1e-12)
+    assert np.all(np.diff(res.t) > 0)
+    assert res.z[-1, 0] == pytest.approx(np.exp(-horizon), rel=1e-4)
+    assert res.J == pytest.approx(0.25 * (1 - np.exp(-2 * horizon)), rel=1e-4)

@@ -126,7 +126,9 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
     R = np.asarray(R, float)
     idx = np.asarray(index)
     z = np.asarray(z0, float).copy()
-    nsteps = int(round(horizon / dt))
+    # steps of dt, the last one shortened to end on the horizon: a horizon that is not a whole
+    # number of steps ended up to half a step early or late (unseen35 F12)
+    nsteps = max(1, math.ceil(horizon / dt - 1e-9))
     nz = z.size
     u0 = np.asarray(controller(0.0, z), float)  # warm-up (lambdify caches); not timed
     if hasattr(controller, "reset"):
@@ -154,7 +156,8 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
     status, message, last = "stable", "", nsteps
     nsat = 0
     for k in range(nsteps + 1):
-        tk = k * dt
+        tk = min(k * dt, horizon)
+        h = min(dt, horizon - tk)
         # diverged before the law sees the state: an SDRE law handed x = inf (x' = x^3 + u
         # escaping in finite time) raised LinAlgError and the whole run was `error` (unseen35)
         if k > 0 and _diverged(zc[:nz][idx], blowup * x0n):
@@ -178,14 +181,14 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
             break
         if integrator == "rk4":
             k1 = rhs(zc, u)
-            k2 = rhs(zc + 0.5 * dt * k1, u)
-            k3 = rhs(zc + 0.5 * dt * k2, u)
-            k4 = rhs(zc + dt * k3, u)
-            zc = zc + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+            k2 = rhs(zc + 0.5 * h * k1, u)
+            k3 = rhs(zc + 0.5 * h * k2, u)
+            k4 = rhs(zc + h * k3, u)
+            zc = zc + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
         elif integrator == "euler":
-            zc = zc + dt * rhs(zc, u)
+            zc = zc + h * rhs(zc, u)
         else:
-            sol = solve_ivp(lambda _t, y: rhs(y, u), (tk, tk + dt), zc,
+            sol = solve_ivp(lambda _t, y: rhs(y, u), (tk, tk + h), zc,
                             method="RK45" if integrator == "rk45" else "DOP853",
                             rtol=1e-10, atol=1e-12)
             zc = sol.y[:, -1]
