@@ -73,12 +73,33 @@ def test_batch_equals_single_runs(osc):
     CD = rng.normal(size=(6, 3))
     T = rng.uniform(1, 4, 6)
     P = np.column_stack([rng.uniform(1, 3, 6)])
-    # (the threaded variant is checked on the CR3BP in test_seed1_paper.py, to compile it once)
     Yf, st, steps = final_states(osc, [1.0, 0.0], T, P, lay, CD, rtol=1e-11, atol=1e-13)
     for b in range(6):
         one = simulate(osc, [1.0, 0.0], T[b], P[b], lay, CD[b], rtol=1e-11, atol=1e-13, record=False)
         assert np.array_equal(one.final, Yf[b])
     assert np.all(st == 0)
+    # the rows split over threads give the same bits, row for row
+    threaded = final_states(osc, [1.0, 0.0], T, P, lay, CD, rtol=1e-11, atol=1e-13, parallel=True)
+    for a, b in zip(threaded, (Yf, st, steps)):
+        assert np.array_equal(a, b)
+
+
+def test_one_compilation_per_entry_point(osc):
+    """unseen35 F11: a new model's first parametric run took 38 s, 29 s of it compiling the
+    same kernels again for read-only arrays, literal arguments and a parallel batch. Whatever
+    the callers pass (read-only broadcasts, views, serial or threaded batches, single runs),
+    each entry point has one signature."""
+    lay = ControlLayout(("fourier",), (1,))
+    T = np.array([1.0, 2.0, 3.0])
+    CD = np.zeros((3, 3))
+    P = np.broadcast_to(osc.default_p, (3, 1))           # read-only
+    y0 = np.broadcast_to(np.array([1.0, 0.0]), (3, 2))   # read-only
+    final_states(osc, y0, T, P, lay, CD)
+    final_states(osc, y0[0], T, P, lay, CD, parallel=True)
+    simulate(osc, y0[0], 1.0, P[0], lay, CD[0], record=False)
+    simulate(osc, [1.0, 0.0], 1.0, None, lay, CD[0], n_dense=3)
+    assert len(osc.module.integrate.signatures) == 1
+    assert len(osc.module.final_batch.signatures) == 1
 
 
 def test_sundman_form_matches_time_form():

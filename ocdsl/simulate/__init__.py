@@ -9,12 +9,15 @@ Design choice: Numba, not C through SymPy code generation.
   (``_kernel_template.py``: Dormand-Prince 8(5,3) with the same tables, error norm and
   step control as SciPy's DOP853, Hairer's 7th-order dense output, event location by
   bisection on the dense polynomial followed by an exact landing step, batched runs
-  serial or over Numba threads). Putting RHS and kernel in one file makes every call a
-  plain global call that LLVM inlines, and keeps the whole thing cacheable.
-- Compile time (measured, 7-state CR3BP, load average ~3.5 on 2 cores): cold compile
-  16.5 s for the single-run entry point, +5 s for the serial batch, +8 s for the
-  threaded batch (several times that on a saturated machine); afterwards Numba's
-  on-disk cache (``cache=True``) loads a model's kernel in ~1 s. The generated module is
+  serial, split over threads by the caller: the kernel releases the GIL). Putting RHS and
+  kernel in one file makes every call a plain global call that LLVM inlines, and keeps the
+  whole thing cacheable.
+- Compile time: one specialisation per entry point (every array argument C-contiguous and
+  writable, no literal arguments: each variant is another compilation). A double
+  integrator's first PSO run compiles the single-run entry and the serial batch (about
+  9 s on 2 idle cores, 38 s before, when the integrator was compiled three times and a
+  ``parallel=True`` batch twice); afterwards Numba's on-disk cache (``cache=True``) loads
+  a model's kernel in ~1 s. The generated module is
   written to ``$OCDSL_CACHE/simulate/ocdsl_sim_<hash>.py`` (default ``~/.cache/ocdsl``)
   with the hash of its own text, atomically, so concurrent processes (pytest-xdist
   workers, study executors, dask workers on one machine) share both the file and its

@@ -363,26 +363,16 @@ def integrate(y0, s0, s_end, p, ck, cp, co, cd, T, clock, t_stop, rtol, atol, h0
     return status, s, y, nsteps, nfev, traj[:ntraj], events[:nevents]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def final_batch(Y0, S_end, P, ck, cp, co, CD, Tc, clock, t_stop, rtol, atol, max_steps,
-                ev_i, ev_v, ev_d, ev_t, Yf, status, nsteps):
-    """Final states of many runs (rows of Y0, P, CD; per-run S_end, Tc, t_stop)."""
+                ev_i, ev_v, ev_d, ev_t, Yf, status, nsteps, n_dense, record):
+    """Final states of many runs (rows of Y0, P, CD; per-run S_end, Tc, t_stop). ``n_dense``
+    and ``record`` (0 and False) are arguments, not literals: a literal is another type to
+    Numba, and ``integrate`` would be compiled once for these calls and again for Python's."""
     for b in range(Y0.shape[0]):
         st, s, y, ns, nf, tr, evs = integrate(Y0[b], 0.0, S_end[b], P[b], ck, cp, co, CD[b],
                                               Tc[b], clock, t_stop[b], rtol, atol, 0.0,
-                                              max_steps, ev_i, ev_v, ev_d, ev_t, 0, False)
-        Yf[b] = y
-        status[b] = st
-        nsteps[b] = ns
-
-
-@njit(cache=True, parallel=True)
-def final_batch_parallel(Y0, S_end, P, ck, cp, co, CD, Tc, clock, t_stop, rtol, atol,
-                         max_steps, ev_i, ev_v, ev_d, ev_t, Yf, status, nsteps):
-    for b in prange(Y0.shape[0]):
-        st, s, y, ns, nf, tr, evs = integrate(Y0[b], 0.0, S_end[b], P[b], ck, cp, co, CD[b],
-                                              Tc[b], clock, t_stop[b], rtol, atol, 0.0,
-                                              max_steps, ev_i, ev_v, ev_d, ev_t, 0, False)
+                                              max_steps, ev_i, ev_v, ev_d, ev_t, n_dense, record)
         Yf[b] = y
         status[b] = st
         nsteps[b] = ns

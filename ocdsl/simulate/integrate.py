@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -125,6 +126,14 @@ def _atol(cm: CompiledModel, atol) -> np.ndarray:
     return a
 
 
+def _kernel_args(args: tuple) -> tuple:
+    """Every array argument of a kernel C-contiguous and writable: Numba compiles a kernel
+    once per distinct signature, and a read-only array (a broadcast view, a cached table) is
+    another type. With some arguments read-only on some calls, the integrator was compiled
+    three times and the parallel batch twice: 29 s of a cold parametric run's 38 (unseen35 F11)."""
+    return tuple(np.require(a, requirements=("C", "W")) if isinstance(a, np.ndarray) else a for a in args)
+
+
 def simulate(cm: CompiledModel, y0, T: float, p=None, layout: ControlLayout | None = None,
              coeffs=None, rtol: float = 1e-10, atol=1e-12, events: Sequence[Event] = (),
              record: bool = True, n_dense: int = 0, max_steps: int = 1_000_000,
@@ -147,10 +156,10 @@ def simulate(cm: CompiledModel, y0, T: float, p=None, layout: ControlLayout | No
     else:
         s_end, t_stop = float(T), math.inf
     ev_idx, ev_val, ev_dir, ev_term = _event_arrays(cm, events)
-    st, s, y, ns, nf, traj, evs = cm.module.integrate(
+    st, s, y, ns, nf, traj, evs = cm.module.integrate(*_kernel_args((
         y0, 0.0, s_end, p, ck, cp, co, cd, float(T), cm.clock, t_stop, float(rtol),
         _atol(cm, atol), float(first_step), int(max_steps), ev_idx, ev_val, ev_dir, ev_term,
-        int(n_dense), bool(record))
+        int(n_dense), bool(record))))
     if not record:
         traj = np.concatenate([[s], y])[None, :]
     ev_list = [(int(r[0]), float(r[1]), r[2:].copy()) for r in evs]
@@ -168,7 +177,9 @@ def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray
     as :func:`simulate` (0/1 reached T, 2 stopped by a terminal event, < 0 failed).
     ``events`` are typically terminal guards (impact, escape) that end hopeless runs early.
 
-    ``parallel`` spreads the rows over Numba threads (all cores of this process).
+    ``parallel`` splits the rows over threads, one per core (the serial kernel releases the
+    GIL). It replaced a ``parallel=True`` Numba kernel whose compilation cost 8-22 s of every
+    new model's first run (unseen35 F11: 38 s for a double integrator's first PSO run).
     """
     B = len(T)
     Y0 = np.ascontiguousarray(np.broadcast_to(np.asarray(Y0, float), (B, cm.n)))
@@ -187,11 +198,38 @@ def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray
     Yf = np.empty((B, cm.n))
     status = np.empty(B, np.int64)
     steps = np.empty(B, np.int64)
-    fn = cm.module.final_batch_parallel if parallel else cm.module.final_batch
     ev = _event_arrays(cm, events)
-    fn(Y0, s_end, P, ck, cp, co, CD, T, cm.clock, t_stop, float(rtol), _atol(cm, atol),
-       int(max_steps), *ev, Yf, status, steps)
-    return Yf, status, steps
+    args = _kernel_args((Y0, s_end, P, ck, cp, co, CD, T, cm.clock, t_stop, float(rtol), _atol(cm, atol),
+                         int(max_steps), *ev, Yf, status, steps, 0, False))
+    per_row = {0, 1, 2, 6, 7, 9, 17, 18, 19}      # the rows of these arguments are the runs
+    chunks = np.array_split(np.arange(B), min(B, _cores())) if parallel else [np.arange(B)]
+    chunks = [c for c in chunks if len(c)]
+
+    def run(rows):
+        a, b = rows[0], rows[-1] + 1            # C-contiguous row slices: views the kernel writes through
+        cm.module.final_batch(*(x[a:b] if i in per_row else x for i, x in enumerate(args)))
+
+    if len(chunks) == 1:
+        run(chunks[0])
+    else:
+        list(_pool().map(run, chunks))
+    return args[17], args[18], args[19]
+
+
+_POOL = None
+
+
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _pool():
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(max_workers=_cores(), thread_name_prefix="ocdsl-batch")
+    return _POOL
 
 
 def scipy_final_state(cm: CompiledModel, y0, T: float, p, layout: ControlLayout, coeffs,

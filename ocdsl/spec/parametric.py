@@ -213,7 +213,7 @@ class ParametricSpec(_Strict):
     continuation: ContinuationSpec = Field(default_factory=ContinuationSpec)
     refine: RefineSpec = Field(default_factory=RefineSpec)
     output_points: int = Field(2000, ge=10)
-    threads: bool = Field(True, description="in-process evaluation over all cores (Numba threads)")
+    threads: bool = Field(True, description="in-process evaluation over all cores (threads running the compiled batch)")
 
     @field_validator("tolerances")
     @classmethod
