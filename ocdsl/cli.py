@@ -189,7 +189,9 @@ def _run_pareto(file: str, out: Path, params: dict, report: bool, quiet: bool, f
 
 
 def _summary(result, out: Path) -> None:
+    from rich.markup import escape
     from rich.table import Table
+    from rich.text import Text
 
     from .progress import console
     from .result_views import best_completed_mesh, expect_comparison, numbers_note
@@ -203,12 +205,14 @@ def _summary(result, out: Path) -> None:
     from .result import certificate_failures, certificate_verdict
 
     # a failed certificate fails the run (Result.ok): the headline says so, not only the last line
-    cfail = (f", certificate [red]failed[/red] ({', '.join(certificate_failures(result.certificate))})"
+    cfail = (f", certificate [red]failed[/red] ({escape(', '.join(certificate_failures(result.certificate)))})"
              if certificate_verdict(result.certificate) == "failed" else "")
     # a failed expectation fails the run too: named in the headline, not only lines below (unseen22 f05b)
     missed = [c["name"] for c in (result.expect or []) if not c.get("passed")]
-    efail = f", expect [red]FAIL[/red] ({', '.join(missed)})" if missed else ""
-    con.print(f"[bold]{result.name}[/bold]: solver [{ok}]{result.status}[/{ok}], "
+    efail = f", expect [red]FAIL[/red] ({escape(', '.join(missed))})" if missed else ""
+    # the file's own text (a name "test [draft]", a constraint "r[0]") is printed as text, not
+    # read as console markup, which swallowed it (unseen37 F4)
+    con.print(f"[bold]{escape(result.name)}[/bold]: solver [{ok}]{result.status}[/{ok}], "
               f"verification [{vcolour}]{vstatus.replace('_', ' ')}[/{vcolour}]{warn}{cfail}{efail}")
     unjudged = any(c.get("passed") is None for c in v.get("checks") or [])
     if (vstatus not in ("verified", "not_applicable") or unjudged) and v.get("summary"):
@@ -221,45 +225,49 @@ def _summary(result, out: Path) -> None:
             con.print(f"  {line}", markup=False)
     for note in result.extra.get("notes", []) + list(v.get("caveats") or []):
         con.print(f"  note: {note}", markup=False)
-    t = Table(show_header=False, box=None, padding=(0, 2))
+    table = Table(show_header=False, box=None, padding=(0, 2))
+
+    def row(*cells: str) -> None:
+        table.add_row(*(Text(c) for c in cells))      # plain text, as the headline's name
+
     # a failed run's objective is its last iterate's (or the guess's): never shown as a result
     if result.objective is not None and result.status in ("optimal", "acceptable"):
-        t.add_row("objective", f"{result.objective:.10g}")
+        row("objective", f"{result.objective:.10g}")
     elif result.objective is not None and result.status == "mesh_not_converged":
         # a solved mesh that missed the refinement's tolerance: a solution, not a last iterate
-        t.add_row("objective", f"{result.objective:.10g} (on the reported mesh; refinement not converged)")
+        row("objective", f"{result.objective:.10g} (on the reported mesh; refinement not converged)")
     elif result.objective is not None and (kept := best_completed_mesh(result)):
         it, st = kept
-        t.add_row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
+        row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
                   "refinement cut short, so not a converged result)")
     elif result.objective is not None and result.status == "feasible":
         # a parametric search's answer: feasible in its control class, no optimality conditions
-        t.add_row("objective", f"{result.objective:.10g} (feasible: inside the tolerances in the search's "
+        row("objective", f"{result.objective:.10g} (feasible: inside the tolerances in the search's "
                   "control class, no optimality conditions behind it)")
     elif result.objective is not None and result.iterations:
-        t.add_row("last iterate", f"objective {result.objective:.10g} (not a solution)")
+        row("last iterate", f"objective {result.objective:.10g} (not a solution)")
     for law in result.extra.get("laws", []):       # a controller file: each law's closed loop
         rec = result.extra.get(law) or {}
         cost = rec.get("cost")
         # each law's trajectory is verified on its own (its rows carry the law as phase)
         own = [c.get("passed") for c in v.get("checks") or [] if c.get("phase") == law]
         judged = ("" if not own else ", verified" if all(p is not False for p in own) else ", not verified")
-        t.add_row(law, (f"{rec.get('status', '?')}, J = {cost:.10g}" if isinstance(cost, (int, float))
+        row(law, (f"{rec.get('status', '?')}, J = {cost:.10g}" if isinstance(cost, (int, float))
                         else str(rec.get("status", "?"))) + judged)
     robust = _robustness_line(result.tables.get("robustness"))
     if robust:
-        t.add_row("robustness", robust)
+        row("robustness", robust)
     free = result.extra.get("free_parameters", [])
     if free and result.status in ("optimal", "acceptable", "mesh_not_converged"):
-        t.add_row("free parameters", ", ".join(f"{n} {result.parameters[n]:.10g}" for n in free
+        row("free parameters", ", ".join(f"{n} {result.parameters[n]:.10g}" for n in free
                                                if n in result.parameters))
     # a run that ended without a solution holds its last iterate, or the guess when the
     # solve never started (unseen12 F9: "final time 5.05" was the guess of a refused option)
     qualifier = numbers_note(result)
     if isinstance(result.tf, dict):
-        t.add_row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()) + qualifier)
+        row("final times", ", ".join(f"{k} {v:.8g}" for k, v in result.tf.items()) + qualifier)
     elif result.tf is not None:
-        t.add_row("final time", f"{result.tf:.10g}{qualifier}")
+        row("final time", f"{result.tf:.10g}{qualifier}")
     # a flat refinement's starts solved its first level, whose objective is not the reported
     # (refined) one (unseen19: seed 2 printed "8: 0 ended at this objective")
     # (and a mesh refinement's, its first mesh: unseen27 FC1 printed "8: 0 ended at this objective")
@@ -273,26 +281,26 @@ def _summary(result, out: Path) -> None:
         first, said = result.objective, "this objective"
     starts = _starts_line(result.extra.get("starts") or [], first, said)
     if starts:
-        t.add_row("starts", starts)
+        row("starts", starts)
     if result.nlp:
-        t.add_row("NLP", f"{result.nlp.get('variables')} variables, {result.nlp.get('constraints')} constraints, "
+        row("NLP", f"{result.nlp.get('variables')} variables, {result.nlp.get('constraints')} constraints, "
                   f"{result.nlp.get('nonzeros')} Jacobian nonzeros")
     if result.iterations is not None:
-        t.add_row("iterations", str(result.iterations))
+        row("iterations", str(result.iterations))
     w = result.wall_time_s
     if w:
         parts = ", ".join(f"{k} {v:.3f}" for k, v in w.items() if k != "total")
-        t.add_row("wall time", f"{w.get('total', 0):.3f} s ({parts})")
+        row("wall time", f"{w.get('total', 0):.3f} s ({parts})")
     kept = result.extra.get("run_folder_kept")
-    t.add_row("run folder", f"{out} (the earlier run, kept; nothing of this one written)" if kept else str(out))
+    row("run folder", f"{out} (the earlier run, kept; nothing of this one written)" if kept else str(out))
     if v.get("tolerance") is not None and vstatus in ("verified", "failed"):
-        t.add_row("verification", f"{sum(c.get('passed') is not None for c in v.get('checks', []))} checks "
+        row("verification", f"{sum(c.get('passed') is not None for c in v.get('checks', []))} checks "
                   f"against tolerance {v['tolerance']:g}"
                   f" ({v.get('wall_time_s', 0):.3f} s)")
-    con.print(t)
+    con.print(table)
     for c in result.expect:
         mark = "[green]pass[/green]" if c["passed"] else "[red]FAIL[/red]"
-        con.print(f"  expect {expect_comparison(c, qualifier)} {mark}")
+        con.print(f"  expect {escape(expect_comparison(c, qualifier))} {mark}")
     verdict = certificate_verdict(result.certificate)
     if verdict is not None:
         from .report.status import certificate_reason
@@ -303,13 +311,13 @@ def _summary(result, out: Path) -> None:
                else certificate_reason(result.certificate))
         if why.startswith(f"{verdict}: "):      # "inconclusive (inconclusive: ...)" said once
             why = why[len(verdict) + 2:]
-        con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({why})' if why else ''}")
+        con.print(f"  optimality certificate (necessary conditions): {mark}{f' ({escape(why)})' if why else ''}")
         cert = result.certificate or {}
         for c in ((cert.get("phases") or {}).values() if isinstance(cert.get("phases"), dict) else [cert]):
             for check in ("end_arcs", "flown_control"):
                 reason = ((c or {}).get(check) or {}).get("reason")
                 if reason:
-                    con.print(f"    {reason}")
+                    con.print(f"    {reason}", markup=False)
 
 
 def _robustness_line(table) -> str:

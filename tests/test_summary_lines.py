@@ -163,3 +163,18 @@ def test_a_failed_expectation_is_named_in_the_headline(tmp_path, capsys):
     _summary(res, tmp_path)
     head = capsys.readouterr().out.splitlines()[0]
     assert "expect FAIL (objective)" in head and "tf" not in head.split("expect")[1], head
+
+
+def test_the_files_text_is_printed_as_text_not_console_markup(tmp_path, capsys):
+    """unseen37 F4: `name: bracket test [draft]` printed "bracket test : solver optimal" (the
+    console library read [draft] as a style tag); a law named `lqr[fast]`, an expectation on
+    `r[0]` and a run folder `runs/[x]` went the same way."""
+    check = {"name": "r[0](tf)", "value": 1.0, "reference": 1.0, "rtol": 1e-6, "atol": None,
+             "error": 0.0, "relative_error": 0.0, "passed": True}
+    res = Result(name="bracket test [draft] [bold]", status="optimal", message="", objective=1.5, tf=2.0,
+                 iterations=3, nlp={}, method={}, parameters={}, phases=[], expect=[check],
+                 extra={"laws": ["lqr[fast]"], "lqr[fast]": {"status": "stable", "cost": 1.0}})
+    _summary(res, tmp_path / "[x]")
+    out = capsys.readouterr().out
+    assert "bracket test [draft] [bold]: solver optimal" in out, out
+    assert "lqr[fast]" in out and "r[0](tf)" in out and "[x]" in out, out
