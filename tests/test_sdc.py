@@ -103,6 +103,15 @@ def test_nonzero_origin_is_a_clear_error():
         sdc.factorise(build_model("brachistochrone", {}))
 
 
+def test_a_state_left_out_of_the_controlled_ones_is_named():
+    """unseen37 F6: a double integrator with `states: [x]` (v left out) was told "f(0, 0) != 0
+    ... shift the state and control to an equilibrium", which it is at: v is what is missing."""
+    with pytest.raises(sdc.SDCError, match=r"dx/dt = v, which depends on v: not among the controlled "
+                                           r"states \['x'\].*list v in the controller's `states:`") as err:
+        sdc.factorise(build_model("double_integrator", {}), states=["x"])
+    assert "equilibrium" not in str(err.value)
+
+
 def test_non_affine_control_is_a_clear_error():
     x, u = syms("x u")
     with pytest.raises(sdc.SDCError, match="not affine in control"):

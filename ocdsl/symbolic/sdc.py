@@ -147,6 +147,17 @@ def _check_origin_and_affine(model: Model, f: sp.Matrix, xs, aux, us) -> None:
     bad = [(str(xs[i]), f00[i]) for i in range(len(xs)) if f00[i] != 0]
     if bad:
         where = ", ".join(f"d{n}/dt = {sp.sstr(v)}" for n, v in bad)
+        left_out = sorted(str(s) for s in set().union(*(v.free_symbols for _, v in bad))
+                          if s in model.states and s not in xs)
+        if left_out:
+            # the plant may well be at an equilibrium: the file left a state out of the
+            # controlled ones, and the shift advice below pointed the wrong way (unseen37 F6)
+            raise SDCError(
+                f"model {model.name!r}: at x = 0, u = 0 {where}, which depends on "
+                f"{', '.join(left_out)}: not among the controlled states {[str(x) for x in xs]}. "
+                f"A state left out of `states:` is auxiliary (carried by the plant, not regulated), "
+                f"and an SDC form needs f(0, 0) = 0 whatever its value; list "
+                f"{', '.join(left_out)} in the controller's `states:` (with its weight in Q) to regulate it.")
         extra = (f" (for some value of the auxiliary states {[str(a) for a in aux]})"
                  if aux else "")
         raise SDCError(
