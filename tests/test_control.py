@@ -493,6 +493,31 @@ controller:
     assert "escapes in finite time" in v["summary"]
 
 
+def test_a_diverged_loops_verification_does_not_advise_a_smaller_step(tmp_path):
+    """unseen37 F5: x' = x + (1 - x)u from x = 1 (B(x0) = 0) under LQR escapes at t = 0.66;
+    the law was rightly `unstable`, and the verification's advice was "the simulation's
+    integrator is not accurate at its step: a smaller `simulate.step`"."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "b09.yaml"
+    path.write_text("""name: stabilisable at the origin, not at x0
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: x + (1 - x)*u}
+controller:
+  type: lqr
+  Q: [1]
+  R: [1]
+  simulate: {x0: [1], horizon: 10, step: 0.01}
+""")
+    res = run_file(path, tmp_path / "r")
+    assert res.extra["lqr"]["status"] == "unstable" and "diverged at t = 0.66" in res.extra["lqr"]["message"]
+    v = res.verification
+    assert v["status"] == "failed"
+    assert "loop diverged" in v["summary"] and "smaller `simulate.step`" not in v["summary"], v["summary"]
+
+
 def test_stability_is_judged_per_state_not_over_mixed_units(tmp_path):
     """unseen35 F16: a cart with its position in mm (p' = 1000 v, v' = F, LQR Q = diag(1e-6,
     1), R = 100, |F| <= 2) from v = 1 m/s: the position's transient (1420 mm) passed 1000 x

@@ -31,7 +31,7 @@ def run_controller_file(file, timer) -> Result:
             combined.phases.append(ph)
         for name, table in r.tables.items():
             combined.tables[f"{name}_{key}"] = table
-        combined.extra[key] = {"status": r.status, "cost": r.objective, **r.extra}
+        combined.extra[key] = {"status": r.status, "message": r.message, "cost": r.objective, **r.extra}
         if not combined.problem:
             combined.problem = dict(r.problem)
             combined.problem["name"] = file.spec.name

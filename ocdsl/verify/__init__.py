@@ -121,7 +121,11 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     judged = [c for c in checks if c["passed"] is not None]
     mesh = (result.method or {}).get("mesh")
     mesh_tolerance = mesh.get("tolerance") if isinstance(mesh, dict) else None
-    out["summary"] = _summary(failed, notes, settings, checks, mesh_tolerance) if failed else \
+    # a law whose loop diverged: its failed checks say so, not that the step is too large
+    diverged = {} if settings.open_loop else {
+        law: rec["message"] for law in result.extra.get("laws", [])
+        if isinstance(rec := result.extra.get(law), dict) and "diverged" in str(rec.get("message", ""))}
+    out["summary"] = _summary(failed, notes, settings, checks, mesh_tolerance, diverged) if failed else \
         f"verified: {len(judged)} checks within {settings.tolerance:g}" + _not_judged(checks)
     out["caveats"] = [c["precision"] for c in checks if c.get("precision")] if not failed else []
     return out
@@ -180,10 +184,17 @@ REFINE_HINTED = ("dynamics per piece", "dynamics from x(t0)", "state bounds", "p
 
 
 def _summary(failed: list[dict], notes: list[str], settings: VerifySettings,
-             checks: list[dict] | None = None, mesh_tolerance: float | None = None) -> str:
+             checks: list[dict] | None = None, mesh_tolerance: float | None = None,
+             diverged: dict[str, str] | None = None) -> str:
     """The first failed check, and what to change: an irregular control's note where there
-    is one (refining is then the wrong advice), else the check's hint."""
+    is one (refining is then the wrong advice), else the check's hint. ``diverged``: the
+    closed-loop laws whose simulation diverged, with its message."""
     c = failed[0]
+    if c.get("phase") in (diverged or {}):
+        # unseen37 F5: x' = x + (1 - x)u under LQR escapes at t = 0.66; "a smaller step" was the advice
+        notes = [f"law {c['phase']}'s loop diverged ({diverged[c['phase']]}): no step integrates a state "
+                 "escaping to infinity accurately; the failure says the law does not regulate from this "
+                 "start, not that the step is too large"]
     pieces = [k for k in checks or [] if k["name"] == "dynamics per piece" and k.get("phase") == c.get("phase")]
     if (c["name"] == "dynamics from x(t0)" and not notes and pieces and pieces[0]["passed"]
             and pieces[0]["value"] <= PIECES_FAR_INSIDE * pieces[0]["limit"]):
