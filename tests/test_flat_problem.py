@@ -324,3 +324,49 @@ def test_a_model_that_is_not_flat_is_an_error_with_its_reasons_and_no_traceback(
     shown = capsys.readouterr().out
     assert "blocking equation(s)" in shown and "Traceback" not in shown
 
+
+
+UNICYCLE_LOOP = """
+name: unicycle loop (heading 0 to 2 pi)
+model:
+  states: [x, y, th]
+  controls: [v, w]
+  dynamics: {x: v*cos(th), y: v*sin(th), th: w}
+problem:
+  time: {t0: 0, tf: 3}
+  constraints: [0.1 <= v <= 10, x(t0) == 0, y(t0) == 0, th(t0) == 0, x(tf) == 1, y(tf) == 0, th(tf) == 2*pi]
+  objective: minimize integral((v**2 + w**2)/2)
+  guess: {x: {t: [0, 1, 2, 3], values: [0, 1, 0.5, 1]}, y: {t: [0, 1, 2, 3], values: [0, 0.5, 1, 0]}}
+method: {transcription: flat-bspline, flat_outputs: [x, y], degree: 5, control_points: 15, collocation_points: 15}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_heading_from_the_flat_map_keeps_its_winding_at_the_ends(tmp_path):
+    """unseen37 F2: th is atan2(y', x') in the flat map, whose principal value lies in
+    (-pi, pi]: `th(tf) == 2*pi` (a loop) could never hold and the run ended `max_iter` after
+    3,000 iterations, blaming a speed singularity the file already bounded. The end values are
+    now the branches the turns reach (the integral of th' over the phase), so the loop is
+    solved: the exported heading ends on 2 pi, and J approaches the Pontryagin value
+    7.33721495 (a boundary-value solve, and LGR 60 x 6) as the splines are refined."""
+    from ocdsl.api import run_file
+
+    res = run_file(write(tmp_path, UNICYCLE_LOOP), None)
+    assert res.iterations < 500 and res.status in ("optimal", "mesh_not_converged"), res.message
+    th = res.phases[0].states["th"]
+    assert th[0] == pytest.approx(0.0, abs=1e-9) and th[-1] == pytest.approx(2 * np.pi, abs=1e-8)
+    assert np.max(np.abs(np.diff(th))) < 0.5                 # continuous, not jumped at the cut
+    assert abs(res.objective - 7.33721495) < 0.03 * 7.33721495
+
+
+def test_an_angles_branch_is_centred_where_asked():
+    from ocdsl.transcribe.flat_angles import branch_at, unwrap_from
+
+    for centre in (0.0, np.pi, 2 * np.pi, -3.0, 7.0):
+        for angle in np.linspace(centre - 3.1, centre + 3.1, 9):
+            got = branch_at(centre, np.sin(angle), np.cos(angle), np.sin, np.cos, np.arctan2)
+            assert got == pytest.approx(angle, abs=1e-12)
+    turns = np.linspace(0, 4 * np.pi, 50)
+    principal = np.arctan2(np.sin(turns), np.cos(turns))
+    assert np.allclose(unwrap_from(principal, 0.0), turns)
+    assert np.allclose(unwrap_from(principal + 0.0, 2 * np.pi), turns + 2 * np.pi)

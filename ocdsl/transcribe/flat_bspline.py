@@ -40,6 +40,7 @@ from ocdsl.symbolic.flatness import FlatMap, derivative_symbol, flatten
 from ocdsl.symbolic.model import TIME, Model
 
 from .bspline import basis_matrix, clamped_knots
+from .flat_angles import angle_states, branch_at, quadrature_rule, unwrap_from
 
 __all__ = ["FlatBSplineOptions", "FlatPhase", "FlatNLP", "build_flat_bspline", "solve_flat",
            "PYOMO_FUNCTIONS"]
@@ -184,6 +185,8 @@ class _PhaseNLP:
                      for k in range(self.max_order + 1)] + self.constants + [TIME]
         self._fns: dict[sp.Expr, Callable] = {}
         self._values: dict[float, list] = {}
+        self.angles = angle_states(fm, ph.model)
+        self._ends: dict[tuple[str, str], Any] = {}
         self._initial_guess()
 
     # -- evaluation ---------------------------------------------------------------
@@ -221,6 +224,27 @@ class _PhaseNLP:
     def at(self, name_or_expr, tau: float):
         e = self.expr_of(name_or_expr) if isinstance(name_or_expr, str) else name_or_expr
         return self.fn(e)(*self.values_at(tau))
+
+    def end_value(self, name: str, where: str):
+        """The state ``name`` at the phase's start (``"t0"``) or end (``"tf"``); an angle of
+        the flat map with its winding (``flat_angles``), anything else as ``at``."""
+        key = (name, where)
+        if key not in self._ends:
+            x = self.ph.model.symbol(name)
+            if x not in self.angles:
+                self._ends[key] = self.at(name, 0.0 if where == "t0" else 1.0)
+            else:
+                S, C, rate = self.angles[x]
+                start = branch_at(float(self.ph.boundary.get((name, "t0"), 0.0)), self.at(S, 0.0),
+                                  self.at(C, 0.0), pyo.sin, pyo.cos, _atan2)
+                if where == "t0":
+                    self._ends[key] = start
+                else:
+                    nodes, weights = quadrature_rule(self.ph.options.degree, self.ph.options.n_ctrl)
+                    turned = self.tf * sum(float(w) * self.at(rate, float(t)) for t, w in zip(nodes, weights))
+                    self._ends[key] = branch_at(start + turned, self.at(S, 1.0), self.at(C, 1.0),
+                                                pyo.sin, pyo.cos, _atan2)
+        return self._ends[key]
 
     # -- guess --------------------------------------------------------------------
     def _initial_guess(self) -> None:
@@ -266,6 +290,8 @@ class _PhaseNLP:
         for group in (self.fm.states, self.fm.controls):
             for s, e in group.items():
                 out[s.name] = np.broadcast_to(sp.lambdify(self.args, e, "numpy")(*argv), tau.shape).astype(float)
+        for x in self.angles:       # continuous, from the branch its boundary condition took
+            out[x.name] = unwrap_from(out[x.name], pyo.value(self.end_value(x.name, "t0")))
         for i, r in enumerate(self.fm.residuals):
             out[f"residual_{i}"] = np.broadcast_to(sp.lambdify(self.args, r.expr, "numpy")(*argv), tau.shape).astype(float)
         return out
@@ -318,7 +344,7 @@ def build_flat_bspline(phases: Sequence[FlatPhase], links: Sequence = (),
                 q = p.constants.index(next(c for c, x in p.fm.constants.items() if x == sym_))
                 if where == "t0" and b.k[q].fixed:
                     continue
-            b.boundary.add(p.at(name, 0.0 if where == "t0" else 1.0) == float(value))
+            b.boundary.add(p.end_value(name, where) == float(value))
         # path bounds on non-function quantities, at collocation points
         b.path = pyo.ConstraintList()
         fnames = {y.name for y in p.functions}

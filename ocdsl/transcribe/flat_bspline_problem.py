@@ -290,7 +290,7 @@ class _Mapped:
         problem = self.problem
         if s in problem.boundary_values:
             bv = problem.boundary_values[s]
-            return self.nlp.phases[bv.phase].at(bv.var.name, 0.0 if bv.which == "t0" else 1.0)
+            return self.nlp.phases[bv.phase].end_value(bv.var.name, bv.which)
         for ph in problem.phases:
             if s == ph.t0_symbol:
                 return self.t0[ph.name]
