@@ -123,7 +123,10 @@ def test_the_eigenaxis_extremal_of_betts_reorientation_is_not_failed(tmp_path):
     order conditions hold, so a first-order certificate cannot reject it (only a second
     start or a better guess finds 28.63). Its certificate used to fail on a coarsened mesh's
     costates (H from -2.3 to -0.1, a switch off its breakpoint) and the test took that false
-    alarm for a catch; with the mesh kept, H is -1 within 1 %."""
+    alarm for a catch; with the mesh kept, H is -1 within 1 % on one machine, and on another
+    (901 Ipopt iterations) -1.004 on average, -1.30 to -0.79 by u1's switch on a breakpoint,
+    where u1 is bang-bang and u2, u3 stationary: the costates are a family there and H is
+    not judged (inconclusive), as when every control is bang-bang."""
     import math
 
     res = run_file(DATA / "cert_reorient_default.yaml", None)
@@ -131,7 +134,9 @@ def test_the_eigenaxis_extremal_of_betts_reorientation_is_not_failed(tmp_path):
     assert abs(res.tf - 2 * math.sqrt(math.radians(150) * 5621 / 50)) < 1e-7
     assert all(np.max(np.abs(ph.states[k])) < 1e-9 for k in ("q2", "q3", "w2", "w3"))
     assert res.status == "optimal" and res.verified
-    assert res.certificate["hamiltonian"]["passed"] and not res.certificate["failed"]
+    h = res.certificate["hamiltonian"]
+    assert not res.certificate["failed"] and res.ok
+    assert h["passed"] or (h["passed"] is None and h["inconclusive"].startswith("u1 bang-bang")), h
 
 
 def test_bang_bang_hamiltonian_is_inconclusive_not_failed(tmp_path):

@@ -188,13 +188,15 @@ method: {transcription: flat-bspline, flat_outputs: [p], degree: 7, control_poin
 def test_a_fourth_derivative_control_is_exported_as_it_is(tmp_path):
     """The minimum-energy rest-to-rest quadruple integrator: a degree-7 polynomial, J = 100800
     exactly and u = 840 - 10080 t + 25200 t^2 - 16800 t^3 (its Gramian); the exported column
-    follows it and the answer verifies."""
+    follows it and the answer verifies. Ipopt ends "optimal" on one machine and, with J exact
+    at iteration 4, at its tiny-step stop on another (its dual infeasibility held at rounding
+    level): `acceptable` there, never an error (ocdsl.solve.ipopt.TINY_STEP)."""
     from ocdsl.api import run_file
 
     path = tmp_path / "q.yaml"
     path.write_text(QUADRUPLE_INTEGRATOR)
     res = run_file(path, tmp_path / "run")
-    assert res.status == "optimal" and res.verified, res.verification.get("summary")
+    assert res.status in ("optimal", "acceptable") and res.verified, res.verification.get("summary")
     assert abs(res.objective - 100800) <= 1e-6 * 100800
     t, u = res.phases[0].time, res.phases[0].controls["u"]
     assert np.max(np.abs(u - (840 - 10080 * t + 25200 * t ** 2 - 16800 * t ** 3))) <= 1e-4 * 840

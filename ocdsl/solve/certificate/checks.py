@@ -342,8 +342,14 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     mean_ok = (expected is None or h["mean_deviation"] <= h_floor
                or (h.get("relative_mean_deviation") or math.inf) <= tol.hamiltonian_mean)
     on_breakpoints = refined and _switches_on_breakpoints(t, side, breakpoints)
-    if (not h["passed"] and model.controls and len(bb_per) == len(model.controls)
-            and out["bang_bang"]["all"] and out["switching"]["passed"] and (mean_ok or on_breakpoints)):
+    every_bang = bool(model.controls) and len(bb_per) == len(model.controls) and out["bang_bang"]["all"]
+    bang = [name for name, v in bb_per.items() if v["bang_bang"]]
+    # some controls bang-bang, the others stationary: the bang-bang ones' costates are as free
+    # as below (Betts's reorientation on its eigenaxis extremal: u1 bang-bang, u2 = u3 = 0,
+    # H = -1.004 on average, -1.30 to -0.79 by its switch on a breakpoint after a 901-iteration
+    # solve on one machine, within 1 % on another)
+    mixed = bool(bang) and not every_bang and out["stationarity"]["passed"] is True
+    if (not h["passed"] and (every_bang or mixed) and out["switching"]["passed"] and (mean_ok or on_breakpoints)):
         # every control at a bound and every sign right: no node is stationary, so the
         # NLP's costates are fixed only up to what the bound multipliers absorb (a shift of
         # the switching function that keeps its signs; the double integrator's switch on a
@@ -351,8 +357,9 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
         # wrong at a node, still fails, unless every switch sits on a mesh breakpoint: then
         # the multipliers are a family whose mean is no evidence either (unseen21: refined
         # meshes with their switches on breakpoints, tf right to 1e-10, H's mean 0.28-2.7 % off)
-        h["inconclusive"] = ("every control is bang-bang" + (" with its switches on mesh breakpoints" if on_breakpoints
-                                                            and not mean_ok else "")
+        h["inconclusive"] = (("every control is bang-bang" if every_bang else
+                              f"{', '.join(bang)} bang-bang, the other controls stationary")
+                             + (" with its switches on mesh breakpoints" if on_breakpoints and not mean_ok else "")
                              + ": the costates are not unique, H is not judged")
         h["passed"] = None
     elif (not h["passed"] and path and model.controls and out["switching"]["passed"] and mean_ok
