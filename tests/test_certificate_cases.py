@@ -992,3 +992,21 @@ def test_a_control_far_inside_a_wide_bound_is_not_at_that_bound(tmp_path):
     assert res.status == "optimal" and res.verified and res.objective == pytest.approx(112.0, rel=1e-10)
     assert res.certificate["passed"], res.certificate
     assert res.certificate["switching"]["saturated_nodes"] == 0
+
+
+def test_a_weakly_active_bound_resolved_to_its_range_is_at_the_bound():
+    """unseen36 F2: under `scaling: {mode: auto}` the SI two-phase lander's coast thrust sat
+    2e-4 to 2.4e-3 N above 0 <= T <= 4000 N (6e-7 of the range, where the switching function
+    is small); "at the bound" meant within 1e-7 of the range, 11 of 16 nodes were interior and
+    stationarity failed a right answer (J to 2e-9): certificate failed, exit 1."""
+    from ocdsl.solve.certificate.sides import _side
+
+    coast = np.array([[1.3e-3], [5.2e-4], [2.4e-3], [3.3e-4], [1.9e-3], [2.2e-4], [9.0e-4]])
+    assert np.all(_side(coast, [(0.0, 4000.0)], 0.01) == -1)
+    # a control near 20 on 0 <= u <= 1e5 is still inside (unseen30)
+    assert np.all(_side(np.array([[20.0], [20.3], [19.8]]), [(0.0, 1e5)], 0.01) == 0)
+    res = run_file(DATA / "lander_jettison_si_scaled.yaml", None)
+    assert abs(res.objective - 775.449912615) < 1e-6 * 775.449912615
+    from ocdsl.result import certificate_verdict
+
+    assert certificate_verdict(res.certificate) != "failed", res.certificate.get("failed")

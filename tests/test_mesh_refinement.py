@@ -547,8 +547,9 @@ method:
 def test_a_mesh_solved_again_without_progress_stops_the_refinement(tmp_path):
     """unseen5: after a rejected coarsening, refinement nudged one breakpoint by 1e-9 per
     iteration and re-solved the same 5-segment mesh (0 Ipopt iterations, the same error) to
-    max_iterations. Now the second solve of that mesh ends the loop; the converged mesh is the
-    result (per axis bang-off-bang: fuel (3 - sqrt 5) + (3 - sqrt 7))."""
+    max_iterations. Now the second solve of that mesh ends the loop, or, where a nudge held the
+    segments beside it, refines them once (unseen36 F3) and then ends it; the converged mesh is
+    the result (per axis bang-off-bang: fuel (3 - sqrt 5) + (3 - sqrt 7))."""
     import math
 
     p = tmp_path / "pmf.yaml"
@@ -558,7 +559,8 @@ def test_a_mesh_solved_again_without_progress_stops_the_refinement(tmp_path):
     exact = (3 - math.sqrt(5)) + (3 - math.sqrt(7))
     assert res.status == "optimal" and abs(res.objective - exact) < 1e-6 * exact, res.message
     assert len(history) <= 8, [(h["iteration"], h["max_error"]) for h in history]
-    assert history[-1].get("stalled", "").startswith(f"mesh iteration {len(history)}: the mesh of iteration")
+    assert (history[-1].get("stalled", "").startswith(f"mesh iteration {len(history)}: the mesh of iteration")
+            or history[-1].get("converged")), history[-1]
 
 
 def test_the_record_names_the_starting_mesh_once(tmp_path):
@@ -1081,7 +1083,7 @@ def test_a_switch_on_its_breakpoint_to_rounding_does_not_hold_the_refinement(tmp
     switch was located 1.6e-12 off its breakpoint, which counted as a breakpoint to move onto,
     and the segments around it, 4.5e-2 off, were left for the move; the same mesh was solved
     again and the refinement stopped at iteration 2 of 15 at t_f = 6.99312 (not verified).
-    A breakpoint within ON_FEATURE of its feature is on it, and those segments are refined."""
+    After a move the segments it held are refined, whether the move helped or not."""
     path = tmp_path / "speed.yaml"
     path.write_text(SPEED_LIMITED % 6)
     res = run_file(path, tmp_path / "r")

@@ -130,6 +130,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     guess_restarts = 0   # meshes started from the file's guess because the one before zigzagged
     last = None
     solved_before = None   # (meshes, largest error) of the previous iteration that missed the tolerance
+    nudge_grace = True     # the first solve-again after a breakpoint nudge refines the segments it held
     converged = []       # iterations within tolerance with every located switch on a breakpoint
     moved_at = 0         # the first mesh after a fixed-time switch was moved (best-mesh choice)
     coarsening = False   # the current mesh came from coarsening a converged one
@@ -511,16 +512,24 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 rec["coarsening_rejected"] = True
                 coarsening = False
             elif solved_before is not None and all(close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
-                                                   for k in meshes) and max_err >= 0.9 * solved_before[1]:
+                                                   for k in meshes) and max_err >= 0.9 * solved_before[1] \
+                    and not (nudge_grace and any(memory.get("last") for memory in nudged.values())):
                 # the mesh solved again (breakpoints nudged by less than corner_tolerance) and
                 # its error fell by less than a tenth: refining on would repeat it (a rejected coarse mesh
                 # was re-solved in 0 Ipopt iterations to max_iterations; unseen5, planar
-                # minimum fuel). A nudge that does help (a breakpoint onto a switch) goes on.
+                # minimum fuel). A nudge that does help (a breakpoint onto a switch) goes on, and
+                # the first one that did not too: the segments it held are refined now (unseen36
+                # F3: a switch 1.6e-12 off its breakpoint moved onto, the segments beside it 4.5e-2
+                # off, the loop ended at iteration 2 of 15 with t_f 6.99312 for 7); nudges that
+                # repeat (unseen5) stop it on the next solve again
                 stalled = (f"mesh iteration {it}: the mesh of iteration {it - 1} solved again (no breakpoint "
                            f"moved by more than corner_tolerance {spec.corner_tolerance:g}) with no fall in "
                            f"its largest error ({solved_before[1]:.3e} -> {max_err:.3e})")
                 rec["stalled"] = stalled
                 break
+            elif solved_before is not None and all(close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
+                                                   for k in meshes) and max_err >= 0.9 * solved_before[1]:
+                nudge_grace = False
             solved_before = (dict(meshes), max_err)
             growth.append((int(info.nlp.get("variables", 0)), max_err))
             if len(growth) >= 3 and growth[-1][0] >= max(GROWTH_LIMIT * growth[-3][0], GROWTH_FLOOR) \

@@ -36,13 +36,6 @@ def _place(segs: list[list], f: float, snap: float, keep: list[float], tol: floa
     segs[k:k + 1] = [[a, f, N], [f, b, N]]
 
 
-# a breakpoint this close to its feature (normalised time) is on it: moving it cannot change an
-# error above any tolerance, and holding its neighbours for the move stalled the refinement
-# (unseen36 F3: a switch located 1.6e-12 off its breakpoint, the segments around it 4.5e-2
-# off, "moved", the same mesh solved again and the loop ended at iteration 2 of 15)
-ON_FEATURE = 1e-10
-
-
 def _arc_mesh_moves(mesh, errors, spec, features, todo) -> dict[int, float]:
     """On an arc mesh (every interior breakpoint within corner_tolerance of a located feature,
     as ``coarsen`` builds it): breakpoint index -> feature, for the breakpoints that are not
@@ -59,7 +52,7 @@ def _arc_mesh_moves(mesh, errors, spec, features, todo) -> dict[int, float]:
     moves = {}
     for f in feats:
         q = 1 + int(np.argmin(np.abs(inner - f)))
-        if (abs(bps[q] - f) > ON_FEATURE and bps[q - 1] < f < bps[q + 1]
+        if (abs(bps[q] - f) > 1e-14 and bps[q - 1] < f < bps[q + 1]
                 and max(errors[q - 1].error, errors[q].error) > spec.tolerance):
             moves[q] = float(f)
     return moves
@@ -98,7 +91,7 @@ def _switch_moves(mesh, spec, features, switches, memory: dict) -> dict[int, flo
         if not any(abs(f - g) <= 1e-15 or abs(b - g) <= 1e-15 for g in features):
             continue    # moved to a target by switches.move_switches, or dropped
         d = abs(b - f)
-        if not (ON_FEATURE < d <= spec.corner_tolerance and bps[q - 1] < f < bps[q + 1]) or q in moves:
+        if not (1e-14 < d <= spec.corner_tolerance and bps[q - 1] < f < bps[q + 1]) or q in moves:
             continue
         seen[order] = (b, float(f))
         g = float(f)
