@@ -370,3 +370,32 @@ def test_an_angles_branch_is_centred_where_asked():
     principal = np.arctan2(np.sin(turns), np.cos(turns))
     assert np.allclose(unwrap_from(principal, 0.0), turns)
     assert np.allclose(unwrap_from(principal + 0.0, 2 * np.pi), turns + 2 * np.pi)
+
+
+NOT_FLAT = """
+name: x1' = x2 + x3^2, x2' = x3, x3' = u (not flat)
+model:
+  states: [x1, x2, x3]
+  controls: [u]
+  dynamics: {x1: x2 + x3**2, x2: x3, x3: u}
+problem:
+  time: {t0: 0, tf: 2}
+  constraints: [x1(t0) == 0, x2(t0) == 0, x3(t0) == 0, x1(tf) == 1, x2(tf) == 0, x3(tf) == 0]
+  objective: minimize integral(u**2/2)
+method: {transcription: flat-bspline, degree: 5, control_points: 15, collocation_points: 15}
+"""
+
+
+def test_a_square_root_branch_of_the_flat_map_is_named_with_what_it_excludes(tmp_path):
+    """unseen37 F1: the search took outputs [x1, x2] and x3 = +sqrt(x1' - x2); x2(t0) = x2(tf)
+    = 0 with x2' = x3 make x3 change sign, so no trajectory of the problem is on that branch.
+    The run ended max_iter advising to bound the root's argument away from zero, which cannot
+    help. The failure's message now names the branch, what it excludes, and how to choose."""
+    from ocdsl.api import compile_file
+    from ocdsl.transcribe.flat_bspline_problem import _Mapped, singularity_hint
+
+    file = compile_file(write(tmp_path, NOT_FLAT))
+    mp = _Mapped(file)
+    hint = singularity_hint(mp, file.problem)
+    assert "x3 = +sqrt(x1_d1 - x2), so x3 >= 0 throughout" in hint, hint
+    assert "`x3 <= 0` the other one" in hint

@@ -403,7 +403,7 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
     says which, and that bounding the quantity away from zero keeps the solver off it
     (unseen22 f13: 'unrecoverable error ... search direction', no word why; with 0.1 <= v the
     same file solves)."""
-    out = []
+    out, branches = [], []
     for ph in problem.phases:
         fm = mp.flatmaps[ph.name]
         for group in (fm.states, fm.controls):
@@ -414,11 +414,33 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
                 for p in sp.sympify(expr).atoms(sp.Pow):
                     if p.exp.is_Rational and p.exp.q == 2 and p.base.free_symbols and str(p.base) not in out:
                         out.append(str(p.base))
-    if not out:
-        return ""
-    return (f"The flat map is singular where {' or '.join(f'`{d}`' for d in out[:3])} vanishes (its division or "
-            "square root): the solver may have run into it. Bounding the state or control that measures it "
-            "away from zero (for a speed, `0.1 <= v`) keeps the outputs off it")
+                branch = _root_branch(expr)
+                if branch is not None:
+                    branches.append((name, *branch, [str(y) for y in fm.outputs]))
+    said = []
+    if out:
+        said.append(f"The flat map is singular where {' or '.join(f'`{d}`' for d in out[:3])} vanishes (its "
+                    "division or square root): the solver may have run into it. Bounding the state or control "
+                    "that measures it away from zero (for a speed, `0.1 <= v`) keeps the outputs off it")
+    for name, sign, base, outputs in branches[:2]:
+        # unseen37 F1: x3 = +sqrt(x1' - x2) from the outputs [x1, x2], while x2(t0) = x2(tf) = 0
+        # and x2' = x3 make x3 change sign: no trajectory of the problem is on that branch
+        said.append(f"With the outputs {outputs} the map takes {name} = {sign}sqrt({base}), so {name} "
+                    f"{'>=' if sign == '+' else '<='} 0 throughout: a solution in which {name} changes sign is not "
+                    f"on it. A bound on {name} chooses the branch (`{name} <= 0` the other one), or other "
+                    "`flat_outputs` may avoid the root")
+    return ". ".join(said)
+
+
+def _root_branch(expr) -> tuple[str, sp.Expr] | None:
+    """('+' or '-', base) where ``expr`` is a square root or its negative, else None."""
+    e = sp.sympify(expr)
+    sign = "+"
+    if e.could_extract_minus_sign():
+        e, sign = -e, "-"
+    if e.is_Pow and e.exp == sp.Rational(1, 2) and e.base.free_symbols:
+        return sign, e.base
+    return None
 
 
 class FlatSingularError(FlatProblemError):
