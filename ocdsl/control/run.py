@@ -134,6 +134,8 @@ def run_one(model: Model, spec: ControllerSpec, kind: str, sdc: sdcmod.SDC,
                       method=method, parameters=params, problem=problem,
                       wall_time_s={"total": time.perf_counter() - t0 + t_symbolic})
     t2 = time.perf_counter()
+    if sim.status == "unstable" and "not regulated within the horizon" in sim.message:
+        sim.message += _slow_loop_note(num, Q, R, sim_spec.horizon)
     met = metrics(sim, names, sim_spec.metric_states, bands, sim_spec.check_times, R)
     controls = [str(u) for u in model.controls]
     phase = PhaseTrajectory("main", sim.t, states={nm: sim.z[:, i] for i, nm in enumerate(names)},
@@ -157,6 +159,27 @@ def run_one(model: Model, spec: ControllerSpec, kind: str, sdc: sdcmod.SDC,
                                "build": t1 - t0, "solve": t2 - t1, "post": time.perf_counter() - t2},
                   method=method, parameters=params, phases=[phase], problem=problem,
                   extra=extra, tables={"closed_loop": table})
+
+
+def _slow_loop_note(num, Q, R, horizon: float) -> str:
+    """What the loop's linearisation at the origin says of a run not regulated within its
+    horizon: every law there is the LQR on (A(0), B(0)). A stable but slow loop reads as
+    `unstable` (unseen37 F3, the TORA benchmark: eigenvalues -0.084 +- 1.0i, ratio 0.0144 at
+    60 s, 1e-5 at 150 s); the note says how many of its time constants the horizon spans."""
+    from .lqr import lqr
+
+    try:
+        z = np.zeros(len(num.sdc.model.states))
+        _, _, eig = lqr(num.A(z), num.B(z), Q, R)
+    except Exception:  # noqa: BLE001 - a note, never a failure
+        return ""
+    slowest = float(np.max(np.real(eig)))
+    if not slowest < 0:
+        return ""
+    tau = -1.0 / slowest
+    return (f" (its linearisation at the origin is stable, slowest eigenvalue real part {slowest:.3g}: a time "
+            f"constant of {tau:.3g}, of which the horizon {horizon:g} spans {horizon / tau:.2g}; a longer "
+            "`simulate.horizon` shows whether it regulates)")
 
 
 def run_controllers(model: Model, spec_list: Sequence[ControllerSpec | dict],
