@@ -633,7 +633,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         result.method["mesh"].pop(key, None)
     result.method.update(starting_mesh(file.method))
     hints = failure_hints(file, tr_c, status)
-    result.message = (message + (f".{hints}" if hints else "")
+    if status == "mesh_not_converged":
+        hints += _undetermined_controls(result.certificate)
+    result.message = ((f"{message.rstrip('.')}.{hints}" if hints else message)
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
                       + (f"; {terminal_notes[-1]}" if terminal_notes else ""))
     result.iterations = sum(h["ipopt_iterations"] for h in history)
@@ -642,4 +644,25 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.wall_time_s = timer.breakdown()
     stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result
+
+
+def _undetermined_controls(cert) -> str:
+    """A refinement that did not converge where a control's switching function is zero to the
+    NLP's precision (the certificate's ``unresolved``): the objective does not determine that
+    control, the solver's choice of it is arbitrary, and the estimate chases it (unseen36 F4:
+    two axes, minimum time set by one, the other's control free; 15 meshes, t_f right to 7e-10,
+    verified, `mesh_not_converged`). Said, as more iterations cannot help."""
+    if not isinstance(cert, dict):
+        return ""
+    per_phase = cert["phases"].items() if isinstance(cert.get("phases"), dict) else [("", cert)]
+    free = [f"{name}{f' (phase {ph})' if ph else ''}" for ph, c in per_phase
+            for name, rec in (((c or {}).get("stationarity") or {}).get("per_control") or {}).items()
+            if isinstance(rec, dict) and rec.get("unresolved")]
+    if not free:
+        return ""
+    return (f" The objective does not determine {', '.join(free)} (its switching function is zero to the NLP's "
+            "precision): any control that meets the conditions is optimal, the solver's choice of it is arbitrary "
+            "and the error estimate follows it, which more iterations do not cure; J and the verification "
+            "judge the answer, or a small cost of that control in the objective (`+ 1e-6*integral(u**2)`) "
+            "makes it unique")
 
