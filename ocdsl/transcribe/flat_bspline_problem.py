@@ -415,8 +415,11 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
                     if p.exp.is_Rational and p.exp.q == 2 and p.base.free_symbols and str(p.base) not in out:
                         out.append(str(p.base))
                 branch = _root_branch(expr)
-                if branch is not None:
-                    branches.append((name, *branch, [str(y) for y in fm.outputs]))
+                bounds = {**getattr(ph, "state_bounds", {}), **getattr(ph, "control_bounds", {})}
+                lo, hi = bounds.get(name, (-math.inf, math.inf))
+                # a bound on the branch's side is the file's choice of it: nothing to say
+                if branch is not None and not (lo >= 0 if branch[0] == "+" else hi <= 0):
+                    branches.append((name, *branch, [str(y) for y in getattr(fm, "outputs", ())]))
     said = []
     if out:
         said.append(f"The flat map is singular where {' or '.join(f'`{d}`' for d in out[:3])} vanishes (its "
