@@ -1129,3 +1129,34 @@ def test_a_control_the_objective_does_not_determine_is_named_when_the_mesh_does_
         assert "The objective does not determine ux" in res.message and ".." not in res.message, res.message
     else:
         assert res.status == "optimal"
+
+
+FUEL_AND_TIME = """name: minimum fuel plus time, double integrator rest to rest, free tf
+model:
+  states: [x, v]
+  controls: [up, um]
+  dynamics: {x: v, v: up - um}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [0 <= up <= 1, 0 <= um <= 1, x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, 0.5 <= tf <= 10]
+  objective: minimize integral(up + um) + 0.5*tf
+  guess: {tf: 2.7}
+method: {transcription: LG, segments: %d, degree: 4, mesh: {tolerance: 1.0e-7, max_iterations: 15}}
+"""
+
+
+@pytest.mark.parametrize("segments", [10, 8])
+def test_a_mesh_whose_switch_the_switch_solve_moves_is_not_the_answer(tmp_path, segments):
+    """unseen38 F1 (Athans & Falb 8.5: bang-off-bang, t1 = sqrt(k / (2 + k)) with k = 0.5,
+    t_f = t1 + 1 / t1 = 2.6832815730, J = sqrt 5): on LG 10 x 4 the switch sat on a breakpoint
+    1.3e-4 (normalised) late; every estimate was within 1e-7 (each arc a polynomial), J only
+    1.1e-7 off (quadratic in the switch), and the run said `optimal`, verified, exit 0 with
+    t_f 3.2e-4 off. The switch-time solve had moved the switch, but the mesh that pinned it was
+    accepted as converged; now the moved mesh is solved next."""
+    path = tmp_path / "fuel.yaml"
+    path.write_text(FUEL_AND_TIME % segments)
+    res = run_file(path, tmp_path / "r")
+    t1 = math.sqrt(0.5 / 2.5)
+    assert res.status == "optimal" and res.verified
+    assert abs(res.tf - (t1 + 1 / t1)) < 1e-6 * (t1 + 1 / t1), res.tf
+    assert abs(res.objective - math.sqrt(5)) < 1e-8 * math.sqrt(5)

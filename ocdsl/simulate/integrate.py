@@ -202,7 +202,7 @@ def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray
     args = _kernel_args((Y0, s_end, P, ck, cp, co, CD, T, cm.clock, t_stop, float(rtol), _atol(cm, atol),
                          int(max_steps), *ev, Yf, status, steps, 0, False))
     per_row = {0, 1, 2, 6, 7, 9, 17, 18, 19}      # the rows of these arguments are the runs
-    chunks = np.array_split(np.arange(B), min(B, _cores())) if parallel else [np.arange(B)]
+    chunks = np.array_split(np.arange(B), max(1, min(B, _cores()))) if parallel else [np.arange(B)]
     chunks = [c for c in chunks if len(c)]
 
     def run(rows):
