@@ -1160,3 +1160,9 @@ def test_a_mesh_whose_switch_the_switch_solve_moves_is_not_the_answer(tmp_path, 
     assert res.status == "optimal" and res.verified
     assert abs(res.tf - (t1 + 1 / t1)) < 1e-6 * (t1 + 1 / t1), res.tf
     assert abs(res.objective - math.sqrt(5)) < 1e-8 * math.sqrt(5)
+    # a second refinement whose answer did not replace this one is in the record too (unseen38 F6)
+    history = res.extra["mesh_history"]
+    if any("found no better J" in n for n in res.extra.get("notes", [])):
+        second = [h for h in history if h.get("second_pass")]
+        assert second and [h["iteration"] for h in history] == list(range(1, len(history) + 1))
+        assert res.extra["mesh"]["iterations"] == len(history)

@@ -16,7 +16,7 @@ from .coarsen import coarsen, nlp_size
 from .estimate import estimate_errors, flight_amplification, flight_rtol, phase_end, segment_ends
 from .junction import jumping_ends, limit_junction_controls
 from .flown import (announce_again, beaten_meshes, refined_again, refuted_corners, second_pass_no_better,
-                    with_breakpoints)
+                    second_pass_recorded, with_breakpoints)
 from .locate import locate_features, locate_switches, misplaced
 from .confirm import confirm
 from .outcome import GOOD, _objective_disagreement, outcome, record
@@ -645,6 +645,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         if not unfounded:
             return refined_again(again, result, corners, history, tables, it_c)
         notes.append(unfounded)
+        second_pass_recorded(again, history, tables)
     result.status = status
     # one starting mesh in the record (both pairs were echoed, the unused one as defaults: unseen6)
     for key in ("segments", "degree"):
