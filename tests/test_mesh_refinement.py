@@ -1166,3 +1166,31 @@ def test_a_mesh_whose_switch_the_switch_solve_moves_is_not_the_answer(tmp_path, 
         second = [h for h in history if h.get("second_pass")]
         assert second and [h["iteration"] for h in history] == list(range(1, len(history) + 1))
         assert res.extra["mesh"]["iterations"] == len(history)
+
+
+OSCILLATOR_FROM_AFAR = """name: minimum-time harmonic oscillator from (-6, 4)
+model:
+  states: [x1, x2]
+  controls: [u]
+  dynamics: {x1: x2, x2: -x1 + u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, x1(t0) == -6, x2(t0) == 4, x1(tf) == 0, x2(tf) == 0, 1 <= tf <= 30]
+  objective: minimize tf
+  guess: {tf: 11}
+method: {transcription: LG, segments: 2, degree: 3, mesh: {tolerance: 1.0e-7, max_iterations: 15}}
+"""
+
+
+def test_a_bisected_first_mesh_gets_the_first_meshs_recovery_from_infeasibility(tmp_path):
+    """unseen38 F3 (Pontryagin's oscillator, three switches, t_f = 10.808449588 by switch-time
+    shooting): LG 2 x 3 is too coarse to meet the conditions; its two bisections were solved
+    from the guess only, ended locally infeasible, and the run said `infeasible`, blaming the
+    correct x1(t0) == -6, while a plain LG 8 x 3 solve (seeded controls, then the relaxed
+    solve's feasible point) is optimal. The bisections now get that recovery."""
+    path = tmp_path / "osc.yaml"
+    path.write_text(OSCILLATOR_FROM_AFAR)
+    res = run_file(path, tmp_path / "r")
+    assert res.status == "optimal" and res.verified, res.message
+    assert abs(res.tf - 10.808449588) < 1e-7 * 10.808449588
+    assert any("bisected" in n and "it solved" in n for n in res.extra.get("notes", []))

@@ -256,7 +256,28 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # (unseen16: v <= 1.1 rest to rest on LG 3 x 3, 'infeasible' blaming x(t0) == 0):
             # bisected, twice at most, before the problem is called infeasible
             if info.status == "infeasible":
-                tr, info, meshes = bisect_first(first_solve, tr, info, meshes, "was infeasible, the problem is not",
+                def first_solve_recovered(ms, bisections, rebuild=rebuild):
+                    """``first_solve``, and where it ends infeasible the recovery the first mesh had
+                    (seeded controls, then the relaxed solve's feasible point): the guess alone left
+                    a bisected mesh locally infeasible that a plain solve of the same mesh recovers
+                    from (unseen38 F3: the oscillator from (-6, 4) on LG 2 x 3, "infeasible, the
+                    problem leaves x1(t0) == -6 unmet"; LG 8 x 3 alone solves)"""
+                    t, res = first_solve(ms, bisections)
+                    if res.status != "infeasible":
+                        return t, res
+
+                    def build_on(g):
+                        built = rebuild(ms, guesses=g, collect=True)
+                        ws.prepare(built.model)
+                        return built
+
+                    again = recover_from_infeasibility(
+                        file, ms, previous, timer, seed=seed, options=options, info=res, tr=t,
+                        verbose=verbose, progress=progress, build_model=build_on)
+                    return (again.tr, again.info) if again.guesses is not None else (t, res)
+
+                tr, info, meshes = bisect_first(first_solve_recovered, tr, info, meshes,
+                                                "was infeasible, the problem is not",
                                                 lambda i: i.status == "infeasible", 2, notes)
                 reg = getattr(tr.model, "mesh_regularisation", None)
         if it == 1 and info.message.startswith((ipopt.TOO_FEW_FREEDOMS, ipopt.SQUARE)):
