@@ -1194,3 +1194,19 @@ def test_a_bisected_first_mesh_gets_the_first_meshs_recovery_from_infeasibility(
     assert res.status == "optimal" and res.verified, res.message
     assert abs(res.tf - 10.808449588) < 1e-7 * 10.808449588
     assert any("bisected" in n and "it solved" in n for n in res.extra.get("notes", []))
+
+
+def test_a_refined_mesh_that_ends_infeasible_gets_the_recovery_before_the_loop_stops(tmp_path):
+    """unseen38 F4 (the oscillator from (10, 3), six switches, t_f = 16.938399032): LGR 2 x 3,
+    then 6 segments ended infeasible from the mesh before and from the guess, and the
+    refinement stopped at iteration 2 of 15 on mesh 1's answer, 11 % off. The first mesh's
+    recovery (seeded controls, the relaxed solve's feasible point) now runs there too."""
+    path = tmp_path / "osc.yaml"
+    path.write_text(OSCILLATOR_FROM_AFAR.replace("x1(t0) == -6, x2(t0) == 4", "x1(t0) == 10, x2(t0) == 3")
+                    .replace("guess: {tf: 11}", "guess: {tf: 17}").replace("transcription: LG,", "transcription: LGR,")
+                    .replace("max_iterations: 15", "max_iterations: 3"))
+    res = run_file(path, tmp_path / "r")
+    history = res.extra["mesh_history"]
+    assert len(history) == 3 and history[1]["status"] in ("optimal", "acceptable"), \
+        [(h["iteration"], h["status"]) for h in history]
+    assert "ended 'infeasible'" not in res.message

@@ -221,6 +221,21 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                                    progress=ipopt.Progress(progress, label))
 
             redone = restart(it, info, capped, cold=cold, warm=warm, solve=solve_again, timer=timer)
+            if redone is None and info.status == "infeasible":
+                # infeasible from the mesh before and from the guess: the first mesh's recovery
+                # (seeded controls, then the relaxed solve's feasible point) before the loop stops
+                # (unseen38 F4: the oscillator from (10, 3), LGR 2 x 3 then 6 segments infeasible,
+                # the refinement ended at iteration 2 of 15 on mesh 1's answer, 11 % off)
+                def build_here(g, ms=meshes):
+                    built = rebuild(ms, guesses=g, collect=True)
+                    ws.prepare(built.model)
+                    return built
+
+                again = recover_from_infeasibility(file, meshes, previous, timer, seed=seed, options=options,
+                                                   info=info, tr=tr, verbose=verbose, progress=progress,
+                                                   build_model=build_here)
+                if again.guesses is not None:
+                    redone = (again.tr, again.info, None)
             if redone is not None:
                 tr, info, mult = redone
                 from_guess = mult is None
