@@ -1210,3 +1210,15 @@ def test_a_refined_mesh_that_ends_infeasible_gets_the_recovery_before_the_loop_s
     assert len(history) == 3 and history[1]["status"] in ("optimal", "acceptable"), \
         [(h["iteration"], h["status"]) for h in history]
     assert "ended 'infeasible'" not in res.message
+
+
+def test_a_refinement_whose_error_stays_flat_while_the_nlp_grows_stops():
+    """unseen36 F5: Clark's fishery (bang, singular, bang; J* = 1.3505136201) on LGL from 4 x 4
+    at 1e-7: the error stayed at 2.47e-4 from 3,804 variables (mesh 7) to 8,534 (mesh 15),
+    slower than the 5-fold growth rule catches; three meshes that grow the NLP by half with no
+    tenth off the error now end it (LGR and LG converge on the same file)."""
+    res = run_file(Path(__file__).parent / "data" / "fishery_lgl_singular_mesh.yaml", None)
+    history = res.extra["mesh_history"]
+    assert res.status == "mesh_not_converged" and len(history) < 15
+    assert "in 3 meshes while the largest error stayed at" in history[-1].get("stalled", ""), history[-1]
+    assert abs(res.objective - 1.3505136201) < 1e-6

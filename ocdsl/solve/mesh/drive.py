@@ -44,6 +44,10 @@ GUESS_RESTARTS = 2
 # converged at 1,092)
 GROWTH_LIMIT = 5.0
 GROWTH_FLOOR = 2000
+# and three refinements that grow it by half, to at least GROWTH_FLOOR, with no tenth off the
+# error: the slow form of the same (unseen36 F5: LGL on a singular arc, the error 2.47e-4 at
+# 3,804 variables and 2.43e-4 at 8,534 eight meshes later)
+FLAT_GROWTH, FLAT_MESHES = 1.5, 3
 
 # a converged mesh is coarsened only to a mesh of at most this share of its NLP: a solve (and a
 # refinement back when it misses) for a few percent fewer unknowns costs more than it saves
@@ -595,6 +599,14 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                            f"{growth[-3][0]} to {growth[-1][0]} variables in two meshes while the largest error "
                            f"fell only from {growth[-3][1]:.3e} to {growth[-1][1]:.3e} (a singular arc or a "
                            "chattering control? `regularise:` in mesh:, docs/mesh.md)")
+                rec["stalled"] = stalled
+                break
+            if len(growth) > FLAT_MESHES and growth[-1][0] >= max(FLAT_GROWTH * growth[-1 - FLAT_MESHES][0], GROWTH_FLOOR) \
+                    and growth[-1][1] > 0.9 * growth[-1 - FLAT_MESHES][1]:
+                stalled = (f"mesh iteration {it}: the refinement is not converging: the NLP grew from "
+                           f"{growth[-1 - FLAT_MESHES][0]} to {growth[-1][0]} variables in {FLAT_MESHES} meshes while "
+                           f"the largest error stayed at {growth[-1][1]:.3e} (was {growth[-1 - FLAT_MESHES][1]:.3e}; "
+                           "a singular arc or a chattering control? `regularise:` in mesh:, docs/mesh.md)")
                 rec["stalled"] = stalled
                 break
             if it == spec.max_iterations:
