@@ -1168,18 +1168,12 @@ def test_a_mesh_whose_switch_the_switch_solve_moves_is_not_the_answer(tmp_path, 
         assert res.extra["mesh"]["iterations"] == len(history)
 
 
-OSCILLATOR_FROM_AFAR = """name: minimum-time harmonic oscillator from (-6, 4)
-model:
-  states: [x1, x2]
-  controls: [u]
-  dynamics: {x1: x2, x2: -x1 + u}
-problem:
-  time: {t0: 0, tf: free}
-  constraints: [-1 <= u <= 1, x1(t0) == -6, x2(t0) == 4, x1(tf) == 0, x2(tf) == 0, 1 <= tf <= 30]
-  objective: minimize tf
-  guess: {tf: 11}
-method: {transcription: LG, segments: 2, degree: 3, mesh: {tolerance: 1.0e-7, max_iterations: 15}}
-"""
+# the harmonic oscillator above from (-6, 4) on a coarse LG start
+OSCILLATOR_FROM_AFAR = (HARMONIC.replace("x1(t0) == -4, x2(t0) == 1", "x1(t0) == -6, x2(t0) == 4")
+                        .replace("1 <= tf <= 20", "1 <= tf <= 30").replace("guess: {tf: 7}", "guess: {tf: 11}")
+                        .replace("transcription: LGR\n  segments: 20\n  degree: 4\n  mesh: {tolerance: 1.0e-7, "
+                                 "max_iterations: 25}", "transcription: LG\n  segments: 2\n  degree: 3\n  mesh: "
+                                 "{tolerance: 1.0e-7, max_iterations: 15}"))
 
 
 def test_a_bisected_first_mesh_gets_the_first_meshs_recovery_from_infeasibility(tmp_path):
@@ -1203,7 +1197,7 @@ def test_a_refined_mesh_that_ends_infeasible_gets_the_recovery_before_the_loop_s
     recovery (seeded controls, the relaxed solve's feasible point) now runs there too."""
     path = tmp_path / "osc.yaml"
     path.write_text(OSCILLATOR_FROM_AFAR.replace("x1(t0) == -6, x2(t0) == 4", "x1(t0) == 10, x2(t0) == 3")
-                    .replace("guess: {tf: 11}", "guess: {tf: 17}").replace("transcription: LG,", "transcription: LGR,")
+                    .replace("guess: {tf: 11}", "guess: {tf: 17}").replace("transcription: LG\n", "transcription: LGR\n")
                     .replace("max_iterations: 15", "max_iterations: 3"))
     res = run_file(path, tmp_path / "r")
     history = res.extra["mesh_history"]
