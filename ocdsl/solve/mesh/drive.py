@@ -208,6 +208,17 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                         reg = getattr(tr.model, "mesh_regularisation", None)
         first_iterations = info.iterations if it == 1 else first_iterations
         from_guess = False      # this mesh solved from the file's guess (restart.py)
+
+        def recover(ms, failed, t):
+            """A single solve's recovery from a locally infeasible end, on meshes ``ms`` (seeded
+            controls, then the relaxed solve's feasible point: run.recover_from_infeasibility)."""
+            def build_on(g):
+                built = rebuild(ms, guesses=g, collect=True)
+                ws.prepare(built.model)
+                return built
+
+            return recover_from_infeasibility(file, ms, previous, timer, seed=seed, options=options, info=failed,
+                                              tr=t, verbose=verbose, progress=progress, build_model=build_on)
         if it > 1 and info.status not in GOOD and info.status not in ("time_limit", "interrupted"):
             def cold(given=given):
                 t = rebuild(meshes, guesses=start_won or {ph.name: make_guess(problem, ph, given.get(ph.name))
@@ -230,14 +241,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # (seeded controls, then the relaxed solve's feasible point) before the loop stops
                 # (unseen38 F4: the oscillator from (10, 3), LGR 2 x 3 then 6 segments infeasible,
                 # the refinement ended at iteration 2 of 15 on mesh 1's answer, 11 % off)
-                def build_here(g, ms=meshes):
-                    built = rebuild(ms, guesses=g, collect=True)
-                    ws.prepare(built.model)
-                    return built
-
-                again = recover_from_infeasibility(file, meshes, previous, timer, seed=seed, options=options,
-                                                   info=info, tr=tr, verbose=verbose, progress=progress,
-                                                   build_model=build_here)
+                again = recover(meshes, info, tr)
                 if again.guesses is not None:
                     redone = (again.tr, again.info, None)
             if redone is not None:
@@ -256,16 +260,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         if it == 1 and info.status == "infeasible":
             # as a single solve: one more start from seeded random controls, else the
             # conditions that cannot hold together named (run.recover_from_infeasibility)
-            def first_mesh(g, rebuild=rebuild):
-                t = rebuild(meshes, guesses=g, collect=True)
-                ws.prepare(t.model)
-                return t
-
             if not start_records:           # one start: recorded beside its retry, as a single solve does
                 start_records.append(_start_record(0, seed, info))
-            recovered = recover_from_infeasibility(
-                file, meshes, previous, timer, seed=seed, options=options,
-                info=info, tr=tr, verbose=verbose, progress=progress, build_model=first_mesh)
+            recovered = recover(meshes, info, tr)
             start_records += recovered.records
             if recovered.guesses is not None:
                 tr, info = recovered.tr, recovered.info
@@ -275,24 +272,15 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             # (unseen16: v <= 1.1 rest to rest on LG 3 x 3, 'infeasible' blaming x(t0) == 0):
             # bisected, twice at most, before the problem is called infeasible
             if info.status == "infeasible":
-                def first_solve_recovered(ms, bisections, rebuild=rebuild):
-                    """``first_solve``, and where it ends infeasible the recovery the first mesh had
-                    (seeded controls, then the relaxed solve's feasible point): the guess alone left
-                    a bisected mesh locally infeasible that a plain solve of the same mesh recovers
-                    from (unseen38 F3: the oscillator from (-6, 4) on LG 2 x 3, "infeasible, the
-                    problem leaves x1(t0) == -6 unmet"; LG 8 x 3 alone solves)"""
+                def first_solve_recovered(ms, bisections):
+                    """``first_solve``, and where it ends infeasible the recovery the first mesh had:
+                    the guess alone left a bisected mesh locally infeasible that a plain solve of
+                    the same mesh recovers from (unseen38 F3: the oscillator from (-6, 4) on LG
+                    2 x 3, "infeasible, the problem leaves x1(t0) == -6 unmet"; LG 8 x 3 alone solves)"""
                     t, res = first_solve(ms, bisections)
                     if res.status != "infeasible":
                         return t, res
-
-                    def build_on(g):
-                        built = rebuild(ms, guesses=g, collect=True)
-                        ws.prepare(built.model)
-                        return built
-
-                    again = recover_from_infeasibility(
-                        file, ms, previous, timer, seed=seed, options=options, info=res, tr=t,
-                        verbose=verbose, progress=progress, build_model=build_on)
+                    again = recover(ms, res, t)
                     return (again.tr, again.info) if again.guesses is not None else (t, res)
 
                 tr, info, meshes = bisect_first(first_solve_recovered, tr, info, meshes,
@@ -466,14 +454,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                             """This iteration's build on ``ms``, started from ``tr``'s solution."""
                             return rebuild(ms, guesses=solved_guesses(problem, tr), **kw)
 
-                        before_move = dict(meshes)
                         features, moved = solve_switch_times(tr, rebuild_here, solve_free, features, bang, spec,
                                                              info.objective if info.objective is not None else 0.0)
+                        free_shift = _largest_move(moved, meshes)
                         meshes.update(moved)
-                        free_shift = max((float(np.max(np.abs(np.asarray(m.breakpoints)
-                                                               - np.asarray(before_move[k].breakpoints))))
-                                          for k, m in moved.items()
-                                          if len(m.breakpoints) == len(before_move[k].breakpoints)), default=0.0)
                     except Exception as exc:  # an aid, as the locators
                         say(progress, f"mesh {it}: moving switches failed: {exc}")
             if free_shift > spec.corner_tolerance and max_err <= spec.tolerance and it < spec.max_iterations:
@@ -504,10 +488,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 except Exception as exc:  # an aid: the estimate and the locators stand
                     say(progress, f"mesh {it}: moving fixed-time switches failed: {exc}")
                     moved = {}
-                shift = max((float(np.max(np.abs(np.asarray(m.breakpoints) - np.asarray(meshes[k].breakpoints))))
-                             for k, m in moved.items() if len(m.breakpoints) == len(meshes[k].breakpoints)),
-                            default=0.0)
-                if shift <= spec.corner_tolerance:
+                if _largest_move(moved, meshes) <= spec.corner_tolerance:
                     moved = {}           # the switches are where the NLP puts them: nothing to move
                 if moved:
                     # this mesh's J (and that of earlier meshes with the switch there) is known to
@@ -564,14 +545,16 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 snapshot = ws.take(tr) if spec.warm_start == "multipliers" else None
                 meshes = smaller
                 continue
+            # this mesh is the one before, solved again (breakpoints nudged by less than
+            # corner_tolerance), and its error fell by less than a tenth
+            solved_again = solved_before is not None and max_err >= 0.9 * solved_before[1] and all(
+                close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance) for k in meshes)
             if coarsening:
                 # the coarsened mesh missed the tolerance: refine it like any other mesh (the
                 # smallest converged mesh so far is kept for the end)
                 rec["coarsening_rejected"] = True
                 coarsening = False
-            elif solved_before is not None and all(close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
-                                                   for k in meshes) and max_err >= 0.9 * solved_before[1] \
-                    and not (nudge_grace and any(memory.get("last") for memory in nudged.values())):
+            elif solved_again and not (nudge_grace and any(memory.get("last") for memory in nudged.values())):
                 # the mesh solved again (breakpoints nudged by less than corner_tolerance) and
                 # its error fell by less than a tenth: refining on would repeat it (a rejected coarse mesh
                 # was re-solved in 0 Ipopt iterations to max_iterations; unseen5, planar
@@ -585,28 +568,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                            f"its largest error ({solved_before[1]:.3e} -> {max_err:.3e})")
                 rec["stalled"] = stalled
                 break
-            elif solved_before is not None and all(close_mesh(meshes[k], solved_before[0][k], spec.corner_tolerance)
-                                                   for k in meshes) and max_err >= 0.9 * solved_before[1]:
+            elif solved_again:
                 nudge_grace = False
             solved_before = (dict(meshes), max_err)
             growth.append((int(info.nlp.get("variables", 0)), max_err))
-            if len(growth) >= 3 and growth[-1][0] >= max(GROWTH_LIMIT * growth[-3][0], GROWTH_FLOOR) \
-                    and growth[-1][1] > 0.1 * growth[-3][1]:
-                # two refinements multiplied the NLP while the error barely fell: refining on
-                # only grows it (unseen10 F2: a bioreactor's singular feed arcs, 10 -> 813
-                # segments and 15,600 variables, error 2.2e-1 -> 2.2e-2, no result in 150 s)
-                stalled = (f"mesh iteration {it}: the refinement is not converging: the NLP grew from "
-                           f"{growth[-3][0]} to {growth[-1][0]} variables in two meshes while the largest error "
-                           f"fell only from {growth[-3][1]:.3e} to {growth[-1][1]:.3e} (a singular arc or a "
-                           "chattering control? `regularise:` in mesh:, docs/mesh.md)")
-                rec["stalled"] = stalled
-                break
-            if len(growth) > FLAT_MESHES and growth[-1][0] >= max(FLAT_GROWTH * growth[-1 - FLAT_MESHES][0], GROWTH_FLOOR) \
-                    and growth[-1][1] > 0.9 * growth[-1 - FLAT_MESHES][1]:
-                stalled = (f"mesh iteration {it}: the refinement is not converging: the NLP grew from "
-                           f"{growth[-1 - FLAT_MESHES][0]} to {growth[-1][0]} variables in {FLAT_MESHES} meshes while "
-                           f"the largest error stayed at {growth[-1][1]:.3e} (was {growth[-1 - FLAT_MESHES][1]:.3e}; "
-                           "a singular arc or a chattering control? `regularise:` in mesh:, docs/mesh.md)")
+            grown = _not_converging(growth)
+            if grown:
+                stalled = f"mesh iteration {it}: the refinement is not converging: {grown}"
                 rec["stalled"] = stalled
                 break
             if it == spec.max_iterations:
@@ -733,3 +701,27 @@ def _undetermined_controls(cert) -> str:
             "judge the answer, or a small cost of that control in the objective (`+ 1e-6*integral(u**2)`) "
             "makes it unique")
 
+
+def _largest_move(moved: dict, meshes: dict) -> float:
+    """How far (normalised time) the breakpoints of ``moved`` lie from those of ``meshes``,
+    phase by phase (0 where a phase's segment count changed: that is a new mesh, not a move)."""
+    return max((float(np.max(np.abs(np.asarray(m.breakpoints) - np.asarray(meshes[k].breakpoints))))
+                for k, m in moved.items() if len(m.breakpoints) == len(meshes[k].breakpoints)), default=0.0)
+
+
+def _not_converging(growth: list) -> str:
+    """Why refining on only grows the NLP, from (variables, largest error) of each refined mesh,
+    or "": two refinements that multiplied it by GROWTH_LIMIT while the error fell by less than
+    ten times (unseen10 F2: a bioreactor's singular feed arcs, 10 -> 813 segments and 15,600
+    variables, error 2.2e-1 -> 2.2e-2, no result in 150 s), or FLAT_MESHES that grew it by
+    FLAT_GROWTH with no tenth off the error; both only past GROWTH_FLOOR variables."""
+    advice = "(a singular arc or a chattering control? `regularise:` in mesh:, docs/mesh.md)"
+    if len(growth) >= 3 and growth[-1][0] >= max(GROWTH_LIMIT * growth[-3][0], GROWTH_FLOOR) \
+            and growth[-1][1] > 0.1 * growth[-3][1]:
+        return (f"the NLP grew from {growth[-3][0]} to {growth[-1][0]} variables in two meshes while the largest "
+                f"error fell only from {growth[-3][1]:.3e} to {growth[-1][1]:.3e} {advice}")
+    past = growth[-1 - FLAT_MESHES] if len(growth) > FLAT_MESHES else None
+    if past and growth[-1][0] >= max(FLAT_GROWTH * past[0], GROWTH_FLOOR) and growth[-1][1] > 0.9 * past[1]:
+        return (f"the NLP grew from {past[0]} to {growth[-1][0]} variables in {FLAT_MESHES} meshes while the "
+                f"largest error stayed at {growth[-1][1]:.3e} (was {past[1]:.3e}; {advice[1:]}")
+    return ""
