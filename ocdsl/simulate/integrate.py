@@ -198,22 +198,22 @@ def final_states(cm: CompiledModel, Y0: np.ndarray, T: np.ndarray, P: np.ndarray
     Yf = np.empty((B, cm.n))
     status = np.empty(B, np.int64)
     steps = np.empty(B, np.int64)
-    ev = _event_arrays(cm, events)
-    args = _kernel_args((Y0, s_end, P, ck, cp, co, CD, T, cm.clock, t_stop, float(rtol), _atol(cm, atol),
-                         int(max_steps), *ev, Yf, status, steps, 0, False))
-    per_row = {0, 1, 2, 6, 7, 9, 17, 18, 19}      # the rows of these arguments are the runs
-    chunks = np.array_split(np.arange(B), max(1, min(B, _cores()))) if parallel else [np.arange(B)]
-    chunks = [c for c in chunks if len(c)]
+    # the runs' own arrays (one row per run) and those they share, each C-contiguous and writable
+    Y0, s_end, P, CD, T, t_stop = _kernel_args((Y0, s_end, P, CD, T, t_stop))
+    ck, cp, co, atol_ = _kernel_args((ck, cp, co, _atol(cm, atol)))
+    ev = _kernel_args(_event_arrays(cm, events))
 
-    def run(rows):
-        a, b = rows[0], rows[-1] + 1            # C-contiguous row slices: views the kernel writes through
-        cm.module.final_batch(*(x[a:b] if i in per_row else x for i, x in enumerate(args)))
+    def run(a: int, b: int) -> None:
+        # rows a:b of every per-run array: C-contiguous views the kernel writes through
+        cm.module.final_batch(Y0[a:b], s_end[a:b], P[a:b], ck, cp, co, CD[a:b], T[a:b], cm.clock, t_stop[a:b],
+                              float(rtol), atol_, int(max_steps), *ev, Yf[a:b], status[a:b], steps[a:b], 0, False)
 
+    chunks = [c for c in np.array_split(np.arange(B), max(1, min(B, _cores())) if parallel else 1) if len(c)]
     if len(chunks) == 1:
-        run(chunks[0])
-    else:
-        list(_pool().map(run, chunks))
-    return args[17], args[18], args[19]
+        run(chunks[0][0], chunks[0][-1] + 1)
+    elif chunks:
+        list(_pool().map(lambda c: run(c[0], c[-1] + 1), chunks))
+    return Yf, status, steps
 
 
 _POOL = None
