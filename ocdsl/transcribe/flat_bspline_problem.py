@@ -406,6 +406,7 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
     out, branches = [], []
     for ph in problem.phases:
         fm = mp.flatmaps[ph.name]
+        bounds = {**getattr(ph, "state_bounds", {}), **getattr(ph, "control_bounds", {})}
         for group in (fm.states, fm.controls):
             for name, expr in group.items():
                 den = sp.denom(sp.together(expr))
@@ -415,7 +416,6 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
                     if p.exp.is_Rational and p.exp.q == 2 and p.base.free_symbols and str(p.base) not in out:
                         out.append(str(p.base))
                 branch = _root_branch(expr)
-                bounds = {**getattr(ph, "state_bounds", {}), **getattr(ph, "control_bounds", {})}
                 lo, hi = bounds.get(name, (-math.inf, math.inf))
                 # a bound on the branch's side is the file's choice of it: nothing to say
                 if branch is not None and not (lo >= 0 if branch[0] == "+" else hi <= 0):
