@@ -87,7 +87,14 @@ CASES = [
     ("integral inside an integral", ("objective: minimize tf", "objective: minimize integral(integral(u**2))"),
      17, "an integral inside an integral is not allowed"),
     ("a Python keyword as a name", ("states: [x, v]", "states: [x, lambda]"), 3, "not a valid state name"),
-    ("a YAML boolean as a name", ("states: [x, v]", "states: [x, no]"), 3, "quote the name"),
+    ("a YAML boolean as a name", ("states: [x, v]", "states: [x, true]"), 3, "quote the name"),
+    # unseen40 F1: pydantic read an unquoted true/false as 1/0 where a number or an expression
+    # belongs (y' = 1, optimal and verified)
+    ("a boolean as a right-hand side", ("v: u", "v: true"), 7, "unquoted true as a boolean"),
+    ("a boolean as a time", ("tf: free}", "tf: false}"), 9, "unquoted false as a boolean"),
+    ("a boolean as a parameter", ("method:", "parameters: {k: false}\nmethod:"), 18, "unquoted false"),
+    # yes/no/on/off are text (YAML 1.2): an undeclared one is an unknown name, not 1 or 0
+    ("a YAML 1.1 boolean word", ("v: u", "v: off"), 7, "unknown name 'off'"),
     ("a linear solver not installed", ("method: {", "solver: {options: {linear_solver: ma57}}\nmethod: {"), 18,
      "linear_solver ma57: its library"),
     ("not-equal relation", ("- -1 <= u <= 1", "- u != 1"), 11, "`!=` is not a constraint"),
@@ -432,3 +439,22 @@ def test_a_free_parameter_as_a_time_says_how_to_write_it(tmp_path):
         load(path)
     (issue,) = e.value.issues
     assert issue.line == 9 and "T is a free parameter, which cannot set a time; write `tf: free`" in issue.message
+
+
+def test_yes_no_on_off_are_names_as_in_yaml_1_2(tmp_path):
+    """unseen40 F1: a state declared 'on' and written unquoted in the dynamics (`x: on`) was
+    YAML 1.1's boolean true, solved as x' = 1 (J = -1, optimal and verified, against -1/12)."""
+    p = tmp_path / "on.yaml"
+    p.write_text(GOOD.replace("states: [x, v]", "states: [x, 'on']").replace("x: v", "x: on")
+                 .replace("v: u", "'on': u").replace("v(t0)", "on(t0)").replace("v(tf)", "on(tf)"))
+    phase = compile_file(p).problem.phases[0]
+    rhs = dict(zip(map(str, phase.states), phase.rhs()))
+    assert rhs["x"] == phase.states[1] and str(rhs["x"]) == "on"
+
+
+def test_an_ipopt_yes_no_option_is_taken_either_way(tmp_path):
+    """Ipopt's yes/no options take YAML's `true` (the word yes) and the text `yes` alike."""
+    for word in ("yes", "true", "'yes'"):
+        p = tmp_path / f"o_{word.strip(chr(39))}.yaml"
+        p.write_text(GOOD + f"solver: {{options: {{warm_start_init_point: {word}}}}}\n")
+        assert compile_file(p).spec.solver.options["warm_start_init_point"] == "yes"

@@ -15,9 +15,57 @@ from .schema import ProblemFile
 
 def validate(located: Located) -> ProblemFile:
     try:
-        return ProblemFile.model_validate(located.data)
+        spec = ProblemFile.model_validate(located.data)
     except pydantic.ValidationError as e:
         raise SpecError(_schema_issues(located, e.errors())) from None
+    misread = booleans_read_as_values(located, spec)
+    if misread:
+        raise SpecError(misread)
+    return spec
+
+
+_ABSENT = object()
+
+
+def booleans_read_as_values(located: Located, spec: pydantic.BaseModel) -> list[Issue]:
+    """An unquoted true or false where the schema took a number or an expression: pydantic
+    reads it as 1 or 0 (`y: true` in dynamics was solved as y' = 1, optimal and verified,
+    unseen40 F1). Only where the validated value became a number: `enabled: true` stays a
+    boolean, an Ipopt yes/no option's `true` the word yes."""
+    issues: list[Issue] = []
+
+    def child(value, key):
+        if isinstance(value, dict):
+            return value.get(key, _ABSENT)
+        if isinstance(value, (list, tuple)):
+            return value[key] if isinstance(key, int) and key < len(value) else _ABSENT
+        if isinstance(value, pydantic.BaseModel):
+            for name, f in type(value).model_fields.items():
+                if key in (name, f.alias):
+                    return getattr(value, name)
+            return (value.model_extra or {}).get(key, _ABSENT)
+        return _ABSENT
+
+    def walk(raw, value, path):
+        if value is _ABSENT:
+            return
+        if isinstance(raw, bool):
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                word = str(raw).lower()
+                issues.append(located.issue(path, f"{'.'.join(map(str, path))}: YAML reads an unquoted {word} as "
+                                                  f"a boolean, not a number or an expression: quote it ('{word}') "
+                                                  f"if it is a name, or write the number",
+                                            _source_line(located, path)))
+            return
+        if isinstance(raw, dict):
+            for key, sub in raw.items():
+                walk(sub, child(value, key), path + (key,))
+        elif isinstance(raw, list):
+            for i, sub in enumerate(raw):
+                walk(sub, child(value, i), path + (i,))
+
+    walk(located.data, spec, ())
+    return issues
 
 
 def _schema_issues(located: Located, errors: list, root: tuple | None = None) -> list[Issue]:
@@ -82,9 +130,11 @@ def validate_all(located: Located) -> tuple[ProblemFile | None, list[Issue]]:
 
     splice_lists(located)
     try:
-        return ProblemFile.model_validate(located.data), []
+        spec = ProblemFile.model_validate(located.data)
     except pydantic.ValidationError as e:
         errors = e.errors()
+    else:
+        return spec, booleans_read_as_values(located, spec)
     issues = _schema_issues(located, errors)
     data = copy.deepcopy(located.data)
     for _ in range(3):          # setting a value aside may expose a check of its parent
@@ -138,8 +188,8 @@ def _issue_from_pydantic(located: Located, err: dict, root: tuple | None = None)
     elif err["type"] == "list_type" and loc and loc[-1] in DECLARED_LISTS:
         msg = f"a list of names is expected, e.g. {loc[-1]}: [{_example_names(err.get('input'))}]"
     elif err["type"] == "string_type" and isinstance(err.get("input"), bool):
-        # YAML 1.1 reads yes/no/on/off/true/false unquoted as booleans (unseen24: a state `no`)
-        msg += "; YAML reads an unquoted yes, no, on, off, true or false as a boolean: quote the name ('no')"
+        # an unquoted true/false is a boolean (unseen24: a state `no`, when YAML 1.1's yes/no/on/off were too)
+        msg += "; YAML reads an unquoted true or false as a boolean: quote the name ('true')"
     if loc and isinstance(loc[-1], str) and ("(" in loc[-1]) != (")" in loc[-1]):
         # YAML split `{a: f(x, y)}` at the comma: the tail became a key
         msg += "; inside { } a comma ends the value: quote an expression with commas, e.g. {a: 'f(x, y)'}"
