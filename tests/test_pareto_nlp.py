@@ -296,3 +296,107 @@ pareto:
     said = " ".join(summary["extra"]["warnings"])
     assert "epsilon = 1.5, 1.8 (2 of 4 bounds)" in said
     assert "epsilon = 1.5, 1.8 (2 of 4 bounds)" in build_run_html(tmp_path / "front")
+
+
+TWO_PHASE_FRONT = """name: energy-time front of a two-phase transfer
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+parameters: {eps: 2.0}
+phases:
+  first:
+    time: {t0: 0, tf: free}
+    constraints: [x(t0) == 0, v(t0) == 0, 0.05 <= tf <= 10]
+    objective: integral(u**2)
+    guess: {tf: 0.5}
+  second:
+    time: {t0: free, tf: free}
+    constraints: [x(tf) == 1, v(tf) == 0, 0.1 <= tf <= eps]
+    objective: integral(u**2)
+    guess: {t0: 0.5, tf: 1.0}
+links:
+  - continuous(first, second)
+objective: minimize 0
+method: {transcription: LGR, segments: 3, degree: 4}
+pareto:
+  method: epsilon
+  solver: nlp
+  objectives:
+    energy: ENERGY
+    t_sum: second.tf
+  epsilon: {objective: t_sum, parameter: eps, values: [1, 2]}
+"""
+
+
+@pytest.mark.parametrize("energy, refused", [
+    ("first.integral(u**2)", True),                              # one phase's share (unseen39 F1)
+    ("first.integral(u**2) + second.integral(u**2)", False),     # the file's objective
+    ("second.integral(u**2) + first.integral(u**2)", False),     # in any order
+    ("objective", False),
+])
+def test_the_first_objective_of_a_file_of_phases_is_its_objective(tmp_path, energy, refused):
+    """unseen39 F1: in a file of phases (no `problem:`) the first Pareto objective was not
+    compared with the file's objective: `first.integral(u**2)` was printed with the value of
+    both phases' integrals (12, 0.768, 0.1875 against 6.0, 0.386, 0.094), exit 0."""
+    from ocdsl.spec.errors import SpecError
+
+    f = tmp_path / "front.yaml"
+    f.write_text(TWO_PHASE_FRONT.replace("ENERGY", energy))
+    if not refused:
+        load_pareto(f)
+        return
+    with pytest.raises(SpecError) as e:
+        load_pareto(f)
+    (issue,) = e.value.issues
+    assert issue.line == 23 and "first.integral(u**2) + second.integral(u**2)" in issue.message, issue
+
+
+@pytest.mark.parametrize("change, line, message", [
+    # unseen39 F3: passed `check`, then a traceback in `run`
+    (("t_sum: second.tf", "t_sum: third.tf"), 24, "unknown phase 'third'"),
+    # unseen39 F2: a parameter no constraint uses gave a front whose every point broke it
+    (("0.1 <= tf <= eps]", "0.1 <= tf <= 10]"), 25, "`eps` bounds nothing"),
+])
+def test_what_an_epsilon_front_cannot_mean_is_refused_at_its_line(tmp_path, change, line, message):
+    from ocdsl.spec.errors import SpecError
+
+    f = tmp_path / "front.yaml"
+    f.write_text(TWO_PHASE_FRONT.replace("ENERGY", "objective").replace(*change))
+    with pytest.raises(SpecError) as e:
+        load_pareto(f)
+    (issue,) = e.value.issues
+    assert issue.line == line and message in issue.message, issue
+
+
+def test_a_point_that_breaks_its_epsilon_bound_fails_verification():
+    """unseen39 F2, at run time (a bound that constrains something else, or a Python
+    solve_constrained that ignores eps): every point with t_sum = 10 for eps = 1 ... 4 was
+    on the front with no warning, exit 0. Now each such point fails its verification and the
+    set names them."""
+    from ocdsl.study import pareto as P
+
+    def solve(eps, warm):
+        T = 10.0 if eps > 2 else eps       # the bounds 3 and 4 are not met
+        return P.ParetoPoint({"J": 12 / T**3, "T": T}, {"T": T},
+                             extra={"verification": {"status": "verified", "checks": []}})
+
+    s = P.epsilon(solve, [1, 2, 3, 4], ["J", "T"])
+    by_eps = {p.extra["epsilon"]: p for p in s.points}
+    assert [by_eps[e].extra["verification"]["status"] for e in (1, 2, 3, 4)] == ["verified"] * 2 + ["failed"] * 2
+    assert by_eps[3].extra["verification"]["checks"][-1]["name"] == "epsilon bound"
+    assert any("2 of 4 solutions break their bound on T" in w for w in s.warnings)
+    summary = s.summary("front")
+    assert summary.verification["status"] == "failed" and not summary.ok
+
+
+def test_a_point_ended_acceptable_makes_the_set_acceptable():
+    """unseen39 F4: points Ipopt ended `acceptable` left the set `optimal`, exit 0, where a
+    single run ending `acceptable` exits 1."""
+    from ocdsl.study import pareto as P
+
+    points = [P.ParetoPoint({"J": 12 / T**3, "T": T}, {"T": T}, status=st)
+              for T, st in ((1.0, "optimal"), (2.0, "acceptable"))]
+    s = P.ParetoSet(points, ["J", "T"], ["minimize", "minimize"], "epsilon").flag()
+    for i, p in enumerate(s.points):
+        p.label = f"e.{i + 1}"
+    summary = s.summary("front")
+    assert summary.status == "acceptable" and not summary.ok
+    assert "1 of 2 points ended `acceptable`" in summary.message and "e.2" in summary.message

@@ -97,45 +97,121 @@ def _epsilon_parameter(located: Located, loaded) -> None:
         raise SpecError([located.issue(("pareto", "epsilon", "parameter"), f"epsilon.parameter `{name}` is not "
                                        f"a parameter of the file (give it under `parameters:` and bound the "
                                        f"objective with it, e.g. `tf <= {name}`)")])
+    if not _used_in_constraints(located.data, str(name)):
+        # unseen39 F2: a parameter that bounds nothing gave a "front" whose every point broke
+        # its bound, exit 0 (the run now checks every point's bound as well)
+        raise SpecError([located.issue(("pareto", "epsilon", "parameter"), f"epsilon.parameter `{name}` bounds "
+                                       f"nothing: no constraint, link, time or named expression of the file "
+                                       f"uses it; bound the constrained objective with it, e.g. `tf <= {name}`")])
+
+
+def _used_in_constraints(doc: Any, name: str) -> bool:
+    """Whether ``name`` appears in a text under ``constraints:``, ``links:``, ``time:`` or
+    ``expressions:`` anywhere in the file outside ``pareto:``."""
+    word = re.compile(rf"(?<![\w.]){re.escape(name)}(?!\w)")
+
+    def texts(node, inside: bool):
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key != "pareto":
+                    yield from texts(value, inside or key in ("constraints", "links", "time", "expressions"))
+        elif isinstance(node, list):
+            for value in node:
+                yield from texts(value, inside)
+        elif inside and isinstance(node, str):
+            yield node
+
+    return any(word.search(t) for t in texts(doc, False))
 
 
 def _epsilon_objectives(located: Located, loaded) -> None:
     """What solver nlp's epsilon method can report: the NLP minimises the file's objective,
-    so the first Pareto objective is that one, as written in ``problem: objective:``; the
-    others are read from the phases' final times and durations. An integral written as the
-    first objective but differing from the file's was reported with the file's value (unseen22
-    FC2: integral(2*u**2) printed as integral(u**2), 50 % off, exit 0), and an integral among
-    the others ended in a traceback."""
+    so the first Pareto objective is that one, as written (a sum in any order; in a file of
+    phases the top-level objective plus each phase's, ``phase.integral(...)``); the others
+    are read from the phases' final times and durations. An integral written as the first
+    objective but differing from the file's was reported with the file's value (unseen22
+    FC2: integral(2*u**2) printed as integral(u**2), 50 % off, exit 0; unseen39 F1: one
+    phase's integral of two, in a file of phases, 2x off), and an unknown phase or an
+    integral among the others ended in a traceback (unseen39 F3)."""
+    from ..hints import did_you_mean
     from ..study.pareto_nlp import evaluate
 
     objectives = (located.data.get("pareto") or {}).get("objectives") or {}
     texts = {k: (o.get("expr") if isinstance(o, dict) else o) for k, o in objectives.items()}
-    problem = located.data.get("problem") or {}
-    written = problem.get("objective") if isinstance(problem, dict) else None
-    if not texts or not isinstance(written, str):
+    if not texts:
         return
-    own = re.sub(r"^\s*(minimize|maximize)\s+", "", written.strip())
+    own = _file_objective(located.data)
     first, first_text = next(iter(texts.items()))
-    if "".join(str(first_text).split()) not in ("".join(own.split()), "objective"):
+    if own is not None and _summands(str(first_text)) not in (_summands(own), _summands("objective")):
         raise SpecError([located.issue(("pareto", "objectives", first),
                                        f"with solver: nlp the first Pareto objective is the one the NLP "
                                        f"minimises, the file's objective `{own}`; `{first}: {first_text}` "
-                                       f"differs: write it as the file's objective (or `{first}: objective`)")])
+                                       f"differs: write it as the file's objective (or `{first}: objective`), "
+                                       f"or make the quantity you want the file's objective")])
     phases = [ph.name for ph in loaded.problem.phases]
     names = {"objective": 1.0, "tf": 1.0, "duration": 1.0} | {f"{p}.{w}": 1.0 for p in phases
                                                                for w in ("tf", "duration")}
     for key, text in list(texts.items())[1:]:
+        unknown = [p for p in re.findall(r"(?<![\w.])([A-Za-z_]\w*)\.\w", str(text)) if p not in phases]
+        if unknown:
+            raise SpecError([located.issue(("pareto", "objectives", key), f"`{key}: {text}`: unknown phase "
+                                           f"'{unknown[0]}' (the phases: {', '.join(phases)})"
+                                           + did_you_mean(unknown[0], phases))])
         try:
             evaluate(str(text), names)
         except (ValueError, SyntaxError):
             raise SpecError([located.issue(("pareto", "objectives", key),
                                            f"with solver: nlp the objectives after the first are read from the "
                                            f"phases' final times and durations (tf, phase.duration, numbers, + - "
-                                           f"* /); `{key}: {text}` is not. Where one of the two objectives is a "
-                                           f"time, make the other the file's objective and the first Pareto "
-                                           f"objective; for two objectives that are not times, sweep a bound "
-                                           f"with `ocdsl study` (a constraint such as `{text} <= eps` in the "
-                                           f"file, docs/studies.md)")]) from None
+                                           f"* /; the phases: {', '.join(phases)}); `{key}: {text}` is not. Where "
+                                           f"one of the two objectives is a time, make the other the file's "
+                                           f"objective and the first Pareto objective; for two objectives that "
+                                           f"are not times, sweep a bound with `ocdsl study` (a constraint such "
+                                           f"as `{text} <= eps` in the file, docs/studies.md)")]) from None
+
+
+def _file_objective(doc: dict[str, Any]) -> str | None:
+    """The objective the NLP minimises, as one text: ``problem: objective:`` without its sense,
+    or in a file of phases the top-level one plus each phase's (``phase.integral(...)``, a
+    phase's bare ``integral(`` prefixed with its name). None where it cannot be written so
+    (a phase objective other than integrals): then only ``objective`` names it."""
+    def bare(text: Any) -> str | None:
+        return re.sub(r"^\s*(minimize|maximize)\s+", "", text.strip()) if isinstance(text, str) else None
+
+    problem = doc.get("problem")
+    if isinstance(problem, dict):
+        return bare(problem.get("objective"))
+    terms = [t for t in _summand_list(bare(doc.get("objective")) or "0") if t != "0"]
+    for name, ph in (doc.get("phases") or {}).items():
+        own = ph.get("objective") if isinstance(ph, dict) else None
+        if own is None:
+            continue
+        for t in _summand_list(str(own)):
+            if not re.fullmatch(r"integral\(.*\)", t):
+                return None
+            terms.append(f"{name}.{t}")
+    return " + ".join(terms) or "0"
+
+
+_EXPONENT_SIGN = re.compile(r"(?<![A-Za-z_0-9.])(\d+\.?\d*|\.\d+)[eE]$")     # the + of 1e+5
+
+
+def _summand_list(text: str) -> list[str]:
+    """The top-level summands of ``text`` without spaces (a leading ``+`` dropped)."""
+    text = "".join(text.split())
+    out, depth, start = [], 0, 0
+    for i, c in enumerate(text):
+        depth += c in "(["
+        depth -= c in ")]"
+        if c == "+" and depth == 0 and i > start and not _EXPONENT_SIGN.search(text[:i]):
+            out.append(text[start:i])
+            start = i + 1
+    out.append(text[start:])
+    return [t.lstrip("+") for t in out if t.lstrip("+")]
+
+
+def _summands(text: str) -> list[str]:
+    return sorted(_summand_list(text))
 
 
 def _stand_in(doc: dict[str, Any], located: Located) -> tuple[dict, dict]:

@@ -324,12 +324,19 @@ class ParetoSet:
         from ..provenance import source as made_by
 
         front = self.front()
+        notes = list(self.warnings)
+        # a point Ipopt ended at its acceptable level makes the set `acceptable`, as it makes a
+        # single run (exit 1); the set said optimal (unseen39 F4)
+        acceptable = [p.label for p in self.points if p.status == "acceptable"]
+        if acceptable:
+            notes.append(f"{len(acceptable)} of {len(self.points)} points ended `acceptable` (Ipopt's acceptable "
+                         f"level, not its tolerance): {', '.join(acceptable[:8])}{' ...' if len(acceptable) > 8 else ''}")
         return Result(
             verification=self.verification(),
             expect=self.check(expect),
             name=name,
-            status="optimal" if front else "infeasible",
-            message="; ".join(self.warnings),
+            status="infeasible" if not front else "acceptable" if acceptable else "optimal",
+            message="; ".join(notes),
             objective=None if not front else float(front[0].objectives[self.objectives[0]]),
             wall_time_s={} if wall_time_s is None else {"total": float(wall_time_s)},
             method={"pareto": self.method, **self.info}, problem=dict(problem or {}),
@@ -337,7 +344,7 @@ class ParetoSet:
             extra={"objectives": list(self.objectives), "senses": list(self.senses),
                    "families": self.families(), "labels": [p.label for p in self.points],
                    "pareto_labels": [p.label for p in front], "n_solutions": len(self.points),
-                   "warnings": list(self.warnings), "ocdsl": made_by()},
+                   "warnings": notes, "ocdsl": made_by()},
         )
 
     def verification(self) -> dict[str, Any]:
@@ -442,7 +449,7 @@ def epsilon(solve_constrained: Callable[[float, Any], ParetoPoint | None],
             eps_values: Sequence[float], objectives: Sequence[str],
             senses: Sequence[str] | None = None, *, map: MapLike = builtins.map,
             chains: int = 1, warm: Any = None, dedup_keys: Sequence[str] | None = None,
-            dedup_tol: float = 0.0, flag_tol: float = 0.0) -> ParetoSet:
+            dedup_tol: float = 0.0, flag_tol: float = 0.0, constrained: str | None = None) -> ParetoSet:
     """Epsilon-constraint sweep.
 
     ``solve_constrained(eps, warm)`` optimises the first objective subject to the
@@ -451,6 +458,8 @@ def epsilon(solve_constrained: Callable[[float, Any], ParetoPoint | None],
     attribute; ``None`` for the first). The sweep is split into ``chains`` contiguous chunks
     run through ``map``; within a chunk the solves are sequential (warm starts). Points are
     de-duplicated only when ``dedup_tol > 0`` (a continuous front has no duplicates).
+    ``constrained`` names the bounded objective (default the second); a point that does not
+    meet its bound fails its verification and is named in the set's warnings.
     """
     chunks = [_Chain(solve_constrained, c, warm, "epsilon") for c in split_chains(list(eps_values), chains)]
     points = _flatten(map(_call, chunks))
@@ -458,6 +467,7 @@ def epsilon(solve_constrained: Callable[[float, Any], ParetoPoint | None],
         points = deduplicate(points, dedup_keys, dedup_tol)
     senses = list(senses or ["minimize"] * len(objectives))
     s = ParetoSet(points, list(objectives), senses, "epsilon", info={"chains": len(chunks)})
+    _check_bounds(s, constrained or objectives[1])
     # a bound no solve met leaves no point: said, not dropped (unseen35 P29: 5 solutions of 7
     # asked for, without a word)
     solved = {float(p.extra["epsilon"]) for p in points if np.isscalar(p.extra.get("epsilon"))}
@@ -470,6 +480,46 @@ def epsilon(solve_constrained: Callable[[float, Any], ParetoPoint | None],
     for i, p in builtins.enumerate(sorted(s.points, key=lambda q: q.extra.get("epsilon", 0.0))):
         p.label = p.label or f"e.{i + 1}"
     return s
+
+
+# a bound met to the verification's default tolerance, relative to max(1, |eps|)
+BOUND_TOL = 1e-5
+
+
+def _check_bounds(s: ParetoSet, constrained: str) -> None:
+    """Each point's bounded objective against its eps, independently of the solve: a bound
+    that constrains nothing in the problem gave a "front" whose every point broke it, exit 0
+    (unseen39 F2: t_sum = 10 for eps = 1 ... 4)."""
+    if constrained not in s.objectives:
+        return
+    sense = s.senses[s.objectives.index(constrained)]
+    broken = []
+    for p in s.points:
+        eps, value = p.extra.get("epsilon"), p.objectives.get(constrained)
+        if not (np.isscalar(eps) and value is not None and np.isfinite(value)):
+            continue
+        eps = float(eps)
+        excess = (value - eps) if sense == "minimize" else (eps - value)
+        limit = BOUND_TOL * max(1.0, abs(eps))
+        if excess <= limit:
+            continue
+        broken.append((eps, float(value)))
+        check = {"name": "epsilon bound", "phase": None, "value": float(excess), "limit": limit, "passed": False,
+                 "where": f"{constrained} = {value:.10g} against epsilon = {eps:.10g}",
+                 "detail": f"{constrained} {'<=' if sense == 'minimize' else '>='} epsilon, from the solution"}
+        v = p.extra.get("verification")
+        v = dict(v) if isinstance(v, dict) else {"mode": "enforce", "checks": []}
+        v["checks"] = list(v.get("checks") or []) + [check]
+        v["status"] = "failed"
+        v["summary"] = (f"not verified: {constrained} = {value:.6g} breaks its bound epsilon = {eps:.6g}"
+                        + (f"; {v['summary']}" if v.get("summary") and "not verified" in str(v["summary"]) else ""))
+        p.extra["verification"] = v
+    if broken:
+        shown = ", ".join(f"{e:g} ({v:.6g})" for e, v in broken[:6]) + (" ..." if len(broken) > 6 else "")
+        s.warnings.append(f"{len(broken)} of {len(s.points)} solutions break their bound on {constrained}: epsilon "
+                          f"(value) {shown}; the bound does not constrain the problem as written: the parameter "
+                          f"that carries epsilon must bound {constrained} in the file's constraints (e.g. "
+                          f"`tf <= eps`)")
 
 
 def supported(values: Sequence[Sequence[float]], tol: float = 1e-9) -> np.ndarray:

@@ -314,7 +314,8 @@ def run_pareto(problem: str | Path | dict[str, Any], out: str | Path | None = No
                         file, spec.epsilon.parameter, {k: o.expr for k, o in spec.objectives.items()},
                         parameters, family=spec.family or "", trajectory=trajectory, seeds=seeds)
                 pset = P.epsilon(solve_point, spec.epsilon.values, objs, senses, map=map,
-                                 chains=spec.epsilon.chains, flag_tol=spec.dominance_tol)
+                                 chains=spec.epsilon.chains, flag_tol=spec.dominance_tol,
+                                 constrained=spec.epsilon.objective)
             elif spec.method == "weighted":
                 if solve_point is None:
                     raise NotImplementedError("method weighted with solver nlp: pass solve_point=...")
