@@ -434,3 +434,23 @@ def test_a_report_of_a_folder_that_is_not_a_run_is_a_usage_error(tmp_path):
     r = _ocdsl("report", mine, cwd=tmp_path)
     assert r.returncode == 2 and "neither a run folder nor a study folder" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr and sorted(p.name for p in mine.iterdir()) == ["a.txt"]
+
+
+def test_a_report_the_user_edited_is_theirs(tmp_path):
+    """unseen40 F2: notes appended to report.html were lost: `ocdsl report RUN` rewrote the
+    file, and `ocdsl run --out RUN` (no --report) deleted it, where an edited trajectory.csv
+    is refused. The report's and figures' digests are recorded when ocdsl writes them."""
+    from ocdsl.report.build import ReportError, make_report
+
+    run = _result("r").write(tmp_path / "run")
+    make_report(run, formats=("html",))
+    make_report(run, formats=("html",))                  # ocdsl's own report: replaced
+    assert "report.html" in run_folder.read_marker(run)["digests"]
+    assert any(n.startswith("figures/") for n in run_folder.read_marker(run)["digests"])
+    edited = (run / "report.html").read_text() + "<p>my notes</p>"
+    (run / "report.html").write_text(edited)
+    with pytest.raises(ReportError, match="report.html was changed since ocdsl wrote it"):
+        make_report(run, formats=("html",))
+    with pytest.raises(run_folder.FolderError, match=r"report.html \(changed since ocdsl wrote it\)"):
+        _result("again").write(run)
+    assert (run / "report.html").read_text() == edited and _holds(run, "r")

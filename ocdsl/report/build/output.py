@@ -76,8 +76,17 @@ def _output_folder(out_dir: Path, names: Sequence[str]) -> None:
     marker = run_folder.read_marker(out_dir) if out_dir.is_dir() else None
     if marker is not None or (out_dir / "result.json").is_file():
         listed = set(marker.get("entries", [])) if marker else set()
+        digests = (marker or {}).get("digests") or {}
         foreign = [n for n in names if os.path.lexists(out_dir / n) and n not in listed
                    and not any(n.startswith(e + "/") for e in listed)]
+        # a report the user edited since ocdsl wrote it is the user's (unseen40 F2: appended
+        # notes were replaced by `ocdsl report`, and the report deleted by `ocdsl run --out`)
+        edited = [n for n in names if n in digests and (out_dir / n).is_file()
+                  and run_folder.file_digest(out_dir / n) != digests[n]]
+        if edited:
+            raise ReportFolderError(f"{out_dir / edited[0]} was changed since ocdsl wrote it"
+                                    f"{f' (and {len(edited) - 1} more)' if len(edited) > 1 else ''}; ocdsl does "
+                                    "not replace it: move it away, or write the report elsewhere with --out")
         if foreign:
             raise ReportFolderError(f"{out_dir} holds {', '.join(foreign[:4])}{' ...' if len(foreign) > 4 else ''}, "
                               "which ocdsl did not write; ocdsl does not replace it: move it, or write the "
@@ -173,4 +182,5 @@ def _write_outputs(html: str, out_dir: Path, formats: Sequence[str], engine: str
     if "pdf" in formats:
         written["pdf"] = out_dir / f"{stem}.pdf"
         write_pdf(html, written["pdf"], engine)
+    run_folder.record_digests(out_dir, [p.name for p in written.values()] + list(files or ()))
     return [written[f] for f in formats if f in written]
