@@ -376,10 +376,22 @@ def test_printed_tf_is_below_the_class_optimum_under_the_atan2_count(tmp_path, n
     boxed = tmp_path / "optimal_box.yaml"
     boxed.write_text(yaml.safe_dump(doc, sort_keys=False, width=100000))
     res = run_file(boxed, tmp_path / "optimal")
-    assert res.status in ("optimal", "acceptable") and res.extra["reintegration"]["passed"]
+    assert res.extra["reintegration"]["passed"]
     assert res.extra["side_by_side"]["optimal"]["N_rev"] == PAPER[n][0]
     assert res.extra["tf_physical"] == pytest.approx(class_optimum, abs=5e-4)
     assert res.extra["tf_physical"] > 1.0015 * PAPER[n][1]
+    # the fixed mesh's own bisection check (the runs of 2026-12-06 on): at 5 N the 240 x 6
+    # mesh is not converged to 1e-5 (bisected: 3.07322, 5.9e-5 lower; the control jumps at a
+    # node near the end), so the run says mesh_not_converged, not optimal; the comparison
+    # with the printed value holds on every level, its margin (1.6 %) far above that error
+    assert res.status in ("optimal", "acceptable", "mesh_not_converged")
+    check = res.extra.get("bisection") or {}
+    levels = [res.objective] + [lv["objective"] for lv in check.get("levels", [])]
+    tf_scale = res.extra["tf_physical"] / res.objective
+    assert all(tf_scale * J > 1.0015 * PAPER[n][1] for J in levels)
+    assert all(tf_scale * J == pytest.approx(class_optimum, abs=5e-4) for J in levels)
+    if res.status == "mesh_not_converged":
+        assert check["estimated_error"] < 0.01 * (res.extra["tf_physical"] / PAPER[n][1] - 1)
 
 
 def test_default_tolerance_integration_cannot_resolve_the_terminal_box(tmp_path):
