@@ -44,18 +44,23 @@ def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
                 raise ValueError
             out[name.strip()] = _constant(value)
         except ValueError:
-            raise click.BadParameter(f"'{item}' is not NAME=NUMBER (a number or a constant expression "
-                                     "such as 1/9 or 2*pi)", param_hint="--param") from None
+            raise click.BadParameter(f"'{item}' is not NAME=NUMBER (a finite number or a constant "
+                                     "expression such as 1/9 or 2*pi)", param_hint="--param") from None
     return out
 
 
 def _constant(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        pass
     import math
 
+    try:
+        value = float(text)
+    except ValueError:
+        pass
+    else:
+        # `inf`, `nan`, `1e400` were taken, then blamed on the file's valid line (unseen40 F3)
+        if not math.isfinite(value):
+            raise ValueError(text)
+        return value
     from .spec.expr import ExprError, Scope, parse_expression
 
     try:
