@@ -95,6 +95,9 @@ CASES = [
     ("a boolean as a parameter", ("method:", "parameters: {k: false}\nmethod:"), 18, "unquoted false"),
     # yes/no/on/off are text (YAML 1.2): an undeclared one is an unknown name, not 1 or 0
     ("a YAML 1.1 boolean word", ("v: u", "v: off"), 7, "unknown name 'off'"),
+    # unseen40 F5: taken as it came
+    ("guess times not increasing", ("objective: minimize tf", "objective: minimize tf\n  guess: {x: {t: [0, 2, 1], "
+                                    "values: [1, 0, 0.5]}}"), 18, "its times t must increase"),
     ("a linear solver not installed", ("method: {", "solver: {options: {linear_solver: ma57}}\nmethod: {"), 18,
      "linear_solver ma57: its library"),
     ("not-equal relation", ("- -1 <= u <= 1", "- u != 1"), 11, "`!=` is not a constraint"),

@@ -85,6 +85,11 @@ class PhaseCompiler:
             elif not _guess_value_ok(guess_items[k]):
                 self.issue(loc + ("guess", k), f"guess for '{k}': a finite number, a list of finite numbers "
                            "or {t: [...], values: [...]} of the same length")
+            elif isinstance(guess_items[k], dict) and any(b <= a for a, b in zip(guess_items[k]["t"],
+                                                                                guess_items[k]["t"][1:])):
+                # t: [0, 2, 1] was taken as it came (unseen40 F5)
+                self.issue(loc + ("guess", k), f"guess for '{k}': its times t must increase, "
+                           f"got {guess_items[k]['t']}")
         check_guess(self.path, guess, loc, self.issue)
         # a problem file, or a transform, is a chain (ocdsl/chain): its stages give `from` at run time
         chained = guess.from_ is not None and (is_problem_file(guess.from_) or guess.transform is not None)
