@@ -352,6 +352,12 @@ def test_a_phase_integral_in_the_top_level_objective_says_where_it_is_written(tm
         compile_file(p)
     text = str(info.value)
     assert f"{p}:15:" in text and "phases: {full: {objective: integral(u ** 2)}}" in text, text
+    # in a constraint the way out is a state carrying the integral (unseen39 F5: only the
+    # objective's way was said)
+    budget = TWO_PHASE_COST.replace("links: [", "links: [full.integral(u**2) + half.integral(u**2) <= 16, ")
+    p.write_text(budget)
+    with pytest.raises(SpecError, match=r"carry the integral as a state: a state E with dynamics `E: u \*\* 2`"):
+        compile_file(p)
     fixed = TWO_PHASE_COST.replace("objective: minimize full.integral(u**2) + half.integral(u**2)",
                                    "objective: minimize 0").replace(
         "    constraints: [x(t0) == 0, v(t0) == 0]", "    constraints: [x(t0) == 0, v(t0) == 0]\n    objective: integral(u**2)"

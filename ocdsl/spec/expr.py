@@ -410,7 +410,9 @@ class _Builder:
                 raise self.fail(f"'{ast.unparse(node)}': an integral over phase '{ph}' is written in that phase's "
                                 f"`objective:` (phases: {{{ph}: {{objective: integral({arg})}}}}); phase objectives "
                                 "are added to this one as costs (subtracted under maximize), e.g. `objective: "
-                                "minimize 0` beside each phase's integral")
+                                "minimize 0` beside each phase's integral; in a constraint (a budget the phases "
+                                f"share) carry the integral as a state: a state E with dynamics `E: {arg}`, "
+                                f"continuous across the phases, and a bound on the last phase's E(tf)")
             return self._boundary(func.value.id, func.attr, node)
         if not isinstance(func, ast.Name):
             raise self.fail(f"'{ast.unparse(func)}(...)' is not allowed (only whitelisted functions may be called)")
