@@ -181,6 +181,13 @@ def test_irregular_controls_spikes_and_zigzags_but_not_bangs_or_noise():
     assert "`mesh:`" in notes[0]
     with_mesh = irregular_controls(t, U, ["smooth", "spike", "zigzag", "bang", "noise"], "LGL", mesh=True)
     assert len(with_mesh) == 2 and all("`mesh:`" not in n for n in with_mesh)
+    # unseen39 F6: a coast thrust of 2e-6 ... 2.8e-5 on [0, 1.227] "jumped at a single node":
+    # against the bound range it is noise; the same shape on [0, 1e-4] is not
+    coast = 2e-6 + 1e-6 * np.arange(21)
+    coast[7] = 5e-5
+    assert irregular_controls(t, coast[:, None], ["T"], spans=[1.227]) == []
+    assert irregular_controls(t, coast[:, None], ["T"], spans=[1e-4])[0].startswith("T jumps at a single node")
+    assert len(irregular_controls(t, U, ["smooth", "spike", "zigzag", "bang", "noise"], spans=[2.0] * 5)) == 2
 
 
 @pytest.mark.ipopt

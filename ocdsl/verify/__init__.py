@@ -284,7 +284,8 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
             tr, Ur = control_rows(traj, names_u)
             notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n
                       for n in irregular_controls(tr, Ur, names_u, (result.method or {}).get("transcription"),
-                                                  mesh=(result.method or {}).get("mesh") is not None)
+                                                  mesh=(result.method or {}).get("mesh") is not None,
+                                                  spans=[hi - lo for lo, hi in bounds_of(ph, names_u, "controls")])
                       + (end_control_jumps(tr, Ur, names_u, (traj.control_interpolation or {}).get("breakpoints"),
                                            mesh=(result.method or {}).get("mesh") is not None)
                          if dynamics_failed else [])]

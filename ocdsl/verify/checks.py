@@ -88,13 +88,19 @@ def worst(err: np.ndarray, names: list[str], t: np.ndarray) -> tuple[float, str]
     return float(e[i, j]), f"{names[j]} at t = {t[i]:.6g}"
 
 
+# a spike or zigzag smaller than this share of a bounded control's range is noise, not a
+# shape the NLP made (unseen39 F6: a coast thrust 2e-6 ... 2.8e-5 on [0, 1.227] "jumped")
+IRREGULAR_RANGE_SHARE = 1e-3
+
+
 def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcription: str | None = None,
-                       mesh: bool = False) -> list[str]:
+                       mesh: bool = False, spans: list[float] | None = None) -> list[str]:
     """Notes on controls that an NLP shapes node by node instead of resolving: an isolated
     spike (one node far from both neighbours, on the same side) or a zigzag (the differences
     alternating in sign over most rows). Either means the collocation scheme is exploited,
     and refining alone may not help, so the summary says what else to change (LG only to a
-    file that does not use it already: unseen10 F3; `mesh:` only to a run without it: unseen17)."""
+    file that does not use it already: unseen10 F3; `mesh:` only to a run without it: unseen17).
+    ``spans``: each control's bound range (inf where unbounded)."""
     notes = []
     other = "" if transcription == "LG" else "`transcription: LG`, "
     advice = ("the NLP exploits the collocation scheme instead of resolving the solution (typical "
@@ -107,12 +113,14 @@ def irregular_controls(t: np.ndarray, U: np.ndarray, names: list[str], transcrip
         if len(u) < 6:
             continue
         size = max(float(np.ptp(u)), 1e-4 * max(1.0, float(np.max(np.abs(u)))))   # not noise on a constant
+        span = spans[j] if spans is not None else math.inf
+        floor = IRREGULAR_RANGE_SHARE * span if math.isfinite(span) else 0.0
         left, right = u[1:-1] - u[:-2], u[1:-1] - u[2:]
         spike = np.minimum(np.abs(left), np.abs(right))
         isolated = (np.sign(left) == np.sign(right)) & (spike > 10 * np.abs(u[2:] - u[:-2])) \
-            & (spike > 0.2 * size)
+            & (spike > max(0.2 * size, floor))
         d = np.diff(u)
-        big = np.abs(d) > 1e-2 * size
+        big = np.abs(d) > max(1e-2 * size, floor)
         alternating = (np.sign(d[1:]) != np.sign(d[:-1])) & big[1:] & big[:-1]
         if alternating.mean() > 0.5:
             notes.append(f"{name} zigzags from node to node ({alternating.mean():.0%} of the steps "
