@@ -67,7 +67,7 @@ def source(args: Sequence[sp.Symbol], exprs: Sequence, module: str = "numpy") ->
 
 
 def function(src: str) -> Callable:
-    ns = dict(_NAMESPACE)
+    ns = dict(_NAMESPACE, __name__="ocdsl.symbolic.numeric.generated")   # its warnings are ocdsl's
     exec(compile(src, "<ocdsl.symbolic.numeric>", "exec"), ns)
     return ns["f"]
 
