@@ -637,3 +637,26 @@ controller:
     msg = res.extra["lqr"]["message"]
     assert res.extra["lqr"]["status"] == "unstable" and "not regulated within the horizon" in msg
     assert "slowest eigenvalue real part -0.01: a time constant of 100, of which the horizon 20 spans 0.2" in msg, msg
+
+
+def test_a_loop_still_growing_at_its_horizon_is_not_called_slow(tmp_path):
+    """unseen41 F3: a saturated LQR on x' = x + u from x = 2 (|u| <= 1 cannot stop it) was
+    told "a longer `simulate.horizon` shows whether it regulates"; |x| grows to 2.2e4 at the
+    end of the horizon: it diverges."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "grows.yaml"
+    path.write_text("""name: saturated unstable plant
+model: {states: [x], controls: [u], dynamics: {x: x + u}}
+controller:
+  type: lqr
+  Q: [1]
+  R: [1]
+  saturation: 1
+  simulate: {x0: {x: 2}, horizon: 10, step: 0.01}
+""")
+    res = run_file(path, tmp_path / "r")
+    msg = res.extra["lqr"]["message"]
+    assert res.extra["lqr"]["status"] == "unstable"
+    assert "|x| grows from 2 to 2.2e+04, its largest at the end of the horizon: the loop diverges" in msg, msg
+    assert "longer `simulate.horizon`" not in msg

@@ -83,6 +83,12 @@ def saturation_limits(saturation, m: int):
     return s[:, 0], s[:, 1]
 
 
+# a state that ends within this share of its peak, the peak this many times where it started:
+# the loop is diverging, not slow
+GROWING_END = 0.99
+GROWING_RISE = 2.0
+
+
 def simulate(plant: Callable[[np.ndarray, np.ndarray], np.ndarray],
              controller: Callable[[float, np.ndarray], np.ndarray],
              z0: Sequence[float], index: Sequence[int], Q, R, horizon: float, dt: float,
@@ -206,7 +212,17 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
         worst = int(np.argmax(ratio)) if ratio.size else 0
         xf = float(ratio[worst]) if ratio.size else 0.0
         name = names[int(idx[worst])] if names is not None and ratio.size else f"state {int(idx[worst]) + 1}"
-        if xf > stable_ratio:
+        j = int(idx[worst]) if ratio.size else 0
+        start, end, peak = (float(abs(Z[0, j])), float(abs(Z[-1, j])), float(scale[worst])) if ratio.size \
+            else (0.0, 0.0, 0.0)
+        if xf > stable_ratio and end >= GROWING_END * peak and peak > GROWING_RISE * start:
+            # still at its largest when the horizon ends, far above where it started: a longer
+            # horizon cannot show it regulating (unseen41 F3: x' = x + u, |u| <= 1 from x = 2,
+            # "a longer `simulate.horizon` shows whether it regulates")
+            status = "unstable"
+            message = (f"|{name}| grows from {start:.3g} to {end:.3g}, its largest at the end of the horizon: "
+                       f"the loop diverges from this start")
+        elif xf > stable_ratio:
             status = "unstable"
             message = (f"max |{name}| over the last tenth of the horizon = {xf:.3g} of its scale (the largest "
                        f"of |{name}(0)| and its peak) > {stable_ratio:g}: not regulated within the horizon")
