@@ -95,6 +95,9 @@ CASES = [
     ("a boolean as a parameter", ("method:", "parameters: {k: false}\nmethod:"), 18, "unquoted false"),
     # yes/no/on/off are text (YAML 1.2): an undeclared one is an unknown name, not 1 or 0
     ("a YAML 1.1 boolean word", ("v: u", "v: off"), 7, "unknown name 'off'"),
+    # unseen41 F4: "unknown function 'z'"
+    ("a boundary value of no state", ("- x(tf) == 0", "- xx(tf) == 0"), 14, "unknown name 'xx' (a boundary value "
+                                                                          "is a state's or a control's"),
     # unseen40 F5: taken as it came
     ("guess times not increasing", ("objective: minimize tf", "objective: minimize tf\n  guess: {x: {t: [0, 2, 1], "
                                     "values: [1, 0, 0.5]}}"), 18, "its times t must increase"),

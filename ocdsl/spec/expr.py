@@ -454,6 +454,12 @@ class _Builder:
                 raise self.fail(str(e)) from None
         if name in self.scope.names:
             return self._boundary(None, name, node)
+        if self.scope.boundary is not None and len(node.args) == 1 and isinstance(node.args[0], ast.Name) \
+                and node.args[0].id in ("t0", "tf"):
+            # `z(tf)` of no state z read as a function call (unseen41 F4: "unknown function 'z'")
+            known = [k for k, v in self.scope.names.items() if isinstance(v, sp.Symbol) and k not in ("t", "t0", "tf")]
+            raise self.fail(f"'{ast.unparse(node)}': unknown name '{name}' (a boundary value is a state's or a "
+                            f"control's, {name}(t0) or {name}(tf)){did_you_mean(name, known)}")
         raise self.fail(f"unknown function '{name}'{did_you_mean(name, list(FUNCTIONS) + list(self.scope.functions))}")
 
     def _Attribute(self, node: ast.Attribute) -> sp.Expr:
