@@ -98,6 +98,9 @@ CASES = [
     # unseen41 F4: "unknown function 'z'"
     ("a boundary value of no state", ("- x(tf) == 0", "- xx(tf) == 0"), 14, "unknown name 'xx' (a boundary value "
                                                                           "is a state's or a control's"),
+    # unseen41 F6: "... numbers and pi, e: boundary value 'np.float64(0.0866)' is not allowed here"
+    ("a Python call as a parameter value", ("method:", "parameters: {k: np.float64(0.0866)}\nmethod:"), 18,
+     "'np.float64(0.0866)' is not allowed: write the number"),
     # unseen40 F5: taken as it came
     ("guess times not increasing", ("objective: minimize tf", "objective: minimize tf\n  guess: {x: {t: [0, 2, 1], "
                                     "values: [1, 0, 0.5]}}"), 18, "its times t must increase"),

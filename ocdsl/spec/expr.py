@@ -413,6 +413,10 @@ class _Builder:
                                 "minimize 0` beside each phase's integral; in a constraint (a budget the phases "
                                 f"share) carry the integral as a state: a state E with dynamics `E: {arg}`, "
                                 f"continuous across the phases, and a bound on the last phase's E(tf)")
+            if not self.scope.phases:
+                # `np.float64(0.0866)` in a parameter read as a phase's boundary value (unseen41 F6)
+                raise self.fail(f"'{ast.unparse(node)}' is not allowed: write the number, or call one of the "
+                                f"whitelisted functions (sqrt(2), atan2(1, 2), ...)")
             return self._boundary(func.value.id, func.attr, node)
         if not isinstance(func, ast.Name):
             raise self.fail(f"'{ast.unparse(func)}(...)' is not allowed (only whitelisted functions may be called)")

@@ -31,9 +31,9 @@ def constant_value(text: str) -> float:
     try:
         e = parse_expression(text, Scope({}))
     except ExprError as err:
-        raise ValueError(f"`{text}` is not a number nor an expression of numbers and pi, e: {err.message}") from None
+        raise ValueError(f"`{text}` is not a number nor a constant expression (numbers, pi, e): {err.message}") from None
     if e.free_symbols or not e.is_number:
-        raise ValueError(f"`{text}` is not a number nor an expression of numbers and pi, e")
+        raise ValueError(f"`{text}` is not a number nor a constant expression (numbers, pi, e)")
     value = complex(e.evalf())
     if value.imag != 0 or not math.isfinite(value.real):
         raise ValueError(f"`{text}` has no finite real value")
