@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from ocdsl import run_folder
 from ocdsl.report import build as B
 from ocdsl.report import reproduce as R
 
@@ -226,7 +227,10 @@ def test_reports_only_remakes_reports_from_the_run_folders(repro):
     trajectory stays the same file, the report is new, the manifest's verdict is the run's."""
     out = repro["out"]
     traj = (out / "double_integrator" / "trajectory.csv").stat().st_mtime_ns
+    # a report ocdsl wrote from an earlier run (its digest recorded as ocdsl's); one the user
+    # edited is refused (test_run_folder: a_report_the_user_edited_is_theirs)
     (out / "double_integrator" / "report.html").write_text("<html>stale</html>")
+    run_folder.record_digests(out / "double_integrator", ["report.html"])
     assert R.main(["--out", str(out), "--reports-only", "--formats", "html", "--configs", str(repro["cfg"])]) == 0
     assert (out / "double_integrator" / "trajectory.csv").stat().st_mtime_ns == traj
     html = (out / "double_integrator" / "report.html").read_text()
