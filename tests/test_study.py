@@ -298,6 +298,38 @@ def test_changed_study_refuses_resume(tmp_path):
         run_study(f, tmp_path / "out", serial=True, quiet=True, resume=True, point_fn=demo_point)
 
 
+def test_a_changed_table_refuses_resume(tmp_path):
+    """unseen42 F1: a study cut short, its table's CSV edited, then resumed: the finished points
+    (old table) were kept and the rest solved with the new one, "complete", 16 of 40 rows
+    2.5x off and ok. The fingerprint covers the files the problem reads."""
+    (tmp_path / "kk.csv").write_text("x,k\n0,0\n1,1\n")
+    f = write(tmp_path, "name: demo\nparameters: {a: 1.0, work_s: 0}\ntables: {kk: {csv: kk.csv, x: x, "
+                        "values: k}}\nstudy:\n  sweep: {list: [{a: 2}]}\n")
+    run_study(f, tmp_path / "out", serial=True, quiet=True, point_fn=demo_point)
+    run_study(f, tmp_path / "out", serial=True, quiet=True, resume=True, point_fn=demo_point)   # unchanged: resumes
+    (tmp_path / "kk.csv").write_text("x,k\n0,0\n1,2\n")
+    with pytest.raises(StudyError, match="a file it reads"):
+        run_study(f, tmp_path / "out", serial=True, quiet=True, resume=True, point_fn=demo_point)
+
+
+def test_resume_solves_the_point_an_interrupt_stopped(tmp_path, monkeypatch):
+    """unseen42 F2: the point in hand when Ctrl-C or SIGTERM stopped a study is written
+    `interrupted`; --resume took it for finished, so the study stayed "complete" with one
+    failure and exited 1 at every resume. It is solved again."""
+    ledger = tmp_path / "ledger.jsonl"
+    monkeypatch.setenv("OCDSL_DEMO_LEDGER", str(ledger))
+    f = write(tmp_path, "name: demo\nparameters: {a: 1.0, work_s: 0, interrupt: 0}\nstudy:\n"
+                        "  sweep: {list: [{a: 2}, {a: 3, interrupt: 1}]}\n")
+    monkeypatch.setenv("OCDSL_DEMO_INTERRUPT", "1")
+    run_study(f, tmp_path / "out", serial=True, quiet=True, point_fn=demo_point)
+    assert sorted(s for s, _, _ in table(tmp_path / "out").values()) == ["interrupted", "optimal"]
+    monkeypatch.delenv("OCDSL_DEMO_INTERRUPT")
+    run_study(f, tmp_path / "out", serial=True, quiet=True, resume=True, point_fn=demo_point)
+    assert [s for s, _, _ in table(tmp_path / "out").values()] == ["optimal", "optimal"]
+    solved = [json.loads(line)["parameters"] for line in ledger.read_text().splitlines()]
+    assert len(solved) == 3 and solved.count(solved[0]) == 1       # the finished one once
+
+
 # ---------------------------------------------------------------------------------------
 # Dask: a lost worker, an unreachable scheduler
 # ---------------------------------------------------------------------------------------

@@ -4,7 +4,9 @@ and benchmarking the study machinery without a solver.
 It reads ``parameters:`` of a YAML file, and a ``demo:`` block:
 ``{build_s: seconds of CPU to "build the model" (once per worker, cached)}``. Parameters
 with a meaning: ``work_s`` (CPU seconds per solve), ``fail`` (> 0.5: status infeasible),
-``raise`` (> 0.5: raise an exception), ``crash`` (> 0.5: kill the worker process). The
+``raise`` (> 0.5: raise an exception), ``crash`` (> 0.5: kill the worker process),
+``interrupt`` (> 0.5 while ``OCDSL_DEMO_INTERRUPT`` is set: status interrupted, as the point
+in hand when Ctrl-C stops a study). The
 objective is a smooth deterministic function of the other parameters and the seed. If the
 environment variable ``OCDSL_DEMO_LEDGER`` names a file, each finished solve appends one
 JSON line to it (parameters, seed, pid), so tests can count how often a point was solved.
@@ -24,7 +26,7 @@ from ocdsl.result import PhaseTrajectory, Result
 
 from .executor import cache_stats, worker_cache
 
-CONTROL = ("work_s", "fail", "raise", "crash")
+CONTROL = ("work_s", "fail", "raise", "crash", "interrupt")
 
 
 def _burn(seconds: float) -> None:
@@ -61,10 +63,12 @@ def point(path, out_dir, parameters=None, seed=None, warm_start=None, quiet=True
     if warm_start:
         warm_obj = json.loads((Path(warm_start) / "result.json").read_text()).get("objective")
     status = "infeasible" if p.get("fail", 0.0) > 0.5 else "optimal"
+    if p.get("interrupt", 0.0) > 0.5 and os.environ.get("OCDSL_DEMO_INTERRUPT"):
+        status = "interrupted"
     tgrid = np.linspace(0.0, 1.0, 11)
     res = Result(
         name=model["name"], status=status,
-        message="" if status == "optimal" else "demo: infeasible by request (fail > 0.5)",
+        message="" if status == "optimal" else f"demo: {status} by request",
         objective=objective, tf=1.0 + 0.1 * len(x), iterations=4 if warm_start else 12,
         wall_time_s={"total": time.perf_counter() - t0, "build": t_build},
         method={"name": "demo"}, parameters=p,

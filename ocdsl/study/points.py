@@ -211,6 +211,14 @@ def _finished(points_dir: Path, point: Point) -> dict | None:
         return None
     if not (d / "result.json").is_file():
         return None
+    try:
+        status = json.loads((d / "result.json").read_text()).get("status")
+    except (OSError, ValueError):
+        return None
+    if status == "interrupted":
+        # the point in hand when Ctrl-C or SIGTERM stopped the study: solved again by --resume,
+        # not a finished failure (unseen42 F2: "complete", 1 failed, exit 1 at every resume)
+        return None
     if meta.get("point", {}).get("parameters") != point.parameters or \
             meta.get("point", {}).get("seed") != point.seed:
         raise StudyError(f"{d} holds a different point than the study's {point.id} "
