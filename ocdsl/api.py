@@ -144,9 +144,20 @@ def _execute(file, timer: Timer, **kwargs) -> Result:
         verify_closed_loop(file, result, timer)
         return result
     from .run import execute as run_method
-    from .solve.ipopt import interrupted, interrupted_by
+    from .solve.ipopt import interrupted, interrupted_by, solves_cut
 
     result = run_method(file, timer, **kwargs)
+    cut = solves_cut()
+    if cut and result.status in ("optimal", "acceptable"):
+        # the limit cut later starts or checks (the bisection of a fixed mesh): the best solution
+        # stands, but not as if the run had done them (unseen42 F3: optimal, exit 0, two starts
+        # and the bisection check never run)
+        result.message = (f"the run's time limit cut {cut} of its solves (later starts or checks: "
+                          f"extra.starts and the notes say which); the best solution found ({result.status}) "
+                          f"is written: raise `solver: time_limit` or --time-limit for the whole run"
+                          + (f"; {result.message}" if result.message else ""))
+        result.extra["cut_short"] = {"solution_status": result.status, "solves_cut": cut}
+        result.status = "time_limit"
     if interrupted():      # Ctrl-C or SIGTERM: the run stops here, its last iterate is the result
         result.status = "interrupted"
         if not result.message.startswith("interrupted"):

@@ -199,7 +199,7 @@ def _summary(result, out: Path) -> None:
     from rich.text import Text
 
     from .progress import console
-    from .result_views import best_completed_mesh, expect_comparison, numbers_note
+    from .result_views import completed_solution, expect_comparison, numbers_note
 
     con = console()
     ok = "green" if result.status == "optimal" else "red"
@@ -241,10 +241,8 @@ def _summary(result, out: Path) -> None:
     elif result.objective is not None and result.status == "mesh_not_converged":
         # a solved mesh that missed the refinement's tolerance: a solution, not a last iterate
         row("objective", f"{result.objective:.10g} (on the reported mesh; refinement not converged)")
-    elif result.objective is not None and (kept := best_completed_mesh(result)):
-        it, st = kept
-        row("best completed mesh", f"objective {result.objective:.10g} (mesh iteration {it}, Ipopt {st}; "
-                  "refinement cut short, so not a converged result)")
+    elif result.objective is not None and (kept := completed_solution(result)):
+        row("best completed", f"objective {result.objective:.10g}: {kept}")
     elif result.objective is not None and result.status == "feasible":
         # a parametric search's answer: feasible in its control class, no optimality conditions
         row("objective", f"{result.objective:.10g} (feasible: inside the tolerances in the search's "

@@ -185,11 +185,20 @@ class ResultViews:
         return fig
 
 
-def best_completed_mesh(result) -> tuple[int, str] | None:
-    """(iteration, Ipopt status) of the mesh a cut-short refinement reports, when that solve completed."""
+def completed_solution(result) -> str | None:
+    """What a run cut short by its time limit or an interrupt reports when one of its solves
+    completed: a refinement's best completed mesh, or the best of the starts solved before the
+    limit cut the others and the checks (``extra.cut_short``, unseen42 F3); None otherwise."""
+    if result.status not in ("time_limit", "interrupted"):
+        return None
     mesh = result.extra.get("mesh") or {}
-    if result.status in ("time_limit", "interrupted") and mesh.get("chosen_status") in ("optimal", "acceptable"):
-        return mesh.get("chosen_iteration"), mesh["chosen_status"]
+    if mesh.get("chosen_status") in ("optimal", "acceptable"):
+        return (f"best completed mesh (mesh iteration {mesh.get('chosen_iteration')}, Ipopt "
+                f"{mesh['chosen_status']}; refinement cut short, so not a converged result)")
+    cut = result.extra.get("cut_short") or {}
+    if cut.get("solution_status") in ("optimal", "acceptable"):
+        return (f"best solution before the time limit (Ipopt {cut['solution_status']}; {cut.get('solves_cut')} "
+                "later solves, starts or checks, cut, so not a checked result)")
     return None
 
 
@@ -199,8 +208,8 @@ def numbers_note(result) -> str:
     5.05" and "expect tf: 5.05 vs 2" for the guess of a solve Ipopt refused to start)."""
     if result.has_solution:
         return ""
-    if best_completed_mesh(result):
-        return " (best completed mesh; refinement cut short)"
+    if completed_solution(result):
+        return " (best completed solve; the run was cut short)"
     return " (last iterate, not a solution)" if result.iterations else " (the guess: the solve did not start)"
 
 

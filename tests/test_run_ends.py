@@ -335,6 +335,42 @@ def test_a_time_limit_during_mesh_refinement_keeps_the_best_completed_mesh(tmp_p
     assert "last iterate" not in shown, shown
 
 
+def test_a_time_limit_that_cuts_later_starts_is_a_time_limit(tmp_path, monkeypatch, capsys):
+    """unseen42 F3: `--time-limit` ran out after two of six starts: two starts and the
+    bisection check never ran, and the run said `optimal`, exit 0, where the docs say a run
+    past its limit ends `time_limit`. The best start's solution is kept, verified and named
+    as such; the status is time_limit (exit 1)."""
+    import time
+
+    from ocdsl.solve import ipopt
+
+    real, calls = ipopt.solve, []
+
+    def solve(*args, **kw):
+        calls.append(1)
+        if len(calls) == 2:        # the limit runs out after the first start
+            deadline = ipopt._DEADLINE.get()
+            ipopt._DEADLINE.set((time.monotonic() - 1.0, deadline[1]))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(ipopt, "solve", solve)
+    text = BASE.replace("degree: 3}", "degree: 3, starts: 3}") + "solver: {time_limit: 100}\n"
+    res = run_file(write(tmp_path, text), tmp_path / "run")
+    assert [s["status"] for s in res.extra["starts"]] == ["optimal", "time_limit", "time_limit"]
+    assert res.status == "time_limit" and not res.ok
+    cut = res.extra["cut_short"]
+    assert cut["solution_status"] == "optimal" and cut["solves_cut"] >= 2      # the starts (and the bisection)
+    assert f"the run's time limit cut {cut['solves_cut']} of its solves" in res.message
+    assert res.verification["status"] in ("verified", "failed")       # a verdict on it, not skipped
+    assert res.objective == res.extra["starts"][0]["objective"]
+    from ocdsl.cli import _summary
+
+    capsys.readouterr()
+    _summary(res, tmp_path / "run")
+    shown = capsys.readouterr().out
+    assert "best solution before the time limit (Ipopt optimal" in shown and "last iterate" not in shown, shown
+
+
 ZERMELO_SI = """name: Zermelo in SI units
 model:
   states: [x, y]

@@ -144,8 +144,8 @@ def what_is_drawn(res: Result) -> str:
     """What a run's rows are: a solution, a cut-short refinement's best completed mesh, or a
     failed solve's last iterate (unseen33 F3: an infeasible run's last iterate and a solve
     that never started's guess were drawn as "solution")."""
-    from ocdsl.result_views import best_completed_mesh
+    from ocdsl.result_views import completed_solution
 
     if res.has_solution:
         return "solution"
-    return "best completed mesh" if best_completed_mesh(res) else "last iterate (not a solution)"
+    return "best completed solve" if completed_solution(res) else "last iterate (not a solution)"

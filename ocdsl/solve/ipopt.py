@@ -116,6 +116,23 @@ def interrupted_by() -> str:
 _DEADLINE: "contextvars.ContextVar[tuple[float, float] | None]" = contextvars.ContextVar("deadline", default=None)
 
 
+# the solves of the current time limit that it cut or refused (``time_limit``), so that a run
+# whose later starts or checks it cut does not end as if it had done them (unseen42 F3)
+_CUT: "contextvars.ContextVar[list | None]" = contextvars.ContextVar("cut", default=None)
+
+
+def solves_cut() -> int:
+    """How many solves under the current ``time_limit`` ended or were refused by it."""
+    cut = _CUT.get()
+    return 0 if cut is None else len(cut)
+
+
+def _count_cut(status: str) -> None:
+    cut = _CUT.get()
+    if cut is not None and status == "time_limit":
+        cut.append(1)
+
+
 def seconds_left() -> float | None:
     """Wall-clock seconds left of the run's time limit (None without one)."""
     deadline = _DEADLINE.get()
@@ -126,10 +143,12 @@ def seconds_left() -> float | None:
 def time_limit(seconds: float | None):
     """Solves inside share ``seconds`` of wall-clock time (a run's mesh iterations and starts)."""
     token = _DEADLINE.set(None if seconds is None else (time.monotonic() + float(seconds), float(seconds)))
+    cut = _CUT.set([])
     try:
         yield
     finally:
         _DEADLINE.reset(token)
+        _CUT.reset(cut)
 
 
 class SolverUnavailable(RuntimeError):
@@ -328,6 +347,7 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         return SolveInfo("interrupted", f"interrupted ({interrupted_by()}) before this solve", 0, None, 0.0)
     deadline = _DEADLINE.get()
     if deadline is not None and deadline[0] - time.monotonic() <= 0:
+        _count_cut("time_limit")
         return SolveInfo("time_limit", f"the run's time limit of {deadline[1]:g} s was reached before "
                          "this solve (solver: time_limit, or ocdsl run --time-limit)", 0, None, 0.0)
 
@@ -447,6 +467,7 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     except Exception:
         pass
     iterations = history[-1][0] if history else 0
+    _count_cut(status)
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
 
 

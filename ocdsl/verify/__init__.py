@@ -93,9 +93,10 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     head = {"mode": settings.mode, "tolerance": settings.tolerance, "integrator_rtol": settings.rtol}
     if problem is None or not result.phases:
         return {**head, "status": "skipped", "checks": [], "summary": "no trajectory to verify"}
-    # a mesh run cut short by its time limit returns the best completed mesh's solution: that
-    # trajectory is checked like any other (the run still fails on its status)
-    completed = (result.extra.get("mesh") or {}).get("chosen_status") in CONVERGED
+    # a run cut short by its time limit returns the best completed mesh's (or start's)
+    # solution: that trajectory is checked like any other (the run still fails on its status)
+    completed = (result.extra.get("mesh") or {}).get("chosen_status") in CONVERGED \
+        or (result.extra.get("cut_short") or {}).get("solution_status") in CONVERGED
     # a closed-loop run simulates every law, whether it regulates or not: each trajectory is
     # checked all the same (one unstable law left the others unverified, unseen9 F9)
     simulated = not settings.open_loop and result.status in ("unstable", "error")
