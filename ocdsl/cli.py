@@ -369,6 +369,18 @@ def check(file):
         _compile_or_exit(load_pareto, file)
         click.echo(f"{file}: ok (pareto study)")
         return
+    if _has_block(file, "problem_file"):
+        # a study file of its own (`problem_file:` and `study:`, docs/studies.md): its block,
+        # then the problem it names (unseen42 F4: "missing required key 'name'")
+        from .study.spec import StudyError, load_study
+
+        try:
+            loaded = _compile_or_exit(load_study, file)
+        except StudyError as e:
+            raise _SpecFailure(str(e)) from None
+        _compile_or_exit(compile_file, str(loaded.problem_path))
+        click.echo(f"{file}: ok (study of {loaded.problem_path.name}: {len(loaded.points)} points)")
+        return
     f = _compile_or_exit(compile_file, file)
     if "study" in f.located.data:      # the study block too (sweeps, samples, the point limit)
         from .study.spec import StudyError, load_study

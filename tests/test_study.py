@@ -491,3 +491,27 @@ def test_a_long_point_message_is_cut_at_a_word_and_says_so():
     assert cut.endswith("... (the point's result.json has it all)")
     assert text.startswith(cut[: cut.index(" ...")]) and cut[: cut.index(" ...")].split()[-1] in text.split()
     assert _shortened("short") == "short"
+
+
+def test_check_takes_a_study_file_of_its_own(tmp_path):
+    """unseen42 F4: `ocdsl check` refused the separate study file docs/studies.md shows
+    (`problem_file:` and `study:`) with "missing required key 'name'" and a did-you-mean to
+    `problem`, while `ocdsl study` ran it. It checks the block and the problem it names."""
+    from click.testing import CliRunner
+
+    from ocdsl.cli import main
+
+    problem = REST_TO_REST_SWEEP.format(method="{transcription: LGR, segments: 2, degree: 3}",
+                                        sweep="list: [{d: 2}]")
+    (tmp_path / "lq.yaml").write_text(problem.split("study:")[0])
+    study = tmp_path / "st.yaml"
+    study.write_text("problem_file: lq.yaml\nstudy:\n  sweep: {grid: {d: [0.5, 1.0, 1.5]}}\n")
+    res = CliRunner().invoke(main, ["check", str(study)])
+    assert res.exit_code == 0 and "ok (study of lq.yaml: 3 points)" in res.output, res.output
+    study.write_text("problem_file: lq.yaml\nstudy:\n  sweep: {grid: {dd: [0.5, 1.0]}}\n")
+    res = CliRunner().invoke(main, ["check", str(study)])
+    assert res.exit_code == 2 and "st.yaml:3" in res.output and "'dd'" in res.output, res.output
+    (tmp_path / "lq.yaml").write_text(problem.split("study:")[0].replace("v: u", "v: w"))
+    study.write_text("problem_file: lq.yaml\nstudy:\n  sweep: {grid: {d: [0.5, 1.0]}}\n")
+    res = CliRunner().invoke(main, ["check", str(study)])
+    assert res.exit_code == 2 and "lq.yaml:6" in res.output and "unknown name 'w'" in res.output, res.output
