@@ -568,6 +568,28 @@ def test_a_run_folder_changed_after_the_run_is_reported_as_changed(tmp_path):
     assert "changed since the run" in html and "trajectory.csv changed after ocdsl wrote it" in html
 
 
+def test_an_edited_result_json_gets_no_report(tmp_path):
+    """unseen43 F1, F2: a failed run's result.json edited to optimal and verified got a report
+    with "overall ok (exit 0)" beside "the verdicts in this report are of the run as ocdsl wrote
+    it", and counted as ok in a comparison. Every verdict comes from result.json: an edited one
+    is refused (a comparison leaves the run out, saying why)."""
+    import json
+
+    from ocdsl.report.build import ReportError, make_comparison_report
+
+    run = solved_result().write(tmp_path / "run")
+    other = solved_result().write(tmp_path / "other")
+    data = json.loads((run / "result.json").read_text())
+    data["objective"] = 1.5
+    (run / "result.json").write_text(json.dumps(data))
+    with pytest.raises(ReportError, match="result.json was changed after ocdsl wrote it"):
+        make_report(run, formats=("html",))
+    assert not (run / "report.html").exists()
+    # a comparison leaves it out and says why
+    html = make_comparison_report([other, run], tmp_path / "cmp", formats=("html",))[0].read_text()
+    assert "run/result.json was changed after ocdsl wrote it" in html and "1 of 1" in html
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what

@@ -12,7 +12,7 @@ import numpy as np
 
 from ocdsl.result import Result
 from ocdsl.report import figures as F
-from ocdsl.report.build.document import NotARunFolder
+from ocdsl.report.build.document import NotARunFolder, ReportError
 from ocdsl.report.tables.cells import GOOD_STATUS as GOOD
 
 
@@ -58,6 +58,15 @@ def load_run(run_dir: Path) -> tuple[Result, list[str]]:
     """``Result.read`` with a fallback: a run folder with a broken or missing trajectory
     still gives the scalars of ``result.json`` (and a note). A Pareto set without its own
     verdict takes its points'."""
+    from ocdsl import run_folder
+
+    if any(c.split(" ")[0] == "result.json" for c in run_folder.changed_since_written(run_dir)):
+        # every verdict a report prints comes from result.json: an edited one made a failed run
+        # "optimal, verified, overall ok (exit 0)" under "the verdicts ... of the run as ocdsl
+        # wrote it" (unseen43 F1, F2 in a comparison)
+        raise ReportError(f"{run_dir}/result.json was changed after ocdsl wrote it: its verdicts (status, "
+                          "verification, certificate, expect) are no longer ocdsl's, and a report would present "
+                          "them as such. Nothing was written: run the problem file again, or restore the file")
     res, notes = _load_run(run_dir)
     if res.verification is None:
         res.verification = points_verification(run_dir)
