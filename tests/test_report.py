@@ -590,6 +590,16 @@ def test_an_edited_result_json_gets_no_report(tmp_path):
     assert "run/result.json was changed after ocdsl wrote it" in html and "1 of 1" in html
 
 
+def test_an_interrupted_runs_overall_badge_gives_its_exit_code():
+    """unseen43 F3: "overall not ok (exit 1)", described as the exit code of ocdsl run, for a
+    run Ctrl-C ended with 130 (SIGTERM: 143)."""
+    from ocdsl.report import status as S
+
+    for message, code in (("interrupted (Ctrl-C) at iteration 3", 130), ("interrupted (SIGTERM); ...", 143)):
+        assert S.overall(Result(name="r", status="interrupted", message=message)).text == f"not ok (exit {code})"
+    assert S.overall(Result(name="r", status="max_iter")).text == "not ok (exit 1)"
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what

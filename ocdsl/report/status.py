@@ -101,7 +101,9 @@ def overall(res: Result) -> Badge:
         reasons.append(f"certificate {certificate_reason(res.certificate)}")
     if res.ok:
         return Badge("overall", "ok (exit 0)", "pass")
-    return Badge("overall", "not ok (exit 1)", "fail", "; ".join(reasons))
+    # an interrupted run exits as the signal says, not 1 (unseen43 F3)
+    code = (143 if "SIGTERM" in (res.message or "") else 130) if res.status == "interrupted" else 1
+    return Badge("overall", f"not ok (exit {code})", "fail", "; ".join(reasons))
 
 
 def ocdsl_build() -> dict[str, str]:
