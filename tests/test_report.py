@@ -600,6 +600,22 @@ def test_an_interrupted_runs_overall_badge_gives_its_exit_code():
     assert S.overall(Result(name="r", status="max_iter")).text == "not ok (exit 1)"
 
 
+def test_a_multi_phase_runs_final_time_is_its_last_phases_end():
+    """unseen43 F4: the comparison table gave a two-phase run ending at 2 the final time 3
+    (the sum of the phases' final times 1 and 2)."""
+    from ocdsl.report.tables.studies import run_final_time
+    from ocdsl.result import PhaseTrajectory
+
+    def run(spans):
+        phases = [PhaseTrajectory(f"p{i}", np.linspace(a, b, 5), states={"x": np.zeros(5)})
+                  for i, (a, b) in enumerate(spans)]
+        return Result(name="r", status="optimal", tf={p.name: float(p.time[-1]) for p in phases}, phases=phases)
+
+    assert run_final_time(run([(0, 1), (1, 2)])) == 2.0
+    assert run_final_time(run([(0, 1.5), (0, 2)])) == 3.5        # phases that each start at 0
+    assert run_final_time(Result(name="r", status="optimal", tf=1.25)) == 1.25
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what
