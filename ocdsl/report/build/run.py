@@ -85,7 +85,10 @@ def _solution_section(doc: Doc, res: Result, notes: list[str]) -> None:
                                        else "On this fixed mesh J is the mesh's optimum, not the problem's: "
                                             "bisecting every segment moved it by more than the verification's "
                                             "tolerance."),
-                "unstable": "The closed loop diverged.",
+                # `unstable` is also a loop not regulated within its horizon, its states finite
+                # (unseen43 F5: "diverged" for those); the message says which
+                "unstable": "The closed loop did not regulate the state within the horizon (the message "
+                            "says whether it diverged or stayed finite).",
                 "not_run": "This point was not run."}.get(res.status, "")
         b.append({"type": "diagnosis", "status": res.status, "message": res.message, "hint": hint})
     for n in notes:
