@@ -616,6 +616,17 @@ def test_a_multi_phase_runs_final_time_is_its_last_phases_end():
     assert run_final_time(Result(name="r", status="optimal", tf=1.25)) == 1.25
 
 
+def test_a_loop_not_regulated_within_its_horizon_is_not_said_to_diverge(tmp_path):
+    """unseen43 F5: "The closed loop diverged." for laws whose states stayed finite, only not
+    regulated within the horizon."""
+    from ocdsl.report.build import build_run_html
+
+    res = solved_result()
+    res.status, res.message = "unstable", "max |x| over the last tenth of the horizon = 0.5 of its scale > 0.01"
+    html = build_run_html(res.write(tmp_path / "run"))
+    assert "The closed loop diverged" not in html and "did not regulate the state within the horizon" in html
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what
