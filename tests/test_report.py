@@ -627,6 +627,20 @@ def test_a_loop_not_regulated_within_its_horizon_is_not_said_to_diverge(tmp_path
     assert "The closed loop diverged" not in html and "did not regulate the state within the horizon" in html
 
 
+def test_a_failed_runs_final_time_says_whose_it_is(tmp_path):
+    """unseen43 F6, F7: "final time t_f 5.05" with no label beside "objective of the last
+    iterate", and for a solve the time limit refused before it started (its guess) the
+    figures said "last iterate"."""
+    from ocdsl.report.build import build_run_html
+
+    res = solved_result()
+    res.status, res.message = "max_iter", "Maximum number of iterations exceeded"
+    assert "final time t_f [s] of the last iterate (not a solution)" in build_run_html(res.write(tmp_path / "a"))
+    res.status, res.iterations = "time_limit", 0
+    html = build_run_html(res.write(tmp_path / "b"))
+    assert "final time t_f [s] of the guess (the solve did not start)" in html and "last iterate" not in html
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what

@@ -150,4 +150,7 @@ def what_is_drawn(res: Result) -> str:
 
     if res.has_solution:
         return "solution"
-    return "best completed solve" if completed_solution(res) else "last iterate (not a solution)"
+    if completed_solution(res):
+        return "best completed solve"
+    # a solve that never started has only its guess (unseen43 F6: shown as a last iterate)
+    return "last iterate (not a solution)" if res.iterations else "guess (the solve did not start)"

@@ -115,8 +115,8 @@ def _figures_section(doc: Doc, res: Result) -> None:
         return      # a controller file's phases are its closed-loop runs: drawn once, in their section
     b = doc.section("trajectory", "Trajectory")
     if res.status not in GOOD:
-        b.append({"type": "note", "text": f"The run ended with status {res.status}: the figures show the "
-                                          "solver's last iterate, not a verified solution."})
+        b.append({"type": "note", "text": f"The run ended with status {res.status}: the figures show its "
+                                          f"{S.what_is_drawn(res)}, not a verified solution."})
     for what, fn in (("state/control figures", F.fig_states_controls), ("costate figure", F.fig_costates),
                      ("Hamiltonian figures", F.fig_hamiltonian), ("trajectory view", F.fig_positions),
                      ("frame view", F.fig_frame),

@@ -33,8 +33,11 @@ def summary_table(res: Result) -> dict:
                      cell(f"{res.extra.get('n_solutions', '?')} solutions, {len(front)} Pareto-optimal", "")])
     else:
         rows.append([cell(label + (f" ({sense})" if sense else ""), "name"), cell(res.objective, "num", 10)])
+    # a failed run's times are its last iterate's or its guess's, said as for its objective
+    # (unseen43 F6, F7: "final time t_f 5.05" unlabelled, the guess of a solve never started)
+    whose = "" if res.has_solution else f" of the {what_is_drawn(res)}"
     for label, v in time_rows(res):
-        rows.append([cell(label, "name"), cell(v, "num", 10)])
+        rows.append([cell(label + whose, "name"), cell(v, "num", 10)])
     rows.append([cell("iterations", "name"), cell(res.iterations)])
     for k in ("variables", "constraints", "nonzeros"):
         if k in (res.nlp or {}):
