@@ -641,6 +641,19 @@ def test_a_failed_runs_final_time_says_whose_it_is(tmp_path):
     assert "final time t_f [s] of the guess (the solve did not start)" in html and "last iterate" not in html
 
 
+def test_a_mesh_not_converged_objective_is_labelled_as_the_console_labels_it(tmp_path):
+    """unseen43 F8: the report showed a mesh_not_converged run's J as a plain result, the
+    comparison table as a "last iterate"; the console says "on the reported mesh"."""
+    from ocdsl.report.build import build_run_html, make_comparison_report
+
+    res = solved_result()
+    res.status, res.message = "mesh_not_converged", "mesh refinement did not reach the tolerance"
+    run = res.write(tmp_path / "run")
+    assert "objective on the reported mesh (not converged)" in build_run_html(run)
+    html = make_comparison_report([run], tmp_path / "cmp", formats=("html",))[0].read_text()
+    assert "(mesh not converged)" in html and "(last iterate)" not in html
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what

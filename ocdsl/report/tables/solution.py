@@ -27,6 +27,8 @@ def summary_table(res: Result) -> dict:
             rows[-1][1] = {**rows[-1][1], "text": said}
     sense = ((res.problem or {}).get("objective") or {}).get("sense")
     label = "objective" if res.has_solution else f"objective of the {what_is_drawn(res)}"
+    if res.status == "mesh_not_converged":      # as the console says it (unseen43 F8: a plain result)
+        label = "objective on the reported mesh (not converged)"
     front = res.extra.get("pareto_labels")
     if isinstance(front, list):     # a set has no one objective (unseen33 F9: its first point's)
         rows.append([cell("Pareto set", "name"),

@@ -40,6 +40,8 @@ def runs_table(results: list[Result], labels: list[str] | None = None) -> dict |
         # a failed solve's J is its last iterate's (unseen33 F4: printed like a solution's)
         solved = r.status in GOOD_STATUS
         objective = (cell(r.objective, "num", 8) if solved or finite_or_none(r.objective) is None
+                     else cell(f"{fmt(r.objective, 8)} (mesh not converged)", "")
+                     if r.status == "mesh_not_converged"      # a solved mesh (unseen43 F8: "last iterate")
                      else cell(f"{fmt(r.objective, 8)} (last iterate)", ""))
         laws = (r.extra or {}).get("laws")
         if r.objective is None and isinstance(laws, list):
