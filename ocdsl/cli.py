@@ -310,6 +310,9 @@ def _summary(result, out: Path) -> None:
 
         mark = {"passed": "[green]pass[/green]", "failed": "[red]failed[/red]"}.get(
             verdict, f"[yellow]{'not evaluated' if verdict == 'error' else verdict}[/yellow]")
+        if verdict == "passed" and not (result.has_solution or completed_solution(result)):
+            # conditions that hold at a last iterate say nothing of a solution (unseen43 F10)
+            mark = "[yellow]pass on the last iterate (not a solution)[/yellow]"
         why = (", ".join(certificate_failures(result.certificate)) if verdict == "failed"
                else certificate_reason(result.certificate))
         if why.startswith(f"{verdict}: "):      # "inconclusive (inconclusive: ...)" said once

@@ -654,6 +654,22 @@ def test_a_mesh_not_converged_objective_is_labelled_as_the_console_labels_it(tmp
     assert "(mesh not converged)" in html and "(last iterate)" not in html
 
 
+def test_a_certificate_that_holds_at_a_last_iterate_is_not_a_green_pass(tmp_path, capsys):
+    """unseen43 F10: an interrupted run showed a green "certificate pass" for what the same
+    report called a non-solution."""
+    from ocdsl.cli import _summary
+    from ocdsl.report import status as S
+
+    res = solved_result()
+    res.certificate = {"passed": True, "failed": []}
+    assert S.badges(res)[2].text == "pass"
+    res.status, res.message = "interrupted", "interrupted (Ctrl-C) at iteration 4"
+    badge = next(b for b in S.badges(res) if b.label == "certificate")
+    assert badge.text == "pass on the last iterate (not a solution)" and badge.cls == "neutral"
+    _summary(res, tmp_path)
+    assert "certificate (necessary conditions): pass on the last iterate (not a solution)" in capsys.readouterr().out
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what
