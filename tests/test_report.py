@@ -670,6 +670,31 @@ def test_a_certificate_that_holds_at_a_last_iterate_is_not_a_green_pass(tmp_path
     assert "certificate (necessary conditions): pass on the last iterate (not a solution)" in capsys.readouterr().out
 
 
+def test_a_comparison_says_which_runs_are_no_solution_and_why_runs_are_not_ok(tmp_path):
+    """unseen43 F9, F12: a comparison's figures drew last iterates like solutions with nothing
+    in the caption; a not-ok run's note gave the verification summary when an expect check
+    failed; every axis took the first run's units and its bounds were drawn over runs without
+    them; the objective read "minimize minimize tf"."""
+    from ocdsl.report.build import make_comparison_report, build_run_html
+    from ocdsl.report.figures.study import fig_compare_runs
+
+    good = solved_result()
+    good.certificate = {"passed": True, "failed": []}
+    bare = solved_result()
+    bare.status, bare.problem = "max_iter", {**bare.problem, "units": {}}
+    html = make_comparison_report([good.write(tmp_path / "good"), bare.write(tmp_path / "bare")],
+                                  tmp_path / "cmp", formats=("html",))[0].read_text()
+    assert "1 of 2 did not end with a solution" in html
+    assert "good (optimal, not ok): 1 expect check failed" in html
+    def labels(runs):
+        return [ax.get_ylabel() for f in fig_compare_runs(runs) for ax in f.figure.axes]
+
+    assert labels([good, solved_result()]) == ["$x$ [m]", "$y$ [m]", "$v$ [m/s]", r"$\theta$ [rad]"]
+    assert labels([good, bare]) == ["$x$", "$y$", "$v$", r"$\theta$"]              # units differ: none
+    good.problem["objective"] = {"sense": "minimize", "text": "minimize tf", "latex": "t_f"}
+    assert "minimize minimize" not in build_run_html(good.write(tmp_path / "g2"))
+
+
 def test_the_rows_of_a_failed_run_are_not_drawn_as_a_solution(tmp_path):
     """unseen33 F3: an infeasible run's last iterate was drawn with the legend "solution" under
     "State histories"; the figures of a run that did not end with a solution now say what

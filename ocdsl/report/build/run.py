@@ -65,7 +65,11 @@ def _problem_section(doc: Doc, res: Result) -> None:
     if obj:
         sense = obj.get("sense", "minimize")
         lat = obj.get("latex") or ""
-        items = [((r"\mathrm{%s}\quad " % sense) + lat if lat else "", f"{sense} {obj.get('text', '')}", "")]
+        text = str(obj.get("text", ""))
+        # the objective's text holds its sense already where the file wrote it ("minimize tf"):
+        # "minimize minimize tf" (unseen43 F12)
+        said = text if text.split(" ", 1)[0] in ("minimize", "maximize") else f"{sense} {text}"
+        items = [((r"\mathrm{%s}\quad " % sense) + lat if lat else "", said, "")]
         doc.guard("objective", lambda: doc.equations(b, "Objective", items))
     links = prob.get("links") or []
     if links:

@@ -69,8 +69,14 @@ def fig_compare_runs(results: list[Result]) -> list[Fig]:
     """States and controls of several runs overlaid (one line per run)."""
     if not results or not any(r.phases for r in results):
         return []
-    problem = next((r.problem for r in results if r.problem), {})
-    units = problem.get("units") or {}
+    # units and bounds are drawn only where every run declares the same (unseen43 F12: the first
+    # run's units on every axis, its bounds over runs without them)
+    declared = [(r.problem or {}).get("units") or {} for r in results]
+    units = declared[0] if all(u == declared[0] for u in declared) else {}
+    # the legend names a run without a solution (the comparison report's labels); the caption
+    # counts them, for figures with too many runs for a legend (unseen43 F9)
+    unsolved = sum(not r.has_solution for r in results)
+    note = f" {unsolved} of {len(results)} did not end with a solution: they show last iterates or guesses." if unsolved else ""
     out: list[Fig] = []
     for attr, what in (("states", "State"), ("controls", "Control")):
         names: list[str] = []
@@ -80,6 +86,7 @@ def fig_compare_runs(results: list[Result]) -> list[Fig]:
         panels = [(n, [(r.name, phase_time(r, p), getattr(p, attr)[n]) for r in results for p in r.phases
                        if n in getattr(p, attr)]) for n in names]
         if panels:
-            out += _grid_figures(f"cmp-{attr}", f"{what} histories of the compared runs, one colour per run.",
-                                 panels, units, _bounds_of(problem, names) if attr == "controls" else None)
+            bounds = [_bounds_of(r.problem or {}, names) for r in results] if attr == "controls" else [None]
+            out += _grid_figures(f"cmp-{attr}", f"{what} histories of the compared runs, one colour per run.{note}",
+                                 panels, units, bounds[0] if all(b == bounds[0] for b in bounds) else None)
     return out
