@@ -66,6 +66,11 @@ def test_older_folder_gets_a_note_not_a_recomputation(brach, tmp_path):
     data["tables"] = []
     data.pop("verification", None)
     (old / "result.json").write_text(json.dumps(data))
+    # an older ocdsl recorded no digests (a folder edited after ocdsl wrote it is refused)
+    from ocdsl import run_folder
+
+    marker = run_folder.read_marker(old)
+    run_folder.write_marker(old, marker["kind"], marker["entries"], digests={})
     html = build_run_html(old)
     assert "not the Hamiltonian" in html and "Re-run the problem file" in html
     assert "no independent verification" in html

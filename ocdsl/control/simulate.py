@@ -83,8 +83,8 @@ def saturation_limits(saturation, m: int):
     return s[:, 0], s[:, 1]
 
 
-# a state that ends within this share of its peak, the peak this many times where it started:
-# the loop is diverging, not slow
+# a state that ends within this share of its peak, the peak this many times its largest before
+# the horizon's last tenth (and its start): the loop is diverging, not slow
 GROWING_END = 0.99
 GROWING_RISE = 2.0
 
@@ -215,10 +215,12 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
         j = int(idx[worst]) if ratio.size else 0
         start, end, peak = (float(abs(Z[0, j])), float(abs(Z[-1, j])), float(scale[worst])) if ratio.size \
             else (0.0, 0.0, 0.0)
-        if xf > stable_ratio and end >= GROWING_END * peak and peak > GROWING_RISE * start:
-            # still at its largest when the horizon ends, far above where it started: a longer
-            # horizon cannot show it regulating (unseen41 F3: x' = x + u, |u| <= 1 from x = 2,
-            # "a longer `simulate.horizon` shows whether it regulates")
+        before = float(np.max(X[:tail.start, worst])) if ratio.size and tail.start > 0 else peak
+        if xf > stable_ratio and end >= GROWING_END * peak and peak > GROWING_RISE * max(before, start):
+            # at its largest when the horizon ends and far above anything before the last tenth:
+            # a longer horizon cannot show it regulating (unseen41 F3: x' = x + u, |u| <= 1 from
+            # x = 2, "a longer `simulate.horizon` shows whether it regulates"); an undamped swing
+            # ending on its peak is not growing
             status = "unstable"
             message = (f"|{name}| grows from {start:.3g} to {end:.3g}, its largest at the end of the horizon: "
                        f"the loop diverges from this start")
