@@ -487,7 +487,7 @@ def test_a_comparison_and_a_study_say_which_runs_are_not_ok(tmp_path):
     assert [rows["good"][at["ok"]], rows["unverified"][at["ok"]], rows["stopped"][at["ok"]]] == ["yes", "no", "no"]
     assert rows["unverified"][at["verification"]] == "failed"
     assert rows["stopped"][at["objective"]] == "7 (last iterate)" and rows["good"][at["objective"]] == "1"
-    assert "unverified (optimal, not ok): failed: dynamics per piece" in html
+    assert "unverified (optimal, not ok): verification failed (failed: dynamics per piece" in html
     svg = "".join(_svgs(html))
     assert "stopped (last iterate)" in svg and "unverified (not ok)" in svg
 

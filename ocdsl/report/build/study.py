@@ -63,7 +63,9 @@ def _build_comparison(run_dirs: Sequence[str | os.PathLike], title: str | None =
             elif not r.ok:
                 # why it is not ok (a failed expect check, the verification, the certificate), not
                 # the verification's summary whatever the reason (unseen43 F12)
-                b.append({"type": "note", "text": f"{lab} ({r.status}, not ok): {S.overall(r).title}"})
+                summary = (r.verification or {}).get("summary") if not r.verification_ok else None
+                b.append({"type": "note", "text": f"{lab} ({r.status}, not ok): {S.overall(r).title}"
+                                                  + (f" ({summary})" if summary else "")})
         # a controller file's phases are its laws' closed loops: drawn in the closed-loop
         # comparison, each law named (unseen35 F8: legends "r02, r02, r02b, r02b")
         shown = [(lab, r) for lab, r in zip(labels, results)
