@@ -1247,3 +1247,8 @@ def test_a_collapsed_phases_times_are_measured_against_the_horizon(tmp_path):
     assert res.status == "optimal" and res.verification["status"] == "verified", res.message
     assert res.objective == pytest.approx(1.0, abs=1e-7)
     assert len(res.extra["mesh_history"]) <= 3
+    # unseen44 F4: its certificate "could not be evaluated: ValueError: node times must be
+    # strictly increasing"; the collapsed phase is skipped, saying why, the other certified
+    phases = res.certificate["phases"]
+    assert "has zero length at the optimum" in phases["accelerate"]["skipped"]
+    assert phases["brake"].get("passed") is True
