@@ -1252,3 +1252,41 @@ def test_a_collapsed_phases_times_are_measured_against_the_horizon(tmp_path):
     phases = res.certificate["phases"]
     assert "has zero length at the optimum" in phases["accelerate"]["skipped"]
     assert phases["brake"].get("passed") is True
+
+
+CRUISE_COLLAPSES = """name: accelerate, cruise at the speed limit, brake; the cruise phase collapses
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+phases:
+  accel:
+    time: {t0: 0, tf: free}
+    constraints: [-1 <= u <= 1, v <= 1.5, x(t0) == 0, v(t0) == 0, 0 <= tf <= 5]
+  cruise:
+    time: {t0: free, tf: free}
+    constraints: [-1 <= u <= 1, v <= 1.5, 0 <= tf <= 5]
+  brake:
+    time: {t0: free, tf: free}
+    constraints: [-1 <= u <= 1, v <= 1.5, x(tf) == 1, v(tf) == 0, 0 <= tf <= 10]
+links:
+  - continuous(accel, cruise)
+  - continuous(cruise, brake)
+  - cruise.tf - cruise.t0 >= 0
+  - brake.tf - brake.t0 >= 0
+  - accel.tf - accel.t0 >= 0
+objective: minimize brake.tf
+method: {transcription: LG, segments: 2, degree: 3, mesh: {tolerance: 1.0e-8}}
+"""
+
+
+def test_a_phase_of_no_resolvable_length_is_verified_as_a_zero_duration_phase(tmp_path):
+    """unseen44 F3 (rest to rest in t_f = 2, the speed limit never reached): the solution puts
+    the whole bang-bang arc in the last phase and two phases collapse (1.3e-10 of a horizon of
+    2); the first one's rows, in order, had v measured against the 1e-7 floor of its own range
+    (7.4e-11), and a miss of 2.4e-11 failed the verification (2.4e-4 > 1e-5) with J right to
+    2e-11. Such a phase is verified as one of zero duration, against its states' scales over
+    the whole problem."""
+    p = tmp_path / "three.yaml"
+    p.write_text(CRUISE_COLLAPSES)
+    res = run_file(p, tmp_path / "run")
+    assert [ph.name for ph in res.phases if ph.time[-1] - ph.time[0] < 1e-8]      # the case: collapsed phases
+    assert res.objective == pytest.approx(2.0, abs=1e-8)
+    assert res.verification["status"] == "verified", res.verification["summary"]
