@@ -71,7 +71,26 @@ def start_notes(file: LoadedFile, previous: dict) -> list[str]:
     outside their bounds."""
     from .transcribe.guess import guess_notes
 
-    return warm_start_notes(file, previous) + guess_notes(file.problem)
+    return warm_start_notes(file, previous) + guess_notes(file.problem) + unused_control_notes(file.problem)
+
+
+def unused_control_notes(problem) -> list[str]:
+    """Controls that nothing depends on (no dynamics, path constraint, integral or boundary
+    value): any of their values is optimal, so the run's are arbitrary; said, not silent
+    (unseen40 F5: `controls: [u, w]` with w used nowhere, 50 NLP variables of noise)."""
+    used_at_ends = {bv.var for bv in problem.boundary_values.values()}
+    notes = []
+    for ph in problem.phases:
+        exprs = list(ph.rhs()) + [c.expr for c in ph.path] + list(ph.integrals.values())
+        used = set().union(*(ph.substitute(e).free_symbols for e in exprs)) if exprs else set()
+        idle = [c.name for c in ph.controls if c not in used and c not in used_at_ends]
+        if idle:
+            where = f"phase '{ph.name}': " if len(problem.phases) > 1 else ""
+            notes.append(f"{where}control{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
+                         f"{'appear' if len(idle) > 1 else 'appears'} in no dynamics, path constraint, integral "
+                         f"or boundary condition: any value is optimal, so the run's are arbitrary (remove "
+                         f"{'them' if len(idle) > 1 else 'it'} from `controls:`)")
+    return notes
 
 
 def warm_start_notes(file: LoadedFile, previous: dict) -> list[str]:

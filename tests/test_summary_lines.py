@@ -202,3 +202,22 @@ method: {transcription: LGR, segments: 10, degree: 5}
                           env={**os.environ, "OCDSL_NO_SERVE": "1"})
     assert "tiny horizon: solver" in proc.stdout, proc.stdout + proc.stderr
     assert "Warning" not in proc.stdout + proc.stderr, proc.stderr
+
+
+def test_a_control_nothing_depends_on_is_named(tmp_path):
+    """unseen40 F5: `controls: [u, w]` with w in no dynamics, constraint or objective was
+    accepted without a word; its values are arbitrary (any is optimal)."""
+    text = """name: double integrator with an idle control
+model: {states: [x, v], controls: [u, w], dynamics: {x: v, v: u}}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-1 <= u <= 1, -1 <= w <= 1, x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, 0.1 <= tf <= 10]
+  objective: minimize tf
+method: {transcription: LGR, segments: 4, degree: 4}
+"""
+    p = tmp_path / "idle.yaml"
+    p.write_text(text)
+    notes = run_file(p, tmp_path / "run").extra.get("notes") or []
+    assert any(n.startswith("control w appears in no dynamics") for n in notes), notes
+    p.write_text(text.replace("v: u}", "v: u + 0.1*w}"))
+    assert not any("appears in no dynamics" in n for n in run_file(p, tmp_path / "run2").extra.get("notes") or [])
