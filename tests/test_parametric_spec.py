@@ -44,6 +44,14 @@ def test_integer_parameter_without_bounds():
         ParametricSpec.model_validate({"controls": {"u": {"order": 2}}, "parameters": {"N": {"integer": True}}})
 
 
+def test_an_infinite_integer_bound_is_an_error_not_an_overflow():
+    """Fuzzing (`bounds: [10, .inf]` on an integer parameter): int(inf) raised OverflowError,
+    a traceback from `ocdsl check`, where the file wants one error at its line."""
+    with pytest.raises(ValueError, match="integer parameter bounds must be finite integers"):
+        ParametricSpec.model_validate({"controls": {"u": {"order": 2}},
+                                       "parameters": {"N": {"integer": True, "bounds": [10, float("inf")]}}})
+
+
 def test_integer_free_parameter_without_bounds_in_problem(tmp_path):
     from ocdsl.search.run import run
     p, _ = _variant(tmp_path, "N_rev: {free: true, integer: true, bounds: [5, 5], value: 5}",

@@ -400,3 +400,16 @@ def test_a_point_ended_acceptable_makes_the_set_acceptable():
     summary = s.summary("front")
     assert summary.status == "acceptable" and not summary.ok
     assert "1 of 2 points ended `acceptable`" in summary.message and "e.2" in summary.message
+
+
+def test_an_infinite_number_of_epsilon_values_is_an_error_at_its_line(tmp_path):
+    """Fuzzing (`values: {from: 8, to: 40, num: .inf}`): int(inf) raised OverflowError, a
+    traceback from `ocdsl check`."""
+    from ocdsl.spec.errors import SpecError
+
+    f = tmp_path / "front.yaml"
+    f.write_text(TWO_PHASE_FRONT.replace("ENERGY", "objective").replace("values: [1, 2]",
+                                                                        "values: {from: 1, to: 2, num: .inf}"))
+    with pytest.raises(SpecError) as e:
+        load_pareto(f)
+    assert "front.yaml:25" in str(e.value) and "num must be a whole number >= 2" in str(e.value), str(e.value)

@@ -79,8 +79,9 @@ class SearchParameter(_Strict):
             raise ValueError(f"{kind} needs bounds: [lower, upper]")
         if not self.bounds[0] <= self.bounds[1]:
             raise ValueError(f"bounds reversed: {list(self.bounds)}")
-        if self.integer and any(float(b) != int(b) for b in self.bounds):
-            raise ValueError(f"integer parameter bounds must be integers, got {list(self.bounds)}")
+        # an infinite bound ended in OverflowError (int(inf)), a traceback from `check` (fuzzing)
+        if self.integer and any(not math.isfinite(float(b)) or float(b) != int(b) for b in self.bounds):
+            raise ValueError(f"integer parameter bounds must be finite integers, got {list(self.bounds)}")
         return self
 
 

@@ -157,7 +157,10 @@ class EpsilonSpec(_Strict):
             unknown = set(v) - {"from", "to", "num"}
             if unknown or not {"from", "to", "num"} <= set(v):
                 raise ValueError("epsilon values must be a list or {from:, to:, num:}")
-            num = int(v["num"])
+            try:
+                num = int(v["num"])
+            except (TypeError, ValueError, OverflowError):     # `num: .inf` was an OverflowError (fuzzing)
+                raise ValueError(f"epsilon values: num must be a whole number >= 2, got {v['num']!r}") from None
             if num < 2:
                 raise ValueError("epsilon values: num must be >= 2")
             a, b = constant(v["from"]), constant(v["to"])
