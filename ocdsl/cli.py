@@ -199,7 +199,7 @@ def _summary(result, out: Path) -> None:
     from rich.text import Text
 
     from .progress import console
-    from .result_views import completed_solution, expect_comparison, numbers_note
+    from .result_views import completed_solution, expect_comparison, numbers_note, shows_a_solution
 
     con = console()
     ok = "green" if result.status == "optimal" else "red"
@@ -310,7 +310,7 @@ def _summary(result, out: Path) -> None:
 
         mark = {"passed": "[green]pass[/green]", "failed": "[red]failed[/red]"}.get(
             verdict, f"[yellow]{'not evaluated' if verdict == 'error' else verdict}[/yellow]")
-        if verdict == "passed" and not (result.has_solution or completed_solution(result)):
+        if verdict == "passed" and not shows_a_solution(result):
             # conditions that hold at a last iterate say nothing of a solution (unseen43 F10)
             mark = "[yellow]pass on the last iterate (not a solution)[/yellow]"
         why = (", ".join(certificate_failures(result.certificate)) if verdict == "failed"

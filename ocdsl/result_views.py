@@ -202,6 +202,12 @@ def completed_solution(result) -> str | None:
     return None
 
 
+def shows_a_solution(result) -> bool:
+    """Whether the run's numbers and rows are a solution's: its own, or the completed solve a
+    cut-short run kept (``completed_solution``), not a last iterate or a guess."""
+    return result.has_solution or completed_solution(result) is not None
+
+
 def numbers_note(result) -> str:
     """What a run's objective and times are when they are not a solution's: the last iterate
     of a failed solve, or the guess of one that never started (unseen12 F9: "final time

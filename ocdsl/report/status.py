@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ocdsl.result import Result, certificate_verdict
+from ocdsl.result_views import shows_a_solution
 
 SOLVER_GOOD = ("optimal", "acceptable", "feasible", "stable")
 # verification status -> badge class (docs/verification.md)
@@ -77,7 +78,7 @@ def badges(res: Result) -> list[Badge]:
         text = {"passed": "pass", "failed": "failed", "inconclusive": "inconclusive",
                 "skipped": "skipped"}.get(cv, "not evaluated")
         cls = {"passed": "pass", "failed": "fail"}.get(cv, "neutral")
-        if cv == "passed" and what_is_drawn(res) not in ("solution", "best completed solve"):
+        if cv == "passed" and not shows_a_solution(res):
             # conditions that hold at a last iterate say nothing of a solution (unseen43 F10:
             # a green "pass" on an interrupted run)
             text, cls = "pass on the last iterate (not a solution)", "neutral"

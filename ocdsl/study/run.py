@@ -237,7 +237,7 @@ def read_files_digests(problem_path: Path, _seen: set | None = None) -> dict[str
         files = [path / n for n in _RUN_FILES] if path.is_dir() else [path]
         for f in files:
             if f.is_file():
-                out[str(f)] = hashlib.sha256(f.read_bytes()).hexdigest()
+                out[str(f)] = run_folder.file_digest(f)
         if path.is_file() and path.suffix in (".yaml", ".yml"):
             out.update(read_files_digests(path, seen))
     return out

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from ..result_views import completed_solution
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
 from .checks import (RESOLUTION, end_control_jumps, evaluate, integral_scales, irregular_controls, path_scales,
@@ -78,9 +79,9 @@ class VerifySettings:
         return replace(self, open_loop=False)
 
 
-
 # a phase shorter than this share of the times' size takes no time the NLP can resolve
 COLLAPSED_SHARE = 1e-9
+
 
 def attach_verification(problem, result, settings: VerifySettings | None = None) -> None:
     """Verify ``result`` and keep the verdict in ``result.verification`` and the
@@ -97,15 +98,12 @@ def verify_result(problem, result, settings: VerifySettings | None = None,
     head = {"mode": settings.mode, "tolerance": settings.tolerance, "integrator_rtol": settings.rtol}
     if problem is None or not result.phases:
         return {**head, "status": "skipped", "checks": [], "summary": "no trajectory to verify"}
-    # a run cut short by its time limit returns the best completed mesh's (or start's)
-    # solution: that trajectory is checked like any other (the run still fails on its status)
-    completed = (result.extra.get("mesh") or {}).get("chosen_status") in CONVERGED \
-        or (result.extra.get("cut_short") or {}).get("solution_status") in CONVERGED
     # a closed-loop run simulates every law, whether it regulates or not: each trajectory is
     # checked all the same (one unstable law left the others unverified, unseen9 F9)
     simulated = not settings.open_loop and result.status in ("unstable", "error")
-    if result.status not in CONVERGED and not simulated \
-            and not (result.status in ("time_limit", "interrupted") and completed):
+    # a run cut short by its time limit returns the best completed mesh's (or start's)
+    # solution: that trajectory is checked like any other (the run still fails on its status)
+    if result.status not in CONVERGED and not simulated and completed_solution(result) is None:
         return {**head, "status": "skipped", "checks": [],
                 "summary": f"the solver ended '{result.status}': nothing to verify"}
     start = time.perf_counter()
