@@ -7,7 +7,7 @@ absolute, and a J of 3e-3 (a slew in N m, a cost in other units) was "optimal, v
 8e-4 from its optimum (unseen29). The size is now ``|J| + min(1, S)``, S the sum of the
 objective's terms at the solution (``objective_scale``): unchanged where S >= 1, relative to
 J's own terms below. A J that is 0 at the optimum keeps the size of its terms (a tracking
-cost (x - r)^2 expands to x^2 - 2 r x + r^2), not 0.
+cost (x - r)^2 expands to x^2 - 2 r x + r^2, a state's end value its range), not 0.
 """
 from __future__ import annotations
 
@@ -61,7 +61,8 @@ def _integrals(ph, traj, params: dict) -> dict:
 
 def objective_scale(problem, result) -> float:
     """S: the sum of the absolute values of the objective's terms at the solution, an
-    integral's terms integrated over its phase (weighted by |dJ/dI|); NaN where it cannot be
+    integral's terms integrated over its phase (weighted by |dJ/dI|), a term in states' boundary
+    values at least what it moves when they move by their ranges; NaN where it cannot be
     evaluated."""
     params = {k: float(v) for k, v in (result.parameters or {}).items()}
     point: dict = {sp.Symbol(k, real=True): v for k, v in params.items()}
@@ -75,17 +76,20 @@ def objective_scale(problem, result) -> float:
             point[ph.t0_symbol], point[ph.tf_symbol] = float(t[0]), float(t[-1])
             for s, (value, terms) in (_integrals(ph, traj, params) if ph.integrals else {}).items():
                 point[s], integral_terms[s] = value, terms
+        state_ranges: dict = {}
         for s, bv in problem.boundary_values.items():
             ph, traj = problem.phase(bv.phase), trajectories[bv.phase]
             column = np.asarray((traj.states if bv.var in ph.states else traj.controls)[bv.var.name], float)
             finite = column[np.isfinite(column)]
             point[s] = float(finite[0] if bv.which == "t0" else finite[-1]) if len(finite) else math.nan
+            if bv.var in ph.states and len(finite):
+                state_ranges[s] = float(np.ptp(finite))
         J = sp.sympify(problem.objective.expr)
         total = 0.0
         for term in additive_terms(J):
             if term.free_symbols & set(integral_terms):
                 continue
-            total += abs(evaluate(term, point))
+            total += max(abs(evaluate(term, point)), _first_order(term, point, state_ranges))
         for s, terms in integral_terms.items():
             total += abs(evaluate(sp.diff(J, s), point)) * terms
         return float(total)
@@ -93,8 +97,34 @@ def objective_scale(problem, result) -> float:
         return math.nan
 
 
+def _first_order(term: sp.Expr, point: dict, state_ranges: dict) -> float:
+    """What ``term`` moves when each state value in it moves by that state's range over its
+    phase: a state's end value is its start plus its rate's integral, and those are J's terms
+    as much as an integrand's are. Aly and Chan's x3(t_f) (an integral written as a state) is
+    0 at the optimum while x3 spans 0.25 on the way; measured against |x3(t_f)| alone, every
+    mesh's J of 1e-10 "moved" by its whole size (unseen41 F1)."""
+    total = 0.0
+    for s in term.free_symbols & set(state_ranges):
+        d = abs(evaluate(sp.diff(term, s), point))
+        total += d * state_ranges[s] if math.isfinite(d) else 0.0
+    return total
+
+
 def objective_size(objective: float | None, scale: float | None) -> float:
     """``|J| + min(1, S)``: 1 + |J| where the objective's terms are of order 1 or more (or S is
     unknown), J's own size below."""
     s = 1.0 if scale is None or not math.isfinite(scale) else min(1.0, max(float(scale), 1e-12))
     return abs(float(objective or 0.0)) + s
+
+
+# J's relative changes are measured against |J|, but not below this share of its terms' size:
+# Ipopt's tolerance (1e-8) is this share of the verification's (1e-5), so a J that is a smaller
+# share of its terms (0 at the optimum, Aly and Chan's 1e-10 of terms of 0.25) is zero to the
+# NLP, and a change of it relative to itself is noise
+RESOLVED_SHARE = 1e-3
+
+
+def resolved_size(objective: float | None, scale: float | None) -> float:
+    """``max(|J|, RESOLVED_SHARE x min(1, S))``: J's own size while the NLP resolves it."""
+    s = 1.0 if scale is None or not math.isfinite(scale) else min(1.0, max(float(scale), 0.0))
+    return max(abs(float(objective or 0.0)), RESOLVED_SHARE * s, 1e-300)

@@ -75,7 +75,7 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
                 tr_c, info_c.objective, reg_weight, lambda g: rebuild(meshes_c, guesses=g, regularised=False),
                 lambda t: ipopt.solve(t.model, options, verbose=verbose, transcription=t,
                                       progress=ipopt.Progress(progress, "[without regularisation]")),
-                file.spec.verify.tolerance)
+                file.spec.verify.tolerance, _objective_scale(file, tr_c, info_c, meshes_c))
         if unreg.agrees is False:
             status = "mesh_not_converged"
             message = (f"the mesh refinement met its tolerance ({message}), but {unreg.describe()}: "

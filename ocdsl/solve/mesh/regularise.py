@@ -100,16 +100,17 @@ class Unregularised:
     plain_objective: float | None      # None: the solve without the term did not converge
     plain_status: str
     tolerance: float
+    size: float                        # J's resolved size (verify/objective_size.py): both are relative to it
 
     @property
     def difference(self) -> float:
         if self.plain_objective is None:
             return math.nan
-        return abs(self.plain_objective - self.objective) / max(abs(self.objective), abs(self.plain_objective), 1e-8)
+        return abs(self.plain_objective - self.objective) / max(self.size, abs(self.plain_objective))
 
     @property
     def relative_term(self) -> float:
-        return abs(self.term) / max(abs(self.objective), 1e-8)
+        return abs(self.term) / self.size
 
     @property
     def agrees(self) -> bool | None:
@@ -136,19 +137,24 @@ class Unregularised:
                 f"{self.objective:.10g} (relative difference {self.difference:.1e})")
 
 
-def check_unregularised(tr, objective: float, weight: float, build_plain, solve, tolerance: float) -> Unregularised:
+def check_unregularised(tr, objective: float, weight: float, build_plain, solve, tolerance: float,
+                        objective_scale: float | None = None) -> Unregularised:
     """Solve the mesh of ``tr`` without the regularisation, from ``tr``'s solution:
     ``build_plain(guesses)`` is the model without the term, ``solve(model_tr)`` its SolveInfo
-    (not where the term is within the tolerance: then it is not judged to move J past it)."""
+    (not where the term is within the tolerance: then it is not judged to move J past it).
+    Both are relative to J, but not below what the NLP resolves of it (``resolved_size``): a J
+    of 1e-10 at an optimum of 0 (Aly and Chan) had a term of 5e-11 "half of J" (unseen41 F1)."""
     import pyomo.core as pyo
 
     from ...transcribe.guess import solved_guesses
+    from ...verify.objective_size import resolved_size
 
     term = float(pyo.value(tr.model.mesh_regularisation))
-    skipped = Unregularised(weight, float(objective), term, None, SKIPPED, tolerance)
+    size = resolved_size(objective, objective_scale)
+    skipped = Unregularised(weight, float(objective), term, None, SKIPPED, tolerance, size)
     if skipped.relative_term <= tolerance:
         return skipped
     info = solve(build_plain(solved_guesses(tr.problem, tr)))
     good = info.status in ("optimal", "acceptable") and info.objective is not None
     return Unregularised(weight, float(objective), term, float(info.objective) if good else None, info.status,
-                         tolerance)
+                         tolerance, size)
