@@ -50,3 +50,32 @@ def test_bryson_denham_costate_off_the_arc(configs):
     ph = res.phase()
     first = (ph.time < 0.3) & (ph.extra["collocated"] > 0)
     assert np.allclose(ph.controls["u"][first], -ph.costates["v"][first], atol=1e-3)
+
+
+@pytest.mark.ipopt
+@pytest.mark.parametrize("config, x0, v0, T", [("mesh_bang_off_bang.yaml", 0.0, 0.0, 3.0),
+                                               ("lit_min_fuel_double_integrator.yaml", 0.1, 0.5, 1.5)])
+def test_a_converged_fixed_time_l1_mesh_gives_pmp_costates_and_switch_times(configs, config, x0, v0, T):
+    """unseen45 F1, F2: minimum fuel, int(up + um), x'' = up - um, fixed T, rest (or x(T) = 1)
+    at the end. Both switches are interior, so lambda_v = -1 and +1 there fix the costates:
+    lambda_x = 2 / (t2 - t1) in magnitude, and H is constant. The converged mesh's switch
+    solve skipped fixed-time phases, so the run folder held one of the fixed NLP's multiplier
+    family (lambda_x 5-26 % off, H jumping by 0.1-0.5), and the certificate's switch times
+    were that family's switching-function zeros (0.11-0.13 late, against the control's own
+    switch on the breakpoint)."""
+    res = ocdsl.load(configs / config).solve()
+    assert res.status == "optimal" and res.verified
+    if config.startswith("mesh_"):      # 0 -> 1 from rest to rest
+        t1 = (T - np.sqrt(T**2 - 4.0)) / 2
+        t2, lx, H = T - t1, -2.0 / (T - 2 * t1), -2.0 / (T - 2 * t1) * t1
+    else:                               # Bryson & Ho p. 116, to the origin
+        s = np.sqrt((T - v0) ** 2 - 4 * x0 - 2 * v0**2)
+        t1, t2 = (T + v0 - s) / 2, (T + v0 + s) / 2
+        lx = 2.0 / (t2 - t1)
+        H = lx * (v0 - t1)
+    ph = res.phase()
+    assert np.allclose(ph.costates["x"], lx, rtol=1e-6)
+    hamiltonian = ph.extra["hamiltonian"]       # NaN on LGR's first row (no control there)
+    assert np.allclose(hamiltonian[np.isfinite(hamiltonian)], H, rtol=1e-6)
+    times = sorted(t for c in res.certificate["bang_bang"]["per_control"].values() for t in c["switch_times"])
+    assert np.allclose(times, [t1, t2], atol=1e-7)

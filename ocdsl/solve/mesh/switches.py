@@ -256,8 +256,6 @@ def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: fl
     tol = spec.corner_tolerance
     free = {}
     for pb in tr.phases:
-        if pb.phase.tf is not None and pb.phase.t0 is not None:
-            continue
         bps = np.asarray(pb.layout.mesh.breakpoints, float)
         qs = {int(np.argmin(np.abs(bps - f))) for f in switches.get(pb.phase.name, [])}
         qs = sorted(q for q in qs if 0 < q < len(bps) - 1
