@@ -660,3 +660,112 @@ controller:
     assert res.extra["lqr"]["status"] == "unstable"
     assert "|x| grows from 2 to 2.2e+04, its largest at the end of the horizon: the loop diverges" in msg, msg
     assert "longer `simulate.horizon`" not in msg
+
+
+def _run_controller(tmp_path, text):
+    from ocdsl.api import run_file
+
+    path = tmp_path / "loop.yaml"
+    path.write_text(text)
+    return run_file(path, tmp_path / "r")
+
+
+def test_a_loop_resting_at_an_equilibrium_away_from_the_origin_is_not_regulated(tmp_path):
+    """unseen46 F1: x' = 3x^2/(1 + 2x^2) + u, LQR u = -x from x = 150: the loop
+    x' = -x + 3x^2/(1 + 2x^2) has a stable equilibrium at x = 1, 6.7e-3 of the scale 150,
+    within the 1 % rule: "stable", "regulates", exit 0. SDRE regulates it (to 5.6e-12)."""
+    res = _run_controller(tmp_path, """name: second equilibrium
+model: {states: [x], controls: [u], dynamics: {x: 3*x**2/(1 + 2*x**2) + u}}
+controller:
+  type: [lqr, sdre]
+  Q: [1]
+  R: [1]
+  simulate: {x0: {x: 150}, horizon: 30, step: 0.01}
+""")
+    lqr, sdre = res.extra["lqr"], res.extra["sdre"]
+    assert lqr["status"] == "unstable", lqr["message"]
+    assert "x rests at 1.000" in lqr["message"] and "equilibrium away from the origin" in lqr["message"]
+    assert sdre["status"] == "stable", sdre["message"]
+    assert not res.ok
+
+
+def test_a_loop_stuck_at_an_equilibrium_is_not_told_a_longer_horizon_shows_it(tmp_path):
+    """unseen46 F5: LQR u = -x on x' = x^2 + u from x = 1 sits at the equilibrium x = 1 for
+    the whole run; it was told "a longer `simulate.horizon` shows whether it regulates"."""
+    res = _run_controller(tmp_path, """name: stuck
+model: {states: [x], controls: [u], dynamics: {x: x**2 + u}}
+controller:
+  type: lqr
+  Q: [1]
+  R: [1]
+  simulate: {x0: {x: 1}, horizon: 20, step: 0.01}
+""")
+    msg = res.extra["lqr"]["message"]
+    assert res.extra["lqr"]["status"] == "unstable" and "x rests at 1 " in msg, msg
+    assert "longer `simulate.horizon`" not in msg
+
+
+@pytest.mark.parametrize("auxiliary, horizon, said", [("", 20, "|w| (a plant state the law does not regulate) grows"),
+                                                      ("auxiliary: [w]", 30, "state diverged at t = 22.5")])
+def test_a_plant_state_the_law_does_not_regulate_may_not_diverge(auxiliary, horizon, said, tmp_path):
+    """unseen46 F2: x'' = u regulated, w' = w + u left out of `states:` (or auxiliary): the
+    closed loop has eigenvalue +1 in w, which went to -8.2e7 (horizon 20) and -1.8e12
+    (horizon 30, past the documented 1e9 ||x(0)|| guard), "stable", exit 0, with
+    `auxiliary_states: []` recorded for the state left out."""
+    res = _run_controller(tmp_path, f"""name: unwatched
+model: {{states: [x, v, w], controls: [u], dynamics: {{x: v, v: u, w: w + u}}}}
+controller:
+  type: lqr
+  states: [x, v]
+  {auxiliary}
+  Q: [1, 1]
+  R: [1]
+  simulate: {{x0: {{x: 1, v: 0, w: 0.1}}, horizon: {horizon}, step: 0.01}}
+""")
+    lqr = res.extra["lqr"]
+    assert lqr["status"] == "unstable" and said in lqr["message"], lqr["message"]
+    assert res.problem["sdc"]["auxiliary_states"] == ["w"]
+
+
+def test_a_regulated_auxiliary_state_and_a_settled_loop_stay_stable(tmp_path):
+    """The same loop with w' = -w + u: w settles, the loop is stable (neither new rule fires
+    on a state converging to 0 or on an auxiliary state that stays bounded)."""
+    res = _run_controller(tmp_path, """name: watched
+model: {states: [x, v, w], controls: [u], dynamics: {x: v, v: u, w: -w + u}}
+controller:
+  type: [lqr, sdre]
+  states: [x, v]
+  Q: [1, 1]
+  R: [1]
+  simulate: {x0: {x: 1, v: 0, w: 0.1}, horizon: 20, step: 0.01}
+""")
+    assert res.extra["lqr"]["status"] == "stable" and res.extra["sdre"]["status"] == "stable"
+
+
+def test_sdre_and_theta_d_refuse_a_riccati_solution_that_does_not_stabilise(tmp_path):
+    """unseen46 F4: Q = [[1, 1], [1, 1]] gives no weight to x1 - x2 of x' = u: SciPy returns
+    a Riccati solution with a closed-loop eigenvalue 0 at every state. LQR refused it; SDRE
+    used it with `riccati_failures: 0` and Theta-D ran its series on a non-Hurwitz A0 - B K."""
+    res = _run_controller(tmp_path, """name: blind
+model: {states: [x1, x2], controls: [u1, u2], dynamics: {x1: u1, x2: u2}}
+controller:
+  type: [lqr, sdre, theta-d]
+  Q: [[1, 1], [1, 1]]
+  R: [1, 1]
+  simulate: {x0: {x1: 1, x2: 0}, horizon: 10, step: 0.01}
+""")
+    for law in ("lqr", "sdre", "theta_d"):
+        assert res.extra[law]["status"] in ("error", "unstable")
+        assert "(A, Q) is not detectable" in res.extra[law]["message"], (law, res.extra[law]["message"])
+
+
+def test_the_overshoot_of_a_state_that_starts_at_zero_is_past_zero_after_its_excursion():
+    """unseen46 F3: a velocity from 0 down to -0.405, back to +0.0017: its overshoot past zero
+    is 0.0017 (it was 0.405, the excursion itself), and 0 before it crosses."""
+    from ocdsl.control.simulate import overshoot
+
+    t = np.linspace(0.0, 20.0, 2001)
+    v = -t * np.exp(-t) + 0.02 * np.exp(-0.5 * t) * np.sin(t) * (t > 3)
+    assert overshoot(v)["overshoot"] == pytest.approx(max(v.max(), 0.0))
+    assert overshoot(v[:301])["overshoot"] == 0.0
+    assert overshoot(-v)["overshoot"] == pytest.approx(overshoot(v)["overshoot"]) and overshoot(v)["overshoot"] > 0

@@ -2,7 +2,8 @@
 
 At every control update: A(x), B(x) from the SDC factorisation, P(x) from SciPy's
 algebraic Riccati solver, u = -R^-1 B(x)^T P(x) x. When the Riccati equation has no
-stabilising solution at some state, the last good P is kept and the event counted
+stabilising solution at some state (SciPy fails, or its solution leaves a mode Q does not
+see unstable), the last good P is kept and the event counted
 (``failures``); with ``strict=True`` a :class:`ControlError` is raised instead.
 """
 from __future__ import annotations
@@ -11,7 +12,7 @@ import numpy as np
 
 from ocdsl.symbolic.sdc import NumericSDC
 
-from .lqr import ControlError, care
+from .lqr import ControlError, lqr
 
 
 class SDREController:
@@ -32,12 +33,14 @@ class SDREController:
 
     def riccati(self, z: np.ndarray) -> np.ndarray:
         """P(x) at the full plant state z."""
-        return care(self.num.A(z), self.num.B(z), self.Q, self.R, "SDRE")
+        return lqr(self.num.A(z), self.num.B(z), self.Q, self.R, "SDRE")[1]
 
     def __call__(self, t: float, z: np.ndarray) -> np.ndarray:
         A, B = self.num.A(z), self.num.B(z)
         try:
-            P = care(A, B, self.Q, self.R, "SDRE")
+            # a solution that does not stabilise (Q blind to a mode of A(x)) is a failure, as
+            # for LQR: it was used and counted as none (unseen46 F4)
+            P = lqr(A, B, self.Q, self.R, "SDRE")[1]
             self.last_P = P
         except ControlError:
             self.failures += 1

@@ -148,6 +148,10 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
     C = np.zeros(nsteps + 1)
     times, cpus = [], []
     x0n = np.linalg.norm(z[idx]) or 1.0
+    # the plant's other states (auxiliary, or left out of `states:`) are not regulated, but a
+    # loop in which one diverges is not stable (unseen46 F2: w' = w + u to -1.8e12, "stable")
+    aux = np.setdiff1d(np.arange(nz), idx)
+    z0n = max(x0n, float(np.linalg.norm(z)))
 
     def rhs(zc, u):
         zz = zc[:nz]
@@ -168,6 +172,11 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
         # escaping in finite time) raised LinAlgError and the whole run was `error` (unseen35)
         if k > 0 and _diverged(zc[:nz][idx], blowup * x0n):
             status, message, last = "unstable", f"state diverged at t = {tk:.4g}", k - 1
+            break
+        if k > 0 and _diverged(zc[:nz][aux], blowup * z0n):
+            gone = names[int(aux[np.argmax(np.abs(zc[:nz][aux]))])] if names is not None else "a state"
+            status, message, last = ("unstable", f"state diverged at t = {tk:.4g} ({gone}, a plant state the "
+                                     "law does not regulate)", k - 1)
             break
         if k % every == 0:
             c0, w0 = time.thread_time(), time.perf_counter()
@@ -224,6 +233,13 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
             status = "unstable"
             message = (f"|{name}| grows from {start:.3g} to {end:.3g}, its largest at the end of the horizon: "
                        f"the loop diverges from this start")
+        elif (resting := _resting(Z[tail], idx, scale, RESTING_STUCK if xf > stable_ratio else RESTING_SHARE)):
+            j, level = resting
+            rname = names[int(idx[j])] if names is not None else f"state {int(idx[j]) + 1}"
+            status = "unstable"
+            message = (f"{rname} rests at {level:.6g} ({abs(level) / scale[j]:.3g} of its scale) over the last tenth "
+                       f"of the horizon: the loop holds it at an equilibrium away from the origin, which a longer "
+                       f"horizon does not change")
         elif xf > stable_ratio:
             status = "unstable"
             message = (f"max |{name}| over the last tenth of the horizon = {xf:.3g} of its scale (the largest "
@@ -231,8 +247,49 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
         else:
             message = (f"every controlled state within {xf:.3g} of its scale over the last tenth of the horizon "
                        f"(largest: {name})")
+        if status == "stable" and (growing := _growing(Z, aux, tail.start)) is not None:
+            j, start, end = growing
+            aname = names[j] if names is not None else f"state {j + 1}"
+            status = "unstable"
+            message = (f"|{aname}| (a plant state the law does not regulate) grows from {start:.3g} to {end:.3g}, "
+                       f"its largest at the end of the horizon: the closed loop diverges in it")
     return SimResult(T, Z, U, Uraw, C, np.asarray(times), np.asarray(cpus), status, message,
                      list(idx), nsat / max(len(times), 1))
+
+
+# a controlled state whose change over the horizon's last tenth is below this share of its level
+# there rests: a loop converging to 0 at any rate that got within stable_ratio of the scale
+# changes by far more (at least 37 %: it decayed by 1e-2 over 0.9 of the horizon at most), an
+# oscillation by twice its amplitude; a slow loop not yet within stable_ratio may change this
+# little, so there only a state constant to RESTING_STUCK is said to rest
+RESTING_SHARE = 1e-2
+RESTING_STUCK = 1e-6
+RESTING_FLOOR = 1e-6      # levels below this share of the scale are 0
+
+
+def _resting(tail: np.ndarray, idx, scale, share: float) -> tuple[int, float] | None:
+    """(position in ``idx``, level) of a controlled state constant to ``share`` of its level
+    over the horizon's last tenth, away from 0, or None: within stable_ratio of its scale is
+    not regulated when the state rests there (unseen46 F1: x' = 3x^2/(1 + 2x^2) - x from 150
+    sits at the stable equilibrium x = 1, 6.7e-3 of its scale, and was "stable, regulates")."""
+    X = tail[:, idx]
+    for j in range(X.shape[1]):
+        level = float(np.mean(X[:, j]))
+        if scale[j] > 0 and abs(level) > RESTING_FLOOR * scale[j] and np.ptp(X[:, j]) <= share * abs(level):
+            return j, level
+    return None
+
+
+def _growing(Z: np.ndarray, columns, tail_start: int) -> tuple[int, float, float] | None:
+    """(column, |start|, |end|) of a state in ``columns`` at its largest at the end and far
+    above anything before the horizon's last tenth (GROWING_*), or None."""
+    for j in columns:
+        X = np.abs(Z[:, j])
+        peak, end = float(np.max(X)), float(X[-1])
+        before = float(np.max(X[:tail_start])) if tail_start > 0 else peak
+        if peak > 0 and end >= GROWING_END * peak and peak > GROWING_RISE * max(before, float(X[0])):
+            return int(j), float(X[0]), end
+    return None
 
 
 # ---------------------------------------------------------------------------------
@@ -250,9 +307,15 @@ def settling_time(t: np.ndarray, y: np.ndarray, band: float) -> float:
 
 
 def overshoot(y: np.ndarray) -> dict:
-    """Regulation overshoot: the largest excursion past zero, opposite to y(0)."""
+    """Regulation overshoot: the largest excursion past zero, opposite to y(0), or for a state
+    that starts at 0 opposite to its first excursion (its excursion itself was counted:
+    a velocity's 0.405 for a crossing of 0.00175, unseen46 F3)."""
     y0 = y[0]
-    sgn = np.sign(y0) if y0 != 0 else 1.0
+    if y0 != 0:
+        sgn = np.sign(y0)
+    else:
+        moved = np.flatnonzero(np.abs(y) > 1e-9 * float(np.max(np.abs(y)))) if len(y) else []
+        sgn = np.sign(y[moved[0]]) if len(moved) else 1.0
     past = -sgn * y
     peak = float(max(past.max(), 0.0))
     return {"overshoot": peak, "overshoot_pct": 100.0 * peak / abs(y0) if y0 != 0 else float("nan"),

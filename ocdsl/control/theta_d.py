@@ -32,7 +32,7 @@ from scipy.linalg.lapack import dtrsyl
 
 from ocdsl.symbolic.sdc import NumericSDC, controllability_rank, pbh_unstabilisable
 
-from .lqr import ControlError, care
+from .lqr import ControlError, lqr
 
 
 class ThetaDController:
@@ -72,7 +72,9 @@ class ThetaDController:
                 f"{controllability_rank(self.A0, self.B0)} of {self.A0.shape[0]}")
         # ---- offline: one Riccati equation and the Schur form of Ac
         self.S = self.B0 @ self.Rinv @ self.B0.T
-        self.T0 = care(self.A0, self.B0, self.Q, self.R, "Theta-D T0")
+        # T0 is A0's LQR solution, refused like LQR's where it does not stabilise (its Lyapunov
+        # series needs a Hurwitz A0 - B0 R^-1 B0^T T0; unseen46 F4 ran on eigenvalue 0)
+        self.T0 = lqr(self.A0, self.B0, self.Q, self.R, "Theta-D T0")[1]
         self.Ac = self.A0 - self.S @ self.T0
         self.Tschur, self.U = sla.schur(self.Ac, output="real")
         self.B_constant = num.B_constant

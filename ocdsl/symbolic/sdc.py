@@ -126,6 +126,9 @@ def _split_states(model: Model, auxiliary: Iterable[str | sp.Symbol] = (),
         overlap = set(xs) & set(aux)
         if overlap:
             raise SDCError(f"states {sorted(map(str, overlap))} are both controlled and auxiliary")
+        # a plant state in neither list is auxiliary (docs/controllers.md), and said to be
+        # (unseen46 F2: the run recorded `auxiliary_states: []` beside one)
+        aux += tuple(s for s in model.states if s not in xs and s not in aux)
     if not xs:
         raise SDCError("no controlled states left")
     return xs, aux
