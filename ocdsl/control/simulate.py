@@ -258,10 +258,10 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
 
 
 # a controlled state whose change over the horizon's last tenth is below this share of its level
-# there rests: a loop converging to 0 at any rate that got within stable_ratio of the scale
-# changes by far more (at least 37 %: it decayed by 1e-2 over 0.9 of the horizon at most), an
-# oscillation by twice its amplitude; a slow loop not yet within stable_ratio may change this
-# little, so there only a state constant to RESTING_STUCK is said to rest
+# there rests: a loop converging to 0 that got within stable_ratio (1e-2) of the scale decays
+# e-fold in at most 0.22 of the horizon, so by 37 % or more over the last tenth, and an
+# oscillation changes by twice its amplitude; a slow loop not yet within stable_ratio may change
+# this little, so there only a state constant to RESTING_STUCK is said to rest
 RESTING_SHARE = 1e-2
 RESTING_STUCK = 1e-6
 RESTING_FLOOR = 1e-6      # levels below this share of the scale are 0

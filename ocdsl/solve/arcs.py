@@ -247,7 +247,7 @@ def final_time_spread(solutions: list[tuple[float, dict]], tolerance: float) -> 
     for name in good[0][1]:
         ts = [t[name] for _, t in good if name in t]
         spread = (max(ts) - min(ts)) / max(max(abs(x) for x in ts), 1e-300)
-        if len(ts) >= 2 and spread > max(100 * tolerance, 1e-6) and spread > 100 * spread_j:
+        if len(ts) >= 2 and spread > max(10 * tolerance, 1e-6) and spread > 100 * spread_j:
             parts.append(f"{'' if name == 'main' else f'phase {name!r}: '}t_f from {min(ts):.10g} to "
                          f"{max(ts):.10g} (relative spread {spread:.1e})")
     if not parts:

@@ -326,7 +326,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
 
         if math.isfinite(lo) or math.isfinite(hi):
             frac = float(np.mean(sat))
-            times, seq = _switches(t, side[:, j], S, breakpoints)
+            times, seq = _switches(t, side[:, j], S)
             bb_per[c.name] = {"fraction_at_bound": frac, "bang_bang": bool(frac >= tol.bang_bang),
                               "switch_count": len(times), "switch_times": times, "sequence": seq}
     out["stationarity"] = {"interior_nodes": n_int, "rounding_nodes": n_round, "max_abs": max_abs,

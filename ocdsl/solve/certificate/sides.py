@@ -72,24 +72,18 @@ def switch_pairs(side_j) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(idx[:-1], idx[1:]) if side_j[a] != side_j[b]]
 
 
-def _switches(t, side_j, S_j, breakpoints=()):
-    """Switches between consecutive saturated nodes on opposite bounds: at a mesh breakpoint
-    between two neighbouring nodes (the transcription's control jumps only there; the switching function's zero
-    was 0.127 late where the multipliers were not the PMP costates, unseen45 F2), else at the
-    switching function's first zero between them."""
+def _switches(t, side_j, S_j):
+    """Switches between consecutive saturated nodes on opposite bounds: the switching
+    function's first zero between them, or where it is nearest zero when it keeps its sign
+    there (a switch on a breakpoint node, whose dH/du is 0 to rounding: the middle of the
+    bracket was 0.025 late, unseen45 F2)."""
     idx = np.flatnonzero(side_j != 0)
     times, seq = [], []
     for k in idx:
         s = "+" if side_j[k] > 0 else "-"
         if not seq or seq[-1] != s:
             seq.append(s)
-    b = np.asarray(breakpoints, float)
-    eps = 1e-9 * max(float(t[-1] - t[0]), 1e-300) if len(t) else 0.0
     for a, c in switch_pairs(side_j):
-        on = b[(b >= t[a] - eps) & (b <= t[c] + eps)] if c == a + 1 else b[:0]
-        if len(on):
-            times.append(float(on[0]))
-            continue
         tz = None
         for k in range(a, c):   # first zero crossing of the switching function
             s0, s1 = S_j[k], S_j[k + 1]
@@ -99,5 +93,7 @@ def _switches(t, side_j, S_j, breakpoints=()):
             if s0 * s1 < 0:
                 tz = t[k] + (t[k + 1] - t[k]) * s0 / (s0 - s1)
                 break
-        times.append(float(tz if tz is not None else 0.5 * (t[a] + t[c])))
+        if tz is None:
+            tz = t[a + int(np.argmin(np.abs(S_j[a:c + 1])))]
+        times.append(float(tz))
     return times, seq
