@@ -11,6 +11,7 @@ import sympy as sp
 from .result import Result
 from .spec.compile import LoadedFile
 from .fixed_mesh import fixed_mesh_arcs, tie_jumping_end_controls
+from .runaway import runaway_final_time
 from .spec.schema import PseudospectralMethod
 
 
@@ -196,6 +197,7 @@ def solve_pseudospectral(file: LoadedFile, timer, *, seed=None, warm_start=None,
         result = _result(file, best_tr, best, timer, meshes)
         result.extra["starts"] = records
         notes = start_notes(file, previous) + tied
+    runaway_final_time(file, result, best_tr, meshes, timer, verbose=verbose, progress=progress)
     notes += fixed_mesh_arcs(file, result, best_tr, meshes, timer, verbose=verbose, progress=progress)
     if notes:
         result.extra["notes"] = notes

@@ -94,6 +94,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     import pyomo.core as pyo
 
     from ...run import _result
+    from ...runaway import runaway_final_time
     from ...transcribe.guess import make_guess, solved_guesses, start_guesses
     from ...transcribe.mesh import Layout
     from ...transcribe.pseudospectral import build
@@ -676,6 +677,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     result.iterations = sum(h["ipopt_iterations"] for h in history)
     record(result, problem, spec, status, history, tables, errors_c, max_err, it_c, info_c, budget.notes,
            confirmed, notes, start_records)
+    runaway_final_time(file, result, tr_c, meshes_c, timer, verbose=verbose, progress=progress)
     result.wall_time_s = timer.breakdown()
     stage.close(f"{len(history)} meshes, max error {max_err:.2e}")
     return result
