@@ -63,3 +63,4 @@ method: {transcription: LGR, segments: 2, degree: 4}
     assert res.status == "optimal" and res.ok and res.tf == pytest.approx(2000.0, rel=1e-6), res.message
     rec = res.extra["runaway_final_time"]
     assert rec["stretched_objective"] == pytest.approx(4000.0) and rec["gain"] < 0
+

@@ -880,3 +880,24 @@ method: {transcription: LGR, segments: 2, degree: 4}
     assert res.tf["hold"] - res.tf["go"] < 0                          # the case: out of order by ~1e-9
     assert res.verification["status"] == "verified", res.verification["summary"]
     assert res.status == "optimal" and res.ok
+
+
+def test_a_path_constraint_the_initial_conditions_break_is_named_at_t0_under_lgr(tmp_path):
+    """unseen47 F2: x + y >= 1 along the path with x(0) = y(0) = 0 is infeasible at t0, which
+    LGR does not collocate: the NLP never saw it, the verification's hint was "refine the
+    mesh" (J doubled with every bisection). The hint now says where and why."""
+    path = tmp_path / "p03.yaml"
+    path.write_text("""\
+name: path constraint broken by the initial conditions
+model: {states: [x, y], controls: [u, w], dynamics: {x: u, y: w}}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x + y >= 1, x(t0) == 0, y(t0) == 0, x(tf) == 1, y(tf) == 1]
+  objective: minimize integral(u**2 + w**2)
+method: {transcription: LGR, segments: 10, degree: 4}
+""")
+    from ocdsl.api import run_file
+
+    res = run_file(path, None)
+    assert not res.ok and res.verification["status"] == "failed"
+    assert "violated at t0 itself, where LGR holds none" in res.verification["summary"], res.verification["summary"]

@@ -281,6 +281,14 @@ def _verify(problem, result, settings: VerifySettings, tables: dict) -> tuple[li
                               for c in checks)
         if dynamics_failed:
             runs[ph.name].notes[:0] = _sign_crossings(ph, runs[ph.name], tol)
+        if (result.method or {}).get("transcription") == "LGR" and any(
+                c["phase"] == ph.name and c["name"] == "path constraints" and c["passed"] is False
+                and c.get("at_start") for c in checks):
+            # LGR collocates no point at t0: a path constraint the initial conditions break is
+            # never seen by the NLP, and refining (as the hint said) only doubled J (unseen47 F2)
+            runs[ph.name].notes.insert(0, "the path constraint is violated at t0 itself, where LGR holds none "
+                                          "(it has no collocation point there): if the initial conditions "
+                                          "break it the problem is infeasible; LG or LGL hold it at t0")
         notes += [f"phase {ph.name}: {n}" if len(problem.phases) > 1 else n for n in runs[ph.name].notes]
         names_u = [c.name for c in ph.controls]
         if names_u and settings.open_loop:     # collocation advice; a feedback law may chatter
@@ -562,7 +570,10 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables,
             err, t_err = np.vstack([err, er]), np.concatenate([grid, tr])
             detail += f" and {len(tr)} exported rows"
         v, where = worst(err, [c.text or str(c.expr) for c in funcs.path], t_err)
-        checks.append(row("path constraints", pname, v, tol, where, detail))
+        flat = np.nan_to_num(err, nan=np.inf)
+        at = float(t_err[np.unravel_index(np.argmax(flat), flat.shape)[0]]) if flat.size else math.nan
+        checks.append(row("path constraints", pname, v, tol, where, detail,
+                          at_start=bool(at <= t[0] + 1e-12 * max(1.0, abs(t[-1] - t[0])))))
     end_rate = funcs.augmented_point(float(t[-1]), local.Y[-1],
                                      controls_at(uf, t[-1:], local.Y[-1:, :funcs.n])[0])
     run = _PhaseRun(t, X, scale_x, scale_q, glob.Y[-1], local.Y[-1], uf, end_rate, flight_not_judged=sensitive)
