@@ -901,3 +901,29 @@ method: {transcription: LGR, segments: 10, degree: 4}
     res = run_file(path, None)
     assert not res.ok and res.verification["status"] == "failed"
     assert "violated at t0 itself, where LGR holds none" in res.verification["summary"], res.verification["summary"]
+
+
+def test_a_state_below_the_nlps_resolution_is_told_its_units_not_a_deviation(tmp_path):
+    """unseen47 F5: x2 from 0 to 1e-8 (range = size) is measured against the resolution 1e-7,
+    and the note told it to write x2 = 5e-9 + dx2, which has the same range."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "p16.yaml"
+    path.write_text("""\
+name: states of 1e6 and 1e-8 together (J* = 12)
+model:
+  states: [x1, v1, x2, v2]
+  controls: [u1, u2]
+  dynamics: {x1: v1, v1: u1, x2: v2, v2: u2}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x1(t0) == 0, v1(t0) == 0, x1(tf) == 1.0e6, v1(tf) == 0,
+                x2(t0) == 0, v2(t0) == 0, x2(tf) == 1.0e-8, v2(tf) == 0]
+  objective: minimize integral(1.0e-12*u1**2/2 + 1.0e16*u2**2/2)
+method: {transcription: LGR, segments: 10, degree: 4}
+""")
+    res = run_file(path, None)
+    assert res.ok and res.objective == pytest.approx(12.0, rel=1e-9)
+    (caveat,) = res.verification["caveats"]
+    assert "x2 (size 1e-08), v2 (size 1.5e-08) span less than the NLP resolves" in caveat, caveat
+    assert "deviation from a reference" not in caveat

@@ -640,6 +640,9 @@ def _d_dtf(expr: sp.Expr, ph, run: _PhaseRun, problem, point) -> float:
 # the objective's first-order size above this many times |J|: its check is that much looser
 # than the tolerance of J, and the verdict says so
 PRECISION_SHARE = 10.0
+# a state smaller than this share of the NLP's resolution is noise about 0 (an identically zero
+# state at 1e-26), not a quantity in units too large
+RESOLUTION_FLOOR_SHARE = 1e-4
 
 
 def _objective_precision(problem, runs, J: float, size: float, tol: float) -> dict:
@@ -651,13 +654,29 @@ def _objective_precision(problem, runs, J: float, size: float, tol: float) -> di
     against 1.48 (unseen32)."""
     if not (math.isfinite(J) and J != 0.0 and size > PRECISION_SHARE * abs(J)):
         return {}
-    flat = [(s.name, float(np.ptp(run.X[:, j])), float(np.max(np.abs(run.X[:, j]))),
-             0.5 * float(np.max(run.X[:, j]) + np.min(run.X[:, j])))
-            for ph in problem.phases if (run := runs.get(ph.name)) is not None and len(run.X)
-            for j, s in enumerate(ph.states) if np.ptp(run.X[:, j]) < run.scale_x[j]]
+    # a state measured against more than its range: against 1e-3 of its size (a rewrite as a
+    # deviation resolves it), or against the NLP's resolution (its units are too large; a
+    # deviation changes nothing: x2 from 0 to 1e-8 was told to write x2 = 5e-9 + dx2, unseen47 F5)
+    flat, small = [], []
+    for ph in problem.phases:
+        run = runs.get(ph.name)
+        for j, s in enumerate(ph.states if run is not None and len(run.X) else ()):
+            spread, size_ = float(np.ptp(run.X[:, j])), float(np.max(np.abs(run.X[:, j])))
+            if spread >= run.scale_x[j] or size_ == 0.0:
+                continue
+            if spread < 1e-3 * size_:
+                flat.append((s.name, spread, size_, 0.5 * float(np.max(run.X[:, j]) + np.min(run.X[:, j]))))
+            elif size_ >= RESOLUTION_FLOOR_SHARE * RESOLUTION:
+                small.append((s.name, size_))
     text = (f"J is held to its first-order size {size:.3g} (what it moves when the states, controls and "
             f"integrals move by their scales), {size / abs(J):.3g} times |J|: verified to {tol * size:.2g} "
             f"in its units, {tol * size / abs(J):.1e} of J, not {tol:g} of J")
+    if small:
+        one = len(small) == 1
+        text += (f"; {', '.join(f'{n} (size {z:.2g})' for n, z in small)} {'spans' if one else 'span'} less than "
+                 f"the NLP resolves ({RESOLUTION:g}) and {'is' if one else 'are'} measured against that: "
+                 f"write {'it' if one else 'them'} in smaller units (a factor of 1e3 or more) to resolve "
+                 f"{'it' if one else 'them'}")
     if flat:
         one = len(flat) == 1
         name, _, _, mid = flat[0]
