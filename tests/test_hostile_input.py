@@ -88,6 +88,9 @@ def test_later_bound_on_a_state_narrows(tmp_path):
 @pytest.mark.parametrize("old,new,first,second", [
     ("    - 0.1 <= tf <= 10", "    - 2.5 <= tf <= 10\n    - tf >= 12", "2.5 <= tf", "tf >= 12"),
     ("    - -1 <= u <= 1", "    - -1 <= u <= 1\n    - u >= 3", "-1 <= u", "u >= 3"),
+    # path constraints on one expression (unseen47 F6: reached Ipopt, "try a random guess")
+    ("    - -1 <= u <= 1", "    - -1 <= u <= 1\n    - x + v <= 0\n    - x + v >= 1", "x + v <= 0", "x + v >= 1"),
+    ("    - -1 <= u <= 1", "    - -1 <= u <= 1\n    - x + v >= 1\n    - -x - v >= 0", "x + v >= 1", "-x - v >= 0"),
 ])
 def test_contradictory_bounds_name_both_constraints(tmp_path, old, new, first, second):
     p = variant(tmp_path, old, new)

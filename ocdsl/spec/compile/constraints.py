@@ -225,6 +225,8 @@ class ConstraintCompiler:
                     table = ph.state_bounds if expr in ph.states else ph.control_bounds
                     table[expr] = self.narrowed(ph, expr, table.get(expr, (-INF, INF)), lo, hi, text, loc)
                     return None
+                if self.contradicted_path(ph, expr, lo, hi, text, loc):
+                    return None
                 ph.path.append(Constraint(expr, lo, hi, text, line))
                 return None
             if expr == ph.tf_symbol or expr == ph.t0_symbol:
@@ -240,6 +242,24 @@ class ConstraintCompiler:
                         self.narrowed(ph, expr, getattr(ph, f"{which}_bounds"), lo, hi, text, loc))
                 return None
         return Constraint(expr, lo, hi, text, line)
+
+    def contradicted_path(self, ph, expr, lo, hi, text, loc) -> bool:
+        """Whether an earlier path constraint on the same expression (or its negative) leaves
+        this one no value: `x + y <= 0` beside `x + y >= 1` reached Ipopt, whose failure was
+        answered with "try a random guess" (unseen47 F6), where the same contradiction on a
+        bare control is an error at its line."""
+        for c in ph.path:
+            if c.expr == expr:
+                a, b = c.lower, c.upper
+            elif c.expr == -expr:
+                a, b = -c.upper, -c.lower
+            else:
+                continue
+            if max(a, lo) > min(b, hi):
+                self.issue(loc, f"contradicts `{c.text}`: {expr} would have to lie in "
+                                f"[{max(a, lo):g}, {min(b, hi):g}] at every instant", text)
+                return True
+        return False
 
     def narrowed(self, ph, expr, old, lo, hi, text, loc) -> tuple[float, float]:
         """A later bound on the same quantity intersects the earlier ones (never replaces
