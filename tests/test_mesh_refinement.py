@@ -1305,3 +1305,30 @@ def test_a_phase_of_no_resolvable_length_is_verified_as_a_zero_duration_phase(tm
     assert [ph.name for ph in res.phases if ph.time[-1] - ph.time[0] < 1e-8]      # the case: collapsed phases
     assert res.objective == pytest.approx(2.0, abs=1e-8)
     assert res.verification["status"] == "verified", res.verification["summary"]
+
+
+def test_a_sliver_segment_is_merged_into_its_neighbour():
+    """unseen48 F1: a refinement left a segment of 2.2e-9 (normalised) at a switch, its rows
+    all at one time with controls off their bounds; the verification flew those over the
+    segment before it (1.9e-3 off) on a minimum time right to 1e-9. Segments narrower than
+    1e-2 of corner_tolerance are merged, keeping the located feature."""
+    from ocdsl.solve.mesh.refine import _without_slivers
+
+    segs = [[0.0, 0.5, 4], [0.5, 0.5 + 2e-9, 6], [0.5 + 2e-9, 1.0, 5]]
+    assert _without_slivers(segs, [], 1e-7) == [[0.0, 0.5, 4], [0.5, 1.0, 6]]
+    assert _without_slivers(segs, [0.5 + 2e-9], 1e-7) == [[0.0, 0.5 + 2e-9, 6], [0.5 + 2e-9, 1.0, 5]]
+    assert _without_slivers([[0.0, 1e-9, 3], [1e-9, 1.0, 4]], [1e-9], 1e-7) == [[0.0, 1.0, 4]]
+    assert _without_slivers([[0.0, 0.5, 3], [0.5, 1.0, 4]], [], 1e-7) == [[0.0, 0.5, 3], [0.5, 1.0, 4]]
+
+
+@pytest.mark.slow
+def test_the_two_link_arm_is_verified_without_a_sliver_segment():
+    """The run itself (15 s): tf = 2.98227994 (Luus; PSOPT 2.9822; shooting with three
+    switches), optimal, verified, certificate pass; it was verification failed, exit 1."""
+    from pathlib import Path
+
+    res = ocdsl.load(Path(__file__).parent / "data" / "two_link_arm_mesh.yaml").solve()
+    assert res.status == "optimal" and res.ok and res.verified
+    assert res.tf == pytest.approx(2.98227994, rel=1e-8)
+    bps = np.asarray(res.method["meshes"]["main"]["breakpoints"], float)
+    assert np.min(np.diff(bps)) > 1e-7

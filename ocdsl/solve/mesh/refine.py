@@ -36,6 +36,33 @@ def _place(segs: list[list], f: float, snap: float, keep: list[float], tol: floa
     segs[k:k + 1] = [[a, f, N], [f, b, N]]
 
 
+# a segment narrower than this share of corner_tolerance is a sliver: its rows all stand at
+# one time, and a control off its bound there was flown over the segment before it (two-link
+# arm: a segment of 2.2e-9 at a switch moved beside a cut, the verification 1.9e-3 off on an
+# answer right to 1e-9, unseen48 F1)
+SLIVER = 1e-2
+
+
+def _without_slivers(segs: list[list], featured, width: float) -> list[list]:
+    """[[a, b, N], ...] with each segment narrower than ``width`` merged into a neighbour:
+    its end goes (into the next segment) unless that end is a located feature, then its
+    start (into the previous one); the merged segment keeps the larger degree."""
+    held = lambda x: any(abs(x - f) <= width for f in featured)  # noqa: E731
+    out = [list(sg) for sg in segs]
+    i = 0
+    while len(out) > 1 and i < len(out):
+        a, b, N = out[i]
+        if b - a >= width:
+            i += 1
+        elif i + 1 < len(out) and (i == 0 or not held(b)):
+            out[i + 1] = [a, out[i + 1][1], max(N, out[i + 1][2])]
+            del out[i]
+        else:
+            out[i - 1] = [out[i - 1][0], b, max(N, out[i - 1][2])]
+            del out[i]
+    return out
+
+
 def _arc_mesh_moves(mesh, errors, spec, features, todo) -> dict[int, float]:
     """On an arc mesh (every interior breakpoint within corner_tolerance of a located feature,
     as ``coarsen`` builds it): breakpoint index -> feature, for the breakpoints that are not
@@ -203,7 +230,8 @@ def refine(mesh, errors: list[SegmentError], spec, controls=None, features=None,
             sg[1] = f if sg[1] == b else sg[1]
     for f in todo:
         _place(segs, f, spec.snap, features, spec.corner_tolerance)
-    segs = [sg for sg in segs if sg[1] > sg[0]]
+    segs = _without_slivers([sg for sg in segs if sg[1] > sg[0]], [*features, *moves.values()],
+                            SLIVER * spec.corner_tolerance)
     bps = [0.0] + [sg[1] for sg in segs]
     bps[-1] = 1.0
     new = Mesh(mesh.scheme_name, np.array(bps), tuple(int(sg[2]) for sg in segs))
