@@ -56,6 +56,14 @@ def test_single_equals_gets_a_hint(tmp_path):
     assert e.value.issues[0].line == 14
 
 
+@pytest.mark.parametrize("wrong, right", [("=>", ">="), ("=<", "<=")])
+def test_a_reversed_inequality_sign_is_named(tmp_path, wrong, right):
+    """unseen48 F5: `x(tf) => 0` was told "an equality is written with ==" (the user meant >=)."""
+    with pytest.raises(SpecError, match=f"`{wrong}` is written `{right}`") as e:
+        load(write(tmp_path, BASE.replace("x(t0) == 1", f"x(t0) {wrong} 1")))
+    assert e.value.issues[0].line == 14
+
+
 def test_third_party_models_through_entry_points(tmp_path, monkeypatch):
     from ocdsl.symbolic import registry
 

@@ -196,6 +196,9 @@ def _parse(text: str | int | float) -> ast.expr:
             # `x(tf) == 10deg` (unseen29): the suffix is the controller blocks' (spec/controller.py)
             hint = ("; `deg` is read only in a controller's numbers (`x0: {phi: 10deg}`): in an expression "
                     "write the radians, e.g. 10*pi/180")
+        elif m := re.search(r"=\s*([<>])", text):
+            # `x(tf) => 0` (unseen48 F5) was told "an equality is written with =="
+            hint = f"; `={m.group(1)}` is written `{m.group(1)}=`"
         elif re.search(r"(?<![<>=!])=(?!=)", text):
             hint = "; an equality is written with ==, e.g. x(t0) == 1"
         elif re.search(r"(?<![\w.])\d+(\.\d*)?([eE][+-]?\d+)?\s+[A-Za-z_]", text):
