@@ -103,6 +103,7 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
         # (seed 4's unrestricted run: `optimal`, J 1.7e-5 above its bisected mesh's; seed 0's
         # paper mesh 8.7e-5: the docs always said "where no flight judged J")
         judged = flown is not None and not flown.get("inconclusive") and flown.get("judged", True)
+        unjudged = (flown or {}).get("inconclusive")
         found = arcs.binding_arcs(tr, controls=not judged)
     if not found and judged:
         return []
@@ -112,18 +113,18 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
     # 2 x 2); the bisection is then the only check of J
     multi = len(file.problem.phases) > 1
     if not file.spec.verify.bisection_check:
-        return [arcs.note(found, multi, None)]
+        return [arcs.note(found, multi, None, unjudged)]
     with timer.measure("bisection"):
         check = bisection_check(file, tr, result.objective, meshes, verbose=verbose, progress=progress,
                                 objective_scale=result.extra.get("objective_scale"))
     result.extra["bisection"] = check.record()
     if check.agrees is False:
         result.status = "mesh_not_converged"
-        result.message = arcs.mismatch_message(found, multi, check)
+        result.message = arcs.mismatch_message(found, multi, check, unjudged)
         return []
     flat = arcs.final_time_spread([(result.objective, arcs.free_final_times(tr))]
                                   + [(lv.objective, lv.final_times) for lv in check.levels], file.spec.verify.tolerance)
-    return [arcs.note(found, multi, check)] + ([flat] if flat else [])
+    return [arcs.note(found, multi, check, unjudged)] + ([flat] if flat else [])
 
 
 def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:

@@ -136,3 +136,16 @@ def test_a_switch_held_on_a_wrong_breakpoint_of_a_fixed_mesh_is_not_called_optim
     assert "exactly on a breakpoint" in res.message and "t = 2.1" in res.message
     di = run_file(Path(__file__).parents[1] / "configs" / "double_integrator.yaml", None)
     assert di.status == "optimal" and "pinned_switches" not in di.extra
+
+
+def test_a_flight_that_ran_and_judged_nothing_gives_its_own_reason():
+    """unseen48 F4: Rayleigh on LGL 10 x 5, one phase, no path constraint, H quadratic in u:
+    the bisection refuted J (29.7279 against 29.7496) and the message listed the cases the
+    flight is "not made for", none of which applies; the flight had run and judged nothing.
+    Its own reason is given now."""
+    from pathlib import Path
+
+    res = run_file(Path(__file__).parent / "data" / "rayleigh_free_lgl_10x5.yaml", None)
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert "it is not made for several phases" not in res.message
+    assert "the flight of the minimum principle's control judged no J on this fixed mesh (H's minimiser" in res.message

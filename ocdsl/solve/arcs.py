@@ -263,17 +263,21 @@ UNJUDGED = ("no flight of the minimum principle's control judged J on this fixed
             "fixed t_f and parameters alone)")
 
 
-def describe(found: list[PhaseArcs], multi_phase: bool) -> str:
+def describe(found: list[PhaseArcs], multi_phase: bool, unjudged: str | None = None) -> str:
+    """What binds, or why no flight judged J: the flight's own reason where it ran (the list
+    of cases it is not made for was printed for single-phase problems with none of them,
+    where the flight had run and judged nothing, unseen48 F4)."""
     if not found:
-        return UNJUDGED
+        return f"the flight of the minimum principle's control judged no J on this fixed mesh ({unjudged})" \
+            if unjudged else UNJUDGED
     parts = [(f"phase '{p.phase}': " if multi_phase else "") + "; ".join(p.arcs) for p in found]
     n = sum(len(p.arcs) for p in found)
     return f"{'; '.join(parts)} {'binds' if n == 1 else 'bind'} inside the phase on this fixed mesh"
 
 
-def note(found: list[PhaseArcs], multi_phase: bool, check: Bisection | None) -> str:
+def note(found: list[PhaseArcs], multi_phase: bool, check: Bisection | None, unjudged: str | None = None) -> str:
     """The run's note on its arcs and, when made, on the bisection check."""
-    what = describe(found, multi_phase)
+    what = describe(found, multi_phase, unjudged)
     if check is None:
         return (f"{what}: J is the optimum of this mesh, which differs from the problem's where the mesh "
                 "misses the arcs' junctions; the verification checks that the trajectory is feasible, not "
@@ -288,10 +292,11 @@ def note(found: list[PhaseArcs], multi_phase: bool, check: Bisection | None) -> 
     return ""       # a disagreement is the run's message (mismatch_message)
 
 
-def mismatch_message(found: list[PhaseArcs], multi_phase: bool, check: Bisection) -> str:
+def mismatch_message(found: list[PhaseArcs], multi_phase: bool, check: Bisection, unjudged: str | None = None) -> str:
     why = ("the mesh misses these arcs' junctions or the controls' switches" if found
            else "the mesh is too coarse for the optimum")
-    return (f"J = {check.objective:.10g} on this mesh but {check.describe()}: {describe(found, multi_phase)}, "
+    return (f"J = {check.objective:.10g} on this mesh but {check.describe()}: "
+            f"{describe(found, multi_phase, unjudged)}, "
             f"and J is this mesh's optimum, not the problem's ({why}). "
             "`mesh:` places the junctions and refines until the error estimate meets its tolerance "
             "(docs/mesh.md); or a finer uniform mesh")
