@@ -202,3 +202,34 @@ def test_a_top_level_free_parameter_is_an_argument_of_the_search(tmp_path):
     res = run_file(path, tmp_path / "run")
     assert res.status == "feasible", res.message
     assert 0.4 <= res.parameters["w"] <= 0.5
+
+
+def test_a_top_level_constant_in_a_terminal_condition_is_taken_by_the_search(tmp_path):
+    """unseen50 F2: `parameters: {xf: 1.0}` at the top of the file, `x(tf) == xf`: `check`
+    said ok and every run (and study point) ended in "KeyError: model ... has no parameter
+    'xf'". A constant control u moves x'' = u from rest to xf in t = 1: u = 2 xf, J = 4 xf^2."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "xf.yaml"
+    path.write_text("""\
+name: constant control to a target given at the top of the file
+model:
+  states: [x, v, q]
+  controls: [u]
+  dynamics: {x: v, v: u, q: u**2}
+parameters:
+  xf: 1.5
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0, v(t0) == 0, q(t0) == 0, x(tf) == xf]
+  objective: minimize q(tf)
+method:
+  transcription: parametric
+  controls:
+    u: {series: constant, bounds: [-5, 5]}
+  tolerances: {x: 1.0e-6}
+  optimizer: {name: pso, particles: 20, iterations: 100, seed: 1}
+""")
+    res = run_file(path, None)
+    assert res.status == "feasible" and res.ok, res.message
+    assert res.objective == pytest.approx(4 * 1.5**2, rel=1e-4)

@@ -137,7 +137,9 @@ class ParametricProblem:
 
     def _P(self, var: dict[str, np.ndarray], B: int) -> np.ndarray:
         cm = self._ensure()
-        P = np.tile(cm.params(self.parameters), (B, 1))
+        # the problem's constants hold the file's top-level ones too (a target `x(tf) == xf`),
+        # which the model's right-hand side does not take (unseen50 F2: KeyError on every run)
+        P = np.tile(cm.params({k: v for k, v in self.parameters.items() if k in cm.parameter_names}), (B, 1))
         for name, vals in var.items():
             if name in cm.parameter_names:
                 P[:, cm.parameter_names.index(name)] = vals
