@@ -252,3 +252,39 @@ def test_a_top_level_constant_in_a_terminal_condition_is_taken_by_the_search(tmp
     res = run_file(path, None)
     assert res.status == "feasible" and res.ok, res.message
     assert res.objective == pytest.approx(4 * 1.5**2, rel=1e-4)
+
+
+@pytest.mark.slow
+def test_local_stages_that_leave_the_control_bounds_give_back_the_last_admissible_point(tmp_path):
+    """unseen50 F1: minimum time, x'' = u, |u| <= 1, u linear in t/tf: the swarm found t_f =
+    2.4515 inside the bound (the class's best is sqrt(6) = 2.4495); continuation and SLSQP
+    then reached 1.9998 with |u| up to 1.5, and the run was `infeasible` ("narrow the series'
+    bounds"). The last stage inside the bounds and the tolerances is reported, with a note."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "p07.yaml"
+    path.write_text("""\
+name: minimum time double integrator, control linear in s
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0, -1 <= u <= 1, 0.5 <= tf <= 10]
+  objective: minimize tf
+method:
+  transcription: parametric
+  controls:
+    u: {series: polynomial, order: 1, bounds: [-3, 3]}
+  tolerances: {x: 1.0e-4, v: 1.0e-4}
+  polish: {method: least_squares}
+  continuation: {enabled: true, step: 0.02}
+  refine: {method: slsqp, target_ratio: 0.9}
+  optimizer: {name: pso, particles: 30, iterations: 200, seed: 1}
+""")
+    res = run_file(path, None)
+    assert res.status == "feasible" and res.ok, res.message
+    assert 6 ** 0.5 - 1e-3 < res.tf < 6 ** 0.5 + 5e-3
+    assert res.extra["kept_stage"]["stage"] in ("swarm", "polish", "continuation")
+    assert max(abs(u) for u in res.phases[0].controls["u"]) <= 1.0 + 1e-6
