@@ -288,3 +288,24 @@ method:
     assert 6 ** 0.5 - 1e-3 < res.tf < 6 ** 0.5 + 5e-3
     assert res.extra["kept_stage"]["stage"] in ("swarm", "polish", "continuation")
     assert max(abs(u) for u in res.phases[0].controls["u"]) <= 1.0 + 1e-6
+
+
+def test_the_documented_fourier_series_is_the_one_evaluated():
+    """unseen50 F3: the docs gave cos/sin(2 pi k t/tf); the series is the half-range one,
+    cos/sin(pi k t/tf). The docs' formula, read from docs/problem-language.md, against the
+    evaluation."""
+    import re
+
+    import numpy as np
+
+    from ocdsl.simulate import ControlLayout
+    from ocdsl.simulate.integrate import evaluate_controls
+
+    text = (Path(__file__).parents[1] / "docs" / "problem-language.md").read_text()
+    assert re.search(r"a_k cos\(pi\s+k t/tf\) \+ b_k sin\(pi k t/tf\)", text)
+    layout = ControlLayout(("fourier",), (2,))
+    a0, a1, a2, b1, b2 = 0.4, 0.3, -0.2, 0.5, 0.1
+    t, T = np.linspace(0.0, 2.0, 7), 2.0
+    u = evaluate_controls(layout, np.array([a0, a1, a2, b1, b2]), t, T)[:, 0]
+    w = np.pi * t / T
+    assert np.allclose(u, a0 / 2 + a1 * np.cos(w) + a2 * np.cos(2 * w) + b1 * np.sin(w) + b2 * np.sin(2 * w))
