@@ -288,6 +288,8 @@ method:
     assert 6 ** 0.5 - 1e-3 < res.tf < 6 ** 0.5 + 5e-3
     assert res.extra["kept_stage"]["stage"] in ("swarm", "polish", "continuation")
     assert max(abs(u) for u in res.phases[0].controls["u"]) <= 1.0 + 1e-6
+    # the summary gives the reported point's fitness beside the swarm's (unseen50 F4)
+    assert f"the reported point's {res.extra['fitness_final']:.6g}, tf {res.tf:.6g}" in res.message
 
 
 def test_the_documented_fourier_series_is_the_one_evaluated():
