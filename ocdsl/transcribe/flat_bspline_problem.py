@@ -360,12 +360,23 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
                                       flies=lambda info: _flies(file, mp, nlp, info))
     with timer.measure("post"):
         try:
-            result = solved_result(file, mp, nlp, info)
+            with _pyomo_evaluation_errors_unlogged():
+                try:
+                    result = solved_result(file, mp, nlp, info)
+                except (ZeroDivisionError, OverflowError) as e:
+                    # an end value on the map's singularity (a loop from the straight-line guess:
+                    # the heading at t0 is 0/0) was a bare ZeroDivisionError after Pyomo printed
+                    # the whole expression (unseen49 F1)
+                    raise FlatSingularError(f"the flat map cannot be evaluated at the solver's last point "
+                                            f"({type(e).__name__}: {e})") from None
         except FlatSingularError as e:
             # the planar quadrotor's outputs (x, th) divide by sin(th), 0 in hover (unseen32)
-            raise FlatSingularError(f"{e}. {singularity_hint(mp, problem) or 'The flat map is singular there'}; "
-                                    "or choose other flat outputs (`outputs:`), or a pseudospectral "
-                                    "transcription (`transcription: LGR`)") from None
+            # the key is `flat_outputs:` (unseen49 F4: the advice named `outputs:`, refused)
+            hint = singularity_hint(mp, problem)
+            raise FlatSingularError(f"{e}. {hint + '; or c' if hint else 'C'}hoose other flat outputs "
+                                    "(`flat_outputs:`), give a guess along which the outputs move as the "
+                                    "solution should (`guess:`: a loop's straight-line guess stands still), "
+                                    "or a pseudospectral transcription (`transcription: LGR`)") from None
         result.extra["starts"] = records
     if method.tolerance is not None:
         from .flat_bspline_refine import refine
@@ -551,6 +562,25 @@ def _unwrapped(ph, control, values: np.ndarray, expr) -> np.ndarray:
         if np.all(shifted >= lo - 1e-12) and np.all(shifted <= hi + 1e-12):
             return shifted
     return min(shifts, key=lambda a: int(np.sum(np.abs(a) > np.pi)))
+
+
+class _pyomo_evaluation_errors_unlogged:
+    """Pyomo logs an expression it cannot evaluate, whole, before raising: the failure is
+    reported in ocdsl's words, so the log stays off the console."""
+
+    def __enter__(self):
+        import logging
+
+        class Drop(logging.Filter):
+            def filter(self, record):
+                return not record.getMessage().startswith("evaluating object as numeric value")
+
+        self.logger, self.drop = logging.getLogger("pyomo.common.numeric_types"), Drop()
+        self.logger.addFilter(self.drop)
+
+    def __exit__(self, *exc):
+        self.logger.removeFilter(self.drop)
+        return False
 
 
 def _solve_starts(nlp, method, options, sense: str, seed: int, verbose: bool, progress: bool, flies=None):
