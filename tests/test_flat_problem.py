@@ -430,3 +430,38 @@ def test_a_flat_map_singular_at_an_end_value_is_named_not_a_zero_division(tmp_pa
     assert "`x_d1**2 + y_d1**2`" in res.message and "(`guess:`" in res.message
     captured = capsys.readouterr()
     assert "evaluating object" not in captured.err + captured.out
+
+
+def test_a_bound_on_an_atan2_heading_is_named_in_the_failure_hint():
+    """The hint a failed flat solve gets (unseen49 F2, below), without the solve."""
+    from pathlib import Path
+
+    from ocdsl.api import compile_file
+    from ocdsl.transcribe.flat_bspline_problem import _Mapped, singularity_hint
+
+    file = compile_file(Path(__file__).parent / "data" / "flat_turn270_heading_bound.yaml")
+    hint = singularity_hint(_Mapped(file), file.problem)
+    assert hint.startswith("th is atan2 of the outputs' derivatives, and its bounds and path constraints see its "
+                           "principal value in (-pi, pi]"), hint
+    plain = compile_file(Path(__file__).parent / "data" / "flat_turn270_heading_bound.yaml")
+    plain.problem.phases[0].path.clear()
+    plain.problem.phases[0].state_bounds.pop(plain.problem.phases[0].states[2], None)
+    assert "atan2" not in singularity_hint(_Mapped(plain), plain.problem)
+
+
+@pytest.mark.slow
+@pytest.mark.ipopt
+def test_a_bound_on_an_atan2_heading_that_fails_the_solve_is_named(tmp_path):
+    """unseen49 F2: a 270-degree turn with `th >= -0.5`, which the turn never meets (J* = 3
+    pi/2 without it, and with it on LGR), was `infeasible` with the speed singularity as the
+    only reason, and the file already bounds the speed. The bound sees atan2's principal
+    value, which passes -pi/2 after the turn passes pi: the message says so first."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "flat_turn270_heading_bound.yaml", None)
+    assert not res.ok
+    assert "th is atan2 of the outputs' derivatives, and its bounds and path constraints see its principal " \
+           "value in (-pi, pi]" in res.message, res.message
+    assert ".." not in res.message

@@ -391,7 +391,7 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
     if result.status not in ("optimal", "acceptable", "mesh_not_converged"):
         hint = singularity_hint(mp, problem)
         if hint:
-            result.message = f"{result.message}. {hint}"
+            result.message = f"{result.message.rstrip('.')}. {hint}"
     result.wall_time_s = timer.breakdown()
     return result
 
@@ -432,6 +432,16 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
                 if branch is not None and not (lo >= 0 if branch[0] == "+" else hi <= 0):
                     branches.append((name, *branch, [str(y) for y in getattr(fm, "outputs", ())]))
     said = []
+    for ph in problem.phases:
+        fm = mp.flatmaps[ph.name]
+        in_path = set().union(*(c.expr.free_symbols for c in getattr(ph, "path", []))) if getattr(ph, "path", None) else set()
+        for x, expr in fm.states.items():
+            if isinstance(expr, sp.atan2) and (x in getattr(ph, "state_bounds", {}) or x in in_path):
+                # a bound on an atan2 state is imposed on its principal value: a 270-degree turn
+                # "infeasible" under `th >= -0.5`, which the turn never meets (unseen49 F2)
+                said.append(f"{x} is atan2 of the outputs' derivatives, and its bounds and path constraints "
+                            f"see its principal value in (-pi, pi]: a {x} that turns past pi meets them there "
+                            f"though {x} itself never does. Bound {x} with `transcription: LGR`, which sees {x}")
     if out:
         said.append(f"The flat map is singular where {' or '.join(f'`{d}`' for d in out[:3])} vanishes (its "
                     "division or square root): the solver may have run into it. Bounding the state or control "
