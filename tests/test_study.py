@@ -515,3 +515,14 @@ def test_check_takes_a_study_file_of_its_own(tmp_path):
     study.write_text("problem_file: lq.yaml\nstudy:\n  sweep: {grid: {d: [0.5, 1.0]}}\n")
     res = CliRunner().invoke(main, ["check", str(study)])
     assert res.exit_code == 2 and "lq.yaml:6" in res.output and "unknown name 'w'" in res.output, res.output
+
+
+def test_an_unsolved_points_objective_is_labelled_in_the_study_table():
+    """unseen50 F6: an infeasible point's last iterate (25) stood in the objective column
+    like a solved point's."""
+    from ocdsl.study.table import _objective_cell
+
+    assert _objective_cell({"status": "infeasible", "objective": 25.000000000000007}) == "25 (last iterate)"
+    assert _objective_cell({"status": "feasible", "objective": 4.0}) == "4"
+    assert _objective_cell({"status": "optimal", "objective": 1.5}) == "1.5"
+    assert _objective_cell({"status": "error", "objective": None}) == ""

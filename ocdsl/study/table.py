@@ -163,7 +163,7 @@ def _final_table(res: StudyResult, quiet: bool) -> None:
         tf = r["tf"]
         t.add_row(r["id"], *[_fmt(r.get(k)) for k in pn], r["status"], "" if pending else ("yes" if _point_ok(r) else "no"),
                   str(r.get("verification") or ""),
-                  _fmt(r["objective"]),
+                  _objective_cell(r),
                   _fmt(tf) if not isinstance(tf, dict) else json.dumps(tf),
                   _fmt(r["iterations"]), _fmt(r["wall_time_s"], 3), str(r["host"] or ""),
                   style=style)
@@ -173,6 +173,15 @@ def _final_table(res: StudyResult, quiet: bool) -> None:
                       f"{res.out_dir / 'study.csv'})")
     if res.best:
         console.print(f"best: {res.best['id']} objective {res.best['objective']:.10g}")
+
+
+def _objective_cell(r: dict) -> str:
+    """A point's objective, labelled where its run found no solution (an infeasible point's
+    last iterate was shown as its objective, 25, beside points that solved; unseen50 F6)."""
+    text = _fmt(r["objective"])
+    if text and r["status"] not in GOOD + ("acceptable", "mesh_not_converged", "time_limit"):
+        text += " (last iterate)"
+    return text
 
 
 def _fmt(v: Any, digits: int = 6) -> str:
