@@ -290,6 +290,9 @@ method:
     assert max(abs(u) for u in res.phases[0].controls["u"]) <= 1.0 + 1e-6
     # the summary gives the reported point's fitness beside the swarm's (unseen50 F4)
     assert f"the reported point's {res.extra['fitness_final']:.6g}, tf {res.tf:.6g}" in res.message
+    # the seed the swarm used is the method's (unseen50 F5: a study point's said the file's 1)
+    other = run_file(path, None, seed=7)
+    assert other.method["optimizer"]["seed"] == other.extra["seed"] == 7
 
 
 def test_the_documented_fourier_series_is_the_one_evaluated():

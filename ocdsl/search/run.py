@@ -295,9 +295,13 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
             "change them)")
     # the search minimises the negated objective of a maximisation: the user's J is its negative
     objective = -det["objective"] if problem.objective.sense == "maximize" else det["objective"]
+    method = spec.model_dump(mode="json")
+    # the seed the swarm used (a study's start or `--seed`), not the file's: a point's folder
+    # said seed 1, which did not reproduce it (unseen50 F5)
+    method.setdefault("optimizer", {})["seed"] = settings.seed
     return Result(name or problem.name, status, message=msg, objective=objective, tf=det["tf"],
                   iterations=res.iterations, wall_time_s=timings,
-                  method=spec.model_dump(mode="json"), parameters=params, phases=[phase],
+                  method=method, parameters=params, phases=[phase],
                   problem=problem.description, extra=extra, tables=tables,
                   certificate=search_box_check(pp, x_best, refine_spec.box_scale if refined is not None else 1.0)
                   if feasible else None)
