@@ -102,9 +102,12 @@ def test_table_studies_have_every_row():
             assert p.parameters["t_ref"] == pytest.approx((C["M"] - TABLE2[100][1]) / mass_flow(), abs=1e-3)
     s3 = load_study(S3)
     assert sorted(p.parameters["h_v"] for p in s3.points) == sorted(map(float, TABLE3))
-    two = next(p for p in s3.points if p.parameters["h_v"] == 2.0)
-    assert two.parameters["m_ref"] == TABLE3[2][3]
-    assert two.parameters["t_ref"] == pytest.approx(TABLE3[2][1] + TABLE3[2][2], abs=1e-9)
+    # every row's references are the printed ones (unseen51 F8: four rows expected ocdsl's
+    # own optimum, rounded, and passed by construction)
+    for p in s3.points:
+        row = TABLE3[int(p.parameters["h_v"])]
+        assert p.parameters["m_ref"] == row[3]
+        assert p.parameters["t_ref"] == pytest.approx(row[1] + row[2], abs=1e-9)
 
 
 # ------------------------------------------------------------------ Ipopt

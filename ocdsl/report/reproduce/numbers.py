@@ -118,6 +118,7 @@ def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> li
     rows, _ = read_study_table(Path(folder))
     out = []
     for ref in spec["rows"]:
+        first = len(out)
         key = tuple(ref[k] for k in spec["match"])
         hit = next((r for r in rows if all(finite_or_none(r.get(k)) == float(v) for k, v in zip(spec["match"], key))), None)
         where = ", ".join(f"{k} = {v:g}" for k, v in zip(spec["match"], key))
@@ -139,6 +140,14 @@ def study_paper_numbers(folder: Path, stem: str, link: Path | None = None) -> li
                             "ocdsl ≤ ref + tol" if ref.get("at_most") else "|error| ≤ tol",
                             f"rtol {cs['rtol']:g}" if "rtol" in cs else f"atol {cs.get('tol', 0):g}", ver,
                             link or Path(folder) / "report.html", tol, "at_most" if ref.get("at_most") else "equal"))
+        row = out[first:]
+        if "wrong_columns" not in ref and any(n["verdict"] == SHOWN_WRONG for n in row):
+            # a printed row shown wrong as a whole is not reproduced in one of its columns: Table
+            # 3's times within 0.5 % were "reproduced" beside their masses "shown wrong", though
+            # the mass identity ties the two (a 3.9 s miss is the 0.57 kg one; unseen51 F9)
+            for n in row:
+                if n["verdict"] == REPRODUCED:
+                    n.update(verdict=SHOWN_WRONG, test=n.get("test") or ref.get("wrong"))
     return out
 
 
