@@ -71,16 +71,18 @@ def test_other_references_are_labelled_and_not_in_the_paper_column(rows):
 def test_every_row_has_comparison_tolerance_and_verdict(rows):
     for r in rows:
         assert r["compare"] and r["tolerance"], r
-        assert r["verdict"] in (R.REPRODUCED, R.SHOWN_WRONG, R.NOT_REPRODUCED, R.AGREES, R.DIFFERS)
-        if r["verdict"] == R.SHOWN_WRONG:
+        assert r["verdict"] in (R.REPRODUCED, R.SHOWN_WRONG, R.BETTER, R.NOT_REPRODUCED, R.AGREES, R.DIFFERS)
+        if r["verdict"] in (R.SHOWN_WRONG, R.BETTER):
             path, _, name = r["test"].partition("::")
             assert (ROOT / path).is_file() and f"def {name}(" in (ROOT / path).read_text(), r["test"]
 
 
 def test_a_better_optimum_under_at_most_is_not_called_reproduced():
-    """seed 1's optimal mode: 1.5448 under 'at most 1.8065' is a 26 % better optimum."""
+    """seed 1's optimal mode: 1.5448 under 'at most 1.8065' is a 26 % better optimum, which
+    beats the paper's search, not a printed number (it was "paper value shown wrong": unseen51
+    F5, the Fourier-series times are a restricted class's optimum)."""
     v = R.verdict_of("paper", True, "at_most", 1.5448, 1.8065, 0.0, "tests/x.py::t")
-    assert v == R.SHOWN_WRONG
+    assert v == R.BETTER
     assert R.verdict_of("paper", True, "at_most", 1.8065, 1.8065, 1e-4, "tests/x.py::t") == R.REPRODUCED
     assert R.verdict_of("paper", False, "equal", 2.0, 1.0, 0.1, None) == R.NOT_REPRODUCED
     assert R.verdict_of("paper", False, "equal", 2.0, 1.0, 0.1, "tests/x.py::t") == R.SHOWN_WRONG

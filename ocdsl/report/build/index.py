@@ -39,7 +39,7 @@ def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.Path
         return os.path.relpath(p.resolve(), base).replace(os.sep, "/")
 
     vcls = {"verified": "pass", "failed": "fail", "error": "fail"}
-    dcls = {R.REPRODUCED: "pass", R.AGREES: "pass", R.SHOWN_WRONG: "warn", R.NOT_REPRODUCED: "fail",
+    dcls = {R.REPRODUCED: "pass", R.AGREES: "pass", R.SHOWN_WRONG: "warn", R.BETTER: "warn", R.NOT_REPRODUCED: "fail",
             R.DIFFERS: "fail"}
     numbers = []
     for r in paper_numbers:
@@ -74,7 +74,8 @@ def make_index(report_dirs: Sequence[str | os.PathLike], out_path: str | os.Path
                         "link": rel(d), "badges": marks})
     paper_rows = [n for n in numbers if n["paper"]]
     other_rows = [n for n in numbers if not n["paper"]]
-    counts = {k: sum(n["verdict"] == k for n in paper_rows) for k in (R.REPRODUCED, R.SHOWN_WRONG, R.NOT_REPRODUCED)}
+    counts = {k: sum(n["verdict"] == k for n in paper_rows)
+              for k in (R.REPRODUCED, R.SHOWN_WRONG, R.BETTER, R.NOT_REPRODUCED)}
     counts_other = {k: sum(n["verdict"] == k for n in other_rows) for k in (R.AGREES, R.DIFFERS)}
     verified = sum(n["verdict"] == R.REPRODUCED and n["verification"] == "verified" for n in paper_rows)
     html = _env().get_template("index.html.j2").render(

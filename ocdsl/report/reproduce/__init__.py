@@ -45,10 +45,10 @@ from ocdsl.report.reproduce.numbers import (
 
     expect_numbers, paper_numbers, report_folders, study_paper_numbers, verdict_of, write_index)
 from ocdsl.report.reproduce.references import (
-    AGREES, DIFFERS, NOT_REPRODUCED, PAPER_TABLES, PRINTED_EXTRA, REFERENCES, REPRODUCED, SHOWN_WRONG)
+    AGREES, BETTER, DIFFERS, NOT_REPRODUCED, PAPER_TABLES, PRINTED_EXTRA, REFERENCES, REPRODUCED, SHOWN_WRONG)
 from ocdsl.report.reproduce.runs import remake_reports, reproduce, run_example, write_manifest
 
-__all__ = ["AGREES", "DIFFERS", "Example", "NOT_REPRODUCED", "Outcome", "PAPER_TABLES", "PRINTED_EXTRA",
+__all__ = ["AGREES", "BETTER", "DIFFERS", "Example", "NOT_REPRODUCED", "Outcome", "PAPER_TABLES", "PRINTED_EXTRA",
            "REFERENCES", "REPRODUCED", "SHOWN_WRONG", "classify", "expect_numbers", "find_examples", "main",
            "paper_numbers", "remake_reports", "report_folders", "reproduce", "run_example", "study_paper_numbers",
            "verdict_of", "write_index", "write_manifest"]

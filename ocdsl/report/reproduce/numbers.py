@@ -8,7 +8,7 @@ from typing import Any
 
 from ocdsl.report.reproduce.examples import GOOD, REPORTS
 from ocdsl.report.reproduce.references import (
-    AGREES, DIFFERS, NOT_REPRODUCED, PAPER_TABLES, PRINTED_EXTRA, REFERENCES, REPRODUCED, SHOWN_WRONG)
+    AGREES, BETTER, DIFFERS, NOT_REPRODUCED, PAPER_TABLES, PRINTED_EXTRA, REFERENCES, REPRODUCED, SHOWN_WRONG)
 
 
 # ================================================================================= index
@@ -32,7 +32,9 @@ def verdict_of(kind: str, passed: bool | None, compare: str, value: Any, referen
         beyond = (compare == "at_most" and v < r - band) or (compare == "at_least" and v > r + band)
     except (TypeError, ValueError):
         pass
-    if wrong and value is not None and (not passed or beyond):     # no value: nothing shown
+    if wrong and value is not None and beyond:
+        return BETTER
+    if wrong and value is not None and not passed:     # no value: nothing shown
         return SHOWN_WRONG
     return REPRODUCED if passed else NOT_REPRODUCED
 
@@ -46,7 +48,7 @@ def _row(study: str, quantity: str, ref: dict[str, str], reference: Any, value: 
     return {"study": study, "quantity": quantity, "kind": kind, "source": ref.get("source", ""),
             "paper": reference if kind == "paper" else None, "other": reference if kind != "paper" else None,
             "ocdsl": value, "error": error, "passed": passed, "compare": compare, "tolerance": tolerance,
-            "verification": verification, "verdict": verdict, "test": wrong if verdict == SHOWN_WRONG else None,
+            "verification": verification, "verdict": verdict, "test": wrong if verdict in (SHOWN_WRONG, BETTER) else None,
             "report_link": link}
 
 
