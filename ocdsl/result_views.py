@@ -97,7 +97,8 @@ class ResultViews:
     # ---- values between the rows ---------------------------------------------------------
     def sample(self, t, phase: str | None = None) -> dict[str, np.ndarray]:
         """States and controls at the times ``t`` (a number or an array) of ``phase`` (default:
-        the first). Controls follow the run's documented interpolation, clipped to their bounds,
+        the first), inside its span (a time outside it is a ValueError naming the phase that
+        holds it: it extrapolated, 183 m on a 10 m track, unseen52 F1). Controls follow the run's documented interpolation, clipped to their bounds,
         exactly as the verification reads them (:mod:`ocdsl.verify.interpolate`); states are
         each segment's polynomial through its rows (``lagrange-segments``: a pseudospectral
         state is that polynomial), else a cubic spline through the rows.
@@ -113,6 +114,7 @@ class ResultViews:
 
         traj = self.phase(phase)
         tt = np.atleast_1d(np.asarray(t, float))
+        _within_span(self, traj, tt)
         bounds = ((self.problem.get("phases") or {}).get(traj.name, {}).get("bounds")) or {}
         spec = declared_interpolation(traj, self.method)
         out: dict[str, np.ndarray] = {"t": tt}
@@ -244,6 +246,25 @@ def expect_error_text(check: dict[str, Any]) -> str:
         return f"relative error {check['relative_error']:.2e}, rtol {check['rtol']:.1e}"
     limit = f", atol {check['atol']:.1e}" if check.get("atol") is not None else ""
     return f"error {check['error']:.2e}{limit}"
+
+
+def _within_span(result, traj, tt: np.ndarray) -> None:
+    """A ValueError for times outside ``traj``'s span (to 1e-9 of it), naming the phase whose
+    span holds them where one does."""
+    time = np.asarray(traj.time, float)
+    time = time[np.isfinite(time)]
+    if not len(time):
+        return
+    lo, hi = float(time[0]), float(time[-1])
+    slack = 1e-9 * max(1.0, abs(hi - lo), abs(lo), abs(hi))
+    out = tt[(tt < lo - slack) | (tt > hi + slack)]
+    if not len(out):
+        return
+    first = float(out[0])
+    holder = next((p.name for p in result.phases if p is not traj and len(p.time)
+                   and float(np.nanmin(p.time)) - slack <= first <= float(np.nanmax(p.time)) + slack), None)
+    raise ValueError(f"t = {first:g} is outside phase {traj.name!r}'s span [{lo:g}, {hi:g}]: sample() does not "
+                     "extrapolate" + (f"; phase {holder!r} holds it: sample(t, phase={holder!r})" if holder else ""))
 
 
 def _states_at(traj, tt: np.ndarray, spec: dict) -> dict[str, np.ndarray]:

@@ -125,3 +125,22 @@ def test_docstring_examples(tmp_path):
     finally:
         os.chdir(cwd)
     assert tried >= 10 and failures == 0
+
+
+def test_sample_does_not_extrapolate_and_names_the_phase_that_holds_the_time():
+    """unseen52 F1: sample(2) of the first phase of a two-phase run (span [0, 1]) gave the
+    polynomial's extrapolation (x = 1, v = 2 for 0, 0), and the brachistochrone at t = 5 put
+    x at 183 m on a 10 m track."""
+    import numpy as np
+
+    from ocdsl.result import PhaseTrajectory, Result
+
+    a = PhaseTrajectory("accelerate", np.array([0.0, 0.5, 1.0]), states={"x": np.array([0.0, 0.25, 1.0])})
+    b = PhaseTrajectory("brake", np.array([1.0, 1.5, 2.0]), states={"x": np.array([1.0, 1.75, 2.0])})
+    res = Result("two", "optimal", phases=[a, b])
+    assert res.sample(0.5)["x"] == pytest.approx([0.25])
+    with pytest.raises(ValueError, match=r"t = 2 is outside phase 'accelerate'.*phase 'brake' holds it"):
+        res.sample(2.0)
+    assert res.sample(2.0, phase="brake")["x"] == pytest.approx([2.0])
+    with pytest.raises(ValueError, match="t = 5 is outside phase 'brake'"):
+        res.sample([1.5, 5.0], phase="brake")
