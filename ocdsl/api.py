@@ -50,6 +50,33 @@ class Timer:
         return out
 
 
+def parameter_values(parameters: dict | None) -> dict[str, float]:
+    """``parameters`` as numbers, each a finite number or a constant expression (`"1/9"`), as
+    `--param` takes them (unseen52 F7: `{"l": "1/9"}` was a bare "could not convert string to
+    float" traceback); a ValueError naming the parameter otherwise."""
+    from .spec.expr import constant_value
+
+    out = {}
+    for name, value in (parameters or {}).items():
+        try:
+            out[name] = constant_value(value)
+        except ValueError:
+            raise ValueError(f"parameters[{name!r}] = {value!r} is not a finite number or a constant expression "
+                             "such as 1/9 or 2*pi") from None
+    return out
+
+
+def _check_warm_start(warm_start) -> None:
+    """A ValueError where ``warm_start`` is given and is no usable run folder."""
+    if warm_start is None:
+        return
+    from .result import warm_start_refusal
+
+    why = warm_start_refusal(warm_start)
+    if why:
+        raise ValueError(f"warm_start {warm_start}: {why}")
+
+
 def compile_file(path: str | Path, parameters: dict[str, float] | None = None,
                  timer: Timer | None = None, *, text: str | None = None) -> spec_compile.LoadedFile:
     """Parse and compile a problem file; raises SpecError with every problem found.
@@ -59,7 +86,7 @@ def compile_file(path: str | Path, parameters: dict[str, float] | None = None,
         located = load_yaml(path) if text is None else load_yaml_text(text, str(path))
         spec, issues = spec_compile.validate_all(located)
     with timer.measure("symbolic"):
-        return spec_compile.compile_spec(Path(path), located, spec, issues, dict(parameters or {}))
+        return spec_compile.compile_spec(Path(path), located, spec, issues, parameter_values(parameters))
 
 
 class Loaded:
@@ -69,7 +96,7 @@ class Loaded:
         self.path = Path(path)
         self.timer = Timer()
         self.file = compile_file(path, parameters, self.timer)
-        self._parameters = dict(parameters or {})
+        self._parameters = parameter_values(parameters)
         self._reuse = None          # ocdsl.solve.reuse.ModelReuse, made on the first reuse=True
 
     @property
@@ -87,11 +114,14 @@ class Loaded:
         same structure (ocdsl/solve/reuse.py); else, and always as a fallback, build afresh.
 
         ``out``: the run folder, refused before the solve if ocdsl may not write there
-        (ocdsl/run_folder.py); ``force`` replaces an ocdsl folder of another kind."""
+        (ocdsl/run_folder.py); ``force`` replaces an ocdsl folder of another kind. A
+        ``warm_start`` that is no usable run folder is a ValueError before any work."""
+        _check_warm_start(warm_start)
         if out is not None:
             run_folder.check_destination(out, "run", force=force)
         timer, file = Timer(), self.file
         if parameters:
+            parameters = parameter_values(parameters)
             with timer.measure("symbolic"):
                 merged = {**self._parameters, **parameters}
                 file = spec_compile._Compiler(self.path, file.located, file.spec, merged).compile()
@@ -284,6 +314,7 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     it is the caller's input that is wrong, not the run. ``force`` replaces an ocdsl
     folder of another kind (never files ocdsl did not write).
     """
+    _check_warm_start(warm_start)
     timer = Timer()
     file = compile_file(path, parameters, timer)
     if warm_start is not None and getattr(file.method, "transcription", None) == "flat-bspline":

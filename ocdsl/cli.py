@@ -50,17 +50,9 @@ def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
 
 
 def _constant(text: str) -> float:
-    import math
+    from .spec.expr import constant_value
 
-    try:
-        value = float(text)
-    except ValueError:
-        pass
-    else:
-        # `inf`, `nan`, `1e400` were taken, then blamed on the file's valid line (unseen40 F3)
-        if not math.isfinite(value):
-            raise ValueError(text)
-        return value
+    return constant_value(text)
     from .spec.expr import ExprError, Scope, parse_expression
 
     try:
@@ -140,12 +132,9 @@ def run(file, out, params, seed, warm_start, report, verbose, quiet, force, time
 def _check_warm_start(folder: Path) -> None:
     """A warm start is a run folder with a trajectory; anything else is a usage error before
     any work (unseen12 F7: a failed run folder was written, exit 1)."""
-    from .result import unusable_start
+    from .result import warm_start_refusal
 
-    if not (folder / "result.json").is_file():
-        raise _SpecFailure(f"--warm-start {folder}: not a run folder (no result.json)"
-                           + ("; a study's points are run folders of their own" if (folder / "points").is_dir() else ""))
-    why = unusable_start(folder)
+    why = warm_start_refusal(folder)
     if why:
         raise _SpecFailure(f"--warm-start {folder}: {why}")
 

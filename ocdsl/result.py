@@ -290,6 +290,17 @@ def _column(values) -> np.ndarray:
     return a if a.dtype.kind in "USiub" else a.astype(str) if a.dtype.kind == "O" else a.astype(float)
 
 
+def warm_start_refusal(folder: str | os.PathLike) -> str | None:
+    """Why ``folder`` cannot be a warm start (not a run folder, or ``unusable_start``), or
+    None; the command line and the Python API say the same (unseen52 F8: the API raised a raw
+    FileNotFoundError naming the missing result.json)."""
+    folder = Path(folder)
+    if not (folder / "result.json").is_file():
+        return ("not a run folder (no result.json)"
+                + ("; a study's points are run folders of their own" if (folder / "points").is_dir() else ""))
+    return unusable_start(folder)
+
+
 def unusable_start(run_dir: str | os.PathLike) -> str | None:
     """Why the run folder ``run_dir`` cannot start another run (``--warm-start``, ``guess:
     {from:}``), or None: its result.json or trajectory unreadable, no trajectory, a column that

@@ -144,3 +144,23 @@ def test_sample_does_not_extrapolate_and_names_the_phase_that_holds_the_time():
     assert res.sample(2.0, phase="brake")["x"] == pytest.approx([2.0])
     with pytest.raises(ValueError, match="t = 5 is outside phase 'brake'"):
         res.sample([1.5, 5.0], phase="brake")
+
+
+def test_the_api_takes_parameters_as_the_command_line_does_and_refuses_clearly(configs, tmp_path):
+    """unseen52 F7, F8: `parameters={"l": "1/9"}` was a bare "could not convert string to
+    float" (the command line takes `--param l=1/9`), and a warm start from a missing folder a
+    raw FileNotFoundError naming the result.json inside it."""
+    import ocdsl
+
+    bd = configs / "brachistochrone.yaml"
+    assert ocdsl.load(bd, {"g": "98/10"}).file.parameters == ocdsl.load(bd, {"g": 9.8}).file.parameters
+    with pytest.raises(ValueError, match=r"parameters\['g'\] = '1/9x' is not a finite number"):
+        ocdsl.load(bd, {"g": "1/9x"})
+    with pytest.raises(ValueError, match=r"parameters\['g'\] = inf"):
+        ocdsl.load(bd).solve(parameters={"g": float("inf")})
+    with pytest.raises(ValueError, match="not a run folder \\(no result.json\\)"):
+        ocdsl.load(bd).solve(warm_start=tmp_path / "nowhere")
+    from ocdsl.api import run_file
+
+    with pytest.raises(ValueError, match="not a run folder"):
+        run_file(bd, None, warm_start=tmp_path / "nowhere")

@@ -497,3 +497,37 @@ class _Builder:
             return self.scope.boundary(phase, var, node.args[0].id)
         except ExprError as e:
             raise self.fail(e.message) from None
+
+
+def constant_value(value) -> float:
+    """A parameter's value given outside a file (`--param`, the Python API's ``parameters=``): a
+    finite number, or a constant expression of the problem language (`1/9`, `2*pi`,
+    `sqrt(2)`); a ValueError otherwise. `inf`, `nan` and `1e400` are refused (unseen40 F3)."""
+    import math
+
+    if not isinstance(value, str):
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(repr(value)) from None
+        if not math.isfinite(number):
+            raise ValueError(repr(value))
+        return number
+    try:
+        number = float(value)
+    except ValueError:
+        pass
+    else:
+        if not math.isfinite(number):
+            raise ValueError(value)
+        return number
+    try:
+        e = parse_expression(value.strip(), Scope(names={}))
+    except (ExprError, SyntaxError, TypeError, ValueError):
+        raise ValueError(value) from None
+    if e.free_symbols:
+        raise ValueError(value)
+    number = float(e)
+    if not math.isfinite(number):
+        raise ValueError(value)
+    return number
