@@ -526,3 +526,22 @@ def test_an_unsolved_points_objective_is_labelled_in_the_study_table():
     assert _objective_cell({"status": "feasible", "objective": 4.0}) == "4"
     assert _objective_cell({"status": "optimal", "objective": 1.5}) == "1.5"
     assert _objective_cell({"status": "error", "objective": None}) == ""
+
+
+def test_a_worker_lost_under_a_script_names_the_main_guard(monkeypatch, tmp_path):
+    """unseen52 F3: `run_study(..., workers=2)` at a script's top level without the
+    `__main__` guard: every worker imported the script and started the study again, every
+    point was "the worker process died", and nothing named the script."""
+    import sys
+    import types
+
+    from ocdsl.study.executor import _unguarded_script_hint
+
+    script = types.ModuleType("__main__")
+    script.__file__ = str(tmp_path / "sweep.py")
+    script.__spec__ = None
+    monkeypatch.setitem(sys.modules, "__main__", script)
+    assert "guard it with `if __name__ == \"__main__\":`" in _unguarded_script_hint()
+    assert str(tmp_path / "sweep.py") in _unguarded_script_hint()
+    script.__spec__ = types.SimpleNamespace(name="pkg.mod")        # `python -m`: no script to guard
+    assert _unguarded_script_hint() == ""

@@ -335,7 +335,7 @@ class Executor:
                 f: cf.Future = cf.Future()
                 f.set_exception(WorkerLost(
                     f"the worker process died while running this task alone "
-                    f"({h.attempts} attempts)"))
+                    f"({h.attempts} attempts){_unguarded_script_hint()}"))
                 h.fut = f
             else:
                 h.fut = None
@@ -436,6 +436,21 @@ class Executor:
     def __exit__(self, *exc: Any) -> None:
         self.close(kill=exc[0] is not None)
 
+
+
+def _unguarded_script_hint() -> str:
+    """Where the parent runs a script: the workers import it, and a top level that starts
+    the study again kills each of them while it starts (unseen52 F3: every point "the worker
+    process died", the study "complete", exit 0, nothing about the script)."""
+    import sys
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if not path or getattr(main, "__spec__", None) is not None:     # `python -m`, or no script
+        return ""
+    return (f"; if the script {path} starts the study at its top level, guard it with "
+            "`if __name__ == \"__main__\":` (worker processes import the script, and each would start "
+            "it again)")
 
 def _broken(fut: Any) -> bool:
     if not fut.done() or fut.cancelled():
