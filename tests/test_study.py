@@ -545,3 +545,21 @@ def test_a_worker_lost_under_a_script_names_the_main_guard(monkeypatch, tmp_path
     assert str(tmp_path / "sweep.py") in _unguarded_script_hint()
     script.__spec__ = types.SimpleNamespace(name="pkg.mod")        # `python -m`: no script to guard
     assert _unguarded_script_hint() == ""
+
+
+def test_the_executor_example_of_the_docs_runs_as_written(tmp_path):
+    """unseen52 F2: the docs' executor example stopped with NameError (undefined names) and,
+    completed but unguarded, lost every worker. Run here as the docs print it, in a process
+    of its own, with two workers."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "docs" / "studies.md").read_text()
+    block = re.search(r"## For other features: the executor.*?```python\n(.*?)```", text, re.S).group(1)
+    script = tmp_path / "example.py"
+    script.write_text(block)
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[25, 49, 1]"
