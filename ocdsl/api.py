@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 
+import functools
+import threading
+
 from . import run_folder
 from .chain import stages as chain_stages
 from .result import Result
@@ -66,6 +69,21 @@ def parameter_values(parameters: dict | None) -> dict[str, float]:
     return out
 
 
+# a solve redirects the process's standard streams and file descriptors (Ipopt's output, the
+# progress line) and sets process-wide state (the cache switch, Pyomo's loggers): solves
+# from several threads broke each other and left stdout redirected (unseen52 F5), so they
+# run one at a time in a process; parallel solves are the executor's processes
+_SOLVE_LOCK = threading.RLock()
+
+
+def _one_at_a_time(fn):
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with _SOLVE_LOCK:
+            return fn(*args, **kwargs)
+    return wrapper
+
+
 def _check_warm_start(warm_start) -> None:
     """A ValueError where ``warm_start`` is given and is no usable run folder."""
     if warm_start is None:
@@ -103,6 +121,7 @@ class Loaded:
     def problem(self):
         return self.file.problem
 
+    @_one_at_a_time
     def solve(self, out: str | Path | None = None, *, parameters: dict[str, float] | None = None,
               seed: int | None = None, warm_start: str | Path | None = None, verbose: bool = False,
               progress: bool = False, reuse: bool = False, force: bool = False) -> Result:
@@ -304,6 +323,7 @@ def _complete_run(folder: Path) -> bool:
         return False
 
 
+@_one_at_a_time
 def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str, float] | None = None,
              seed: int | None = None, warm_start: str | Path | None = None, quiet: bool = True,
              verbose: bool = False, force: bool = False, time_limit: float | None = None) -> Result:

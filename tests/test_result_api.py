@@ -164,3 +164,21 @@ def test_the_api_takes_parameters_as_the_command_line_does_and_refuses_clearly(c
 
     with pytest.raises(ValueError, match="not a run folder"):
         run_file(bd, None, warm_start=tmp_path / "nowhere")
+
+
+def test_solves_from_threads_run_one_at_a_time_and_leave_the_streams_alone(configs):
+    """unseen52 F5: four solves from four threads all ended `error` (each `optimal` alone),
+    and the process's stdout stayed redirected afterwards."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    import ocdsl
+
+    before = os.readlink("/proc/self/fd/1") if os.path.exists("/proc/self/fd/1") else None
+    files = [configs / "brachistochrone.yaml", configs / "double_integrator.yaml", configs / "brachistochrone.yaml"]
+    with ThreadPoolExecutor(3) as ex:
+        results = list(ex.map(lambda p: ocdsl.load(p).solve(), files))
+    assert [r.status for r in results] == ["optimal"] * 3, [r.message for r in results]
+    assert results[0].objective == pytest.approx(results[2].objective, rel=1e-12)
+    if before is not None:
+        assert os.readlink("/proc/self/fd/1") == before
