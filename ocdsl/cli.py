@@ -53,18 +53,6 @@ def _constant(text: str) -> float:
     from .spec.expr import constant_value
 
     return constant_value(text)
-    from .spec.expr import ExprError, Scope, parse_expression
-
-    try:
-        e = parse_expression(text.strip(), Scope(names={}))
-    except (ExprError, SyntaxError, TypeError, ValueError):
-        raise ValueError(text) from None
-    if e.free_symbols:
-        raise ValueError(text)
-    value = float(e)
-    if not math.isfinite(value):
-        raise ValueError(text)
-    return value
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
