@@ -34,6 +34,8 @@ def _compile_or_exit(fn, *args, **kwargs):
 def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
     """NAME=VALUE pairs; VALUE a number or a constant expression of the problem language
     (`1/9`, `2*pi`, `sqrt(2)`), as a file's parameters may be written (unseen20)."""
+    from .spec.expr import constant_value
+
     out = {}
     for item in items:
         name, sep, value = item.partition("=")
@@ -42,17 +44,11 @@ def _parse_params(items: tuple[str, ...]) -> dict[str, float]:
         try:
             if not sep or not name.strip():
                 raise ValueError
-            out[name.strip()] = _constant(value)
+            out[name.strip()] = constant_value(value)
         except ValueError:
             raise click.BadParameter(f"'{item}' is not NAME=NUMBER (a finite number or a constant "
                                      "expression such as 1/9 or 2*pi)", param_hint="--param") from None
     return out
-
-
-def _constant(text: str) -> float:
-    from .spec.expr import constant_value
-
-    return constant_value(text)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
