@@ -334,7 +334,6 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
     it is the caller's input that is wrong, not the run. ``force`` replaces an ocdsl
     folder of another kind (never files ocdsl did not write).
     """
-    _check_warm_start(warm_start)
     timer = Timer()
     file = compile_file(path, parameters, timer)
     if warm_start is not None and getattr(file.method, "transcription", None) == "flat-bspline":
@@ -344,6 +343,7 @@ def run_file(path: str | Path, out_dir: str | Path | None, parameters: dict[str,
         raise SpecError([Issue(str(path), file.located.line(("method",)),
                                "--warm-start: flat-bspline takes no warm start; run without it (the "
                                "flat NLP starts from the file's guess)")])
+    _check_warm_start(warm_start)
     if out_dir is not None:
         run_folder.check_destination(out_dir, "run", force=force)
     with ExitStack() as scope:
