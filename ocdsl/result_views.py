@@ -98,7 +98,8 @@ class ResultViews:
     def sample(self, t, phase: str | None = None) -> dict[str, np.ndarray]:
         """States and controls at the times ``t`` (a number or an array) of ``phase`` (default:
         the first), inside its span (a time outside it is a ValueError naming the phase that
-        holds it: it extrapolated, 183 m on a 10 m track, unseen52 F1). Controls follow the run's documented interpolation, clipped to their bounds,
+        holds it: it extrapolated, 183 m on a 10 m track, unseen52 F1). Controls follow the
+        run's documented interpolation, clipped to their bounds,
         exactly as the verification reads them (:mod:`ocdsl.verify.interpolate`); states are
         each segment's polynomial through its rows (``lagrange-segments``: a pseudospectral
         state is that polynomial), else a cubic spline through the rows.

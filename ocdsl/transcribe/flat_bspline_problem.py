@@ -434,7 +434,8 @@ def singularity_hint(mp: "_Mapped", problem) -> str:
     said = []
     for ph in problem.phases:
         fm = mp.flatmaps[ph.name]
-        in_path = set().union(*(c.expr.free_symbols for c in getattr(ph, "path", []))) if getattr(ph, "path", None) else set()
+        path = getattr(ph, "path", None) or []
+        in_path = set().union(*(c.expr.free_symbols for c in path)) if path else set()
         for x, expr in fm.states.items():
             if isinstance(expr, sp.atan2) and (x in getattr(ph, "state_bounds", {}) or x in in_path):
                 # a bound on an atan2 state is imposed on its principal value: a 270-degree turn

@@ -48,7 +48,8 @@ def _row(study: str, quantity: str, ref: dict[str, str], reference: Any, value: 
     return {"study": study, "quantity": quantity, "kind": kind, "source": ref.get("source", ""),
             "paper": reference if kind == "paper" else None, "other": reference if kind != "paper" else None,
             "ocdsl": value, "error": error, "passed": passed, "compare": compare, "tolerance": tolerance,
-            "verification": verification, "verdict": verdict, "test": wrong if verdict in (SHOWN_WRONG, BETTER) else None,
+            "verification": verification, "verdict": verdict,
+            "test": wrong if verdict in (SHOWN_WRONG, BETTER) else None,
             "report_link": link}
 
 
