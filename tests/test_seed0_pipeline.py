@@ -37,7 +37,7 @@ def main_run(tmp_path_factory):
 def test_main_scenario_and_certificate(main_run):
     res, _ = main_run
     _the_meshs_optimum(res)
-    assert abs(res.tf - 25.8727) <= 5e-4
+    assert abs(res.tf - 25.8727) <= 5e-5          # half the printed last digit (unseen51 F1)
     assert abs(res.extra["bisection"]["levels"][0]["objective"] - 25.870465) <= 5e-5
     cert = res.certificate
     assert abs(cert["hamiltonian"]["mean"] + 1) <= 2e-3
@@ -90,7 +90,7 @@ def test_fine_mesh_warm_start(main_run):
 def test_exact_euler_form():
     res = ocdsl.load(CONFIGS / "seed0_exact_euler.yaml").solve()
     _the_meshs_optimum(res)
-    assert abs(res.tf - 25.8731) <= 5e-4
+    assert abs(res.tf - 25.873064) <= 5e-7        # the digest's 6 decimals (unseen51 F1)
 
 
 @pytest.mark.parametrize("x0,y0,z0,paper,mode", [
