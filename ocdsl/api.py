@@ -6,17 +6,15 @@
 """
 from __future__ import annotations
 
+import functools
 import json
 import tempfile
+import threading
 import time
 import traceback
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-
-
-import functools
-import threading
 
 from . import run_folder
 from .chain import stages as chain_stages

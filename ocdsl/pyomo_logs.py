@@ -9,6 +9,8 @@ fixed ones, which it skips; printed before the status line it read as a problem,
 from __future__ import annotations
 
 import logging
+from contextlib import contextmanager
+from typing import Iterator
 
 
 class _ScalingSuffixNote(logging.Filter):
@@ -21,3 +23,16 @@ def quiet() -> None:
     writer = logging.getLogger("pyomo.repn.plugins.nl_writer")
     if not any(isinstance(f, _ScalingSuffixNote) for f in writer.filters):
         writer.addFilter(_ScalingSuffixNote())
+
+
+@contextmanager
+def evaluation_unlogged() -> Iterator[None]:
+    """Pyomo logs an expression it cannot evaluate, whole ("ERROR: evaluating object as
+    numeric value: ..."), before it raises: where ocdsl reports the failure in its own words,
+    the log stays off the console."""
+    log = logging.getLogger("pyomo.common.numeric_types")
+    was, log.disabled = log.disabled, True
+    try:
+        yield
+    finally:
+        log.disabled = was

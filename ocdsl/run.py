@@ -353,18 +353,15 @@ def _result(file: LoadedFile, tr, info, timer, meshes, *, always_fly: bool = Fal
 def _value(v) -> float:
     """A scalar's value, NaN where it has none (an integral of log(x - 2.5) at a guess with
     x = 0, a run that stopped at the guess): never a raw "math domain error" from Pyomo."""
-    import logging
-
     import pyomo.core as pyo
 
-    log = logging.getLogger("pyomo.common.numeric_types")     # its "ERROR: evaluating object" line
-    was, log.disabled = log.disabled, True
-    try:
-        return float(pyo.value(v))
-    except (ValueError, ArithmeticError, TypeError):
-        return math.nan
-    finally:
-        log.disabled = was
+    from .pyomo_logs import evaluation_unlogged
+
+    with evaluation_unlogged():
+        try:
+            return float(pyo.value(v))
+        except (ValueError, ArithmeticError, TypeError):
+            return math.nan
 
 
 def boundary_multipliers(tr) -> list[dict]:

@@ -221,15 +221,12 @@ def _simulate(plant, controller, z0, index, Q, R, horizon, dt, update, integrato
         worst = int(np.argmax(ratio)) if ratio.size else 0
         xf = float(ratio[worst]) if ratio.size else 0.0
         name = names[int(idx[worst])] if names is not None and ratio.size else f"state {int(idx[worst]) + 1}"
-        j = int(idx[worst]) if ratio.size else 0
-        start, end, peak = (float(abs(Z[0, j])), float(abs(Z[-1, j])), float(scale[worst])) if ratio.size \
-            else (0.0, 0.0, 0.0)
-        before = float(np.max(X[:tail.start, worst])) if ratio.size and tail.start > 0 else peak
-        if xf > stable_ratio and end >= GROWING_END * peak and peak > GROWING_RISE * max(before, start):
+        if xf > stable_ratio and (growing := _growing(Z, [int(idx[worst])], tail.start)) is not None:
             # at its largest when the horizon ends and far above anything before the last tenth:
             # a longer horizon cannot show it regulating (unseen41 F3: x' = x + u, |u| <= 1 from
             # x = 2, "a longer `simulate.horizon` shows whether it regulates"); an undamped swing
             # ending on its peak is not growing
+            _, start, end = growing
             status = "unstable"
             message = (f"|{name}| grows from {start:.3g} to {end:.3g}, its largest at the end of the horizon: "
                        f"the loop diverges from this start")

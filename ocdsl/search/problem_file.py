@@ -57,24 +57,17 @@ def _control_bounds(file, result: Result) -> None:
     problem states (``-1 <= u <= 1``) is no feasible trajectory of the problem (unseen19 F2:
     `feasible`, u up to 5.14, the verification failing on the mesh). It becomes `infeasible`,
     saying which control and how far."""
-    import numpy as np
+    from .run import controls_outside_bounds
 
     if result.status != "feasible":
         return
     tol = float(file.spec.verify.tolerance)
     out = []
     for ph, traj in zip(file.problem.phases, result.phases):
-        for c in ph.controls:
-            lo, hi = (float(b) for b in ph.control_bounds.get(c, (-np.inf, np.inf)))
-            u = np.asarray(traj.controls.get(c.name, []), float)
-            u = u[np.isfinite(u)]
-            if not len(u) or not (np.isfinite(lo) or np.isfinite(hi)):
-                continue
-            scale = max(hi - lo if np.isfinite(hi - lo) else 0.0, float(np.max(np.abs(u))), 1.0)
-            over = float(max(np.max(lo - u), np.max(u - hi), 0.0))
-            if over > tol * scale:
-                out.append(f"{c.name} reaches {float(np.min(u)):.6g} .. {float(np.max(u)):.6g} against "
-                           f"{lo:g} <= {c.name} <= {hi:g}")
+        bounds = {c.name: ph.control_bounds.get(c) for c in ph.controls}
+        for name, (a, b) in controls_outside_bounds(ph, traj.controls, tol).items():
+            lo, hi = (float(v) for v in bounds[name])
+            out.append(f"{name} reaches {a:.6g} .. {b:.6g} against {lo:g} <= {name} <= {hi:g}")
     if out:
         result.status = "infeasible"
         result.message = (f"{result.message}; but the series control leaves the problem's bounds ({'; '.join(out)}): "

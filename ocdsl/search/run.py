@@ -307,21 +307,28 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
                   if feasible else None)
 
 
-def _control_excess(pp: ParametricProblem, problem, x: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Control -> (min, max) of its series along the flight of ``x``, for each control that
-    leaves a bound the problem states (beyond 1e-6 of its range or size)."""
-    ph = problem.phases[0]
-    _, U = pp.trajectory(x)
+def controls_outside_bounds(ph, controls: dict, tol: float) -> dict[str, tuple[float, float]]:
+    """Control name -> (min, max) of its values in ``controls`` (name -> values), for each
+    control of phase ``ph`` that leaves a bound the problem states by more than ``tol`` of its
+    range (or of its size, or 1)."""
     out = {}
-    for j, c in enumerate(pp.model.controls):
+    for c in ph.controls:
         lo, hi = (float(b) for b in ph.control_bounds.get(c, (-math.inf, math.inf)))
-        u = U[:, j][np.isfinite(U[:, j])]
+        u = np.asarray(controls.get(c.name, []), float)
+        u = u[np.isfinite(u)]
         if not len(u) or not (math.isfinite(lo) or math.isfinite(hi)):
             continue
         scale = max(hi - lo if math.isfinite(hi - lo) else 0.0, float(np.max(np.abs(u))), 1.0)
-        if max(float(np.max(lo - u)), float(np.max(u - hi)), 0.0) > 1e-6 * scale:
+        if max(float(np.max(lo - u)), float(np.max(u - hi)), 0.0) > tol * scale:
             out[c.name] = (float(np.min(u)), float(np.max(u)))
     return out
+
+
+def _control_excess(pp: ParametricProblem, problem, x: np.ndarray) -> dict[str, tuple[float, float]]:
+    """``controls_outside_bounds`` of the flight of ``x``, beyond 1e-6."""
+    _, U = pp.trajectory(x)
+    return controls_outside_bounds(problem.phases[0], {c.name: U[:, j] for j, c in enumerate(pp.model.controls)},
+                                   1e-6)
 
 
 def _within_control_bounds(pp: ParametricProblem, problem, x_best: np.ndarray, stages: list) -> tuple:

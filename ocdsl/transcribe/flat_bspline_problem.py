@@ -34,6 +34,7 @@ import time as _time
 import numpy as np
 import sympy as sp
 
+from ..pyomo_logs import evaluation_unlogged
 from ..result import PhaseTrajectory, Result
 from ..symbolic.flatness import FlatnessError, flatten
 from ..symbolic.model import TIME
@@ -360,7 +361,7 @@ def run_flat_file(file, timer, *, seed=None, warm_start=None, verbose=False, pro
                                       flies=lambda info: _flies(file, mp, nlp, info))
     with timer.measure("post"):
         try:
-            with _pyomo_evaluation_errors_unlogged():
+            with evaluation_unlogged():
                 try:
                     result = solved_result(file, mp, nlp, info)
                 except (ZeroDivisionError, OverflowError) as e:
@@ -573,25 +574,6 @@ def _unwrapped(ph, control, values: np.ndarray, expr) -> np.ndarray:
         if np.all(shifted >= lo - 1e-12) and np.all(shifted <= hi + 1e-12):
             return shifted
     return min(shifts, key=lambda a: int(np.sum(np.abs(a) > np.pi)))
-
-
-class _pyomo_evaluation_errors_unlogged:
-    """Pyomo logs an expression it cannot evaluate, whole, before raising: the failure is
-    reported in ocdsl's words, so the log stays off the console."""
-
-    def __enter__(self):
-        import logging
-
-        class Drop(logging.Filter):
-            def filter(self, record):
-                return not record.getMessage().startswith("evaluating object as numeric value")
-
-        self.logger, self.drop = logging.getLogger("pyomo.common.numeric_types"), Drop()
-        self.logger.addFilter(self.drop)
-
-    def __exit__(self, *exc):
-        self.logger.removeFilter(self.drop)
-        return False
 
 
 def _solve_starts(nlp, method, options, sense: str, seed: int, verbose: bool, progress: bool, flies=None):

@@ -19,7 +19,7 @@ import sympy as sp
 from ..symbolic.model import TIME
 from ..symbolic.numbers import substitute_numbers
 from ..symbolic.numeric import family
-from .checks import evaluate
+from .checks import evaluate, sensitivity_scale
 
 EXPAND_LIMIT = 200       # operations above which an expression's terms are its top-level ones
 
@@ -89,25 +89,17 @@ def objective_scale(problem, result) -> float:
         for term in additive_terms(J):
             if term.free_symbols & set(integral_terms):
                 continue
-            total += max(abs(evaluate(term, point)), _first_order(term, point, state_ranges))
+            # a term in a state's end value is at least what it moves when the state moves by
+            # its range: the end value is the start plus the rate's integral, and those are J's
+            # terms as much as an integrand's are (Aly and Chan's x3(t_f), an integral written
+            # as a state, is 0 at the optimum while x3 spans 0.25; against |x3(t_f)| alone every
+            # mesh's J of 1e-10 "moved" by its whole size: unseen41 F1)
+            total += max(abs(evaluate(term, point)), sensitivity_scale(term, point, state_ranges))
         for s, terms in integral_terms.items():
             total += abs(evaluate(sp.diff(J, s), point)) * terms
         return float(total)
     except Exception:  # noqa: BLE001  (a scale it cannot make leaves the checks as they were)
         return math.nan
-
-
-def _first_order(term: sp.Expr, point: dict, state_ranges: dict) -> float:
-    """What ``term`` moves when each state value in it moves by that state's range over its
-    phase: a state's end value is its start plus its rate's integral, and those are J's terms
-    as much as an integrand's are. Aly and Chan's x3(t_f) (an integral written as a state) is
-    0 at the optimum while x3 spans 0.25 on the way; measured against |x3(t_f)| alone, every
-    mesh's J of 1e-10 "moved" by its whole size (unseen41 F1)."""
-    total = 0.0
-    for s in term.free_symbols & set(state_ranges):
-        d = abs(evaluate(sp.diff(term, s), point))
-        total += d * state_ranges[s] if math.isfinite(d) else 0.0
-    return total
 
 
 def objective_size(objective: float | None, scale: float | None) -> float:
