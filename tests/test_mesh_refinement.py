@@ -1332,3 +1332,32 @@ def test_the_two_link_arm_is_verified_without_a_sliver_segment():
     assert res.tf == pytest.approx(2.98227994, rel=1e-8)
     bps = np.asarray(res.method["meshes"]["main"]["breakpoints"], float)
     assert np.min(np.diff(bps)) > 1e-7
+
+
+def test_a_coarsened_mesh_at_another_optimum_ends_the_refinement():
+    """A coarsened mesh whose J is far from the converged mesh's (more than LEFT_THE_OPTIMUM
+    tolerances) solved to another optimum: refining it only finds the way back."""
+    from ocdsl.solve.mesh.drive import _left_the_optimum
+
+    assert _left_the_optimum(28.852208, 28.630407, 1e-6)            # unseen48 F2's coarsened mesh
+    assert not _left_the_optimum(28.630409, 28.630407, 1e-6)        # a coarsening that missed by its error
+    assert not _left_the_optimum(None, 28.630407, 1e-6)
+    assert _left_the_optimum(2e-4, 0.0, 1e-6) and not _left_the_optimum(5e-5, 0.0, 1e-6)
+
+
+@pytest.mark.slow
+def test_the_reorientation_stops_where_its_coarsened_mesh_leaves_the_optimum():
+    """Betts' minimum-time reorientation (ex. 6.12, tf* = 28.6304077) from a random guess with
+    4 starts (unseen48 F2): mesh 4 converged (1,014 variables), its coarsened mesh solved to
+    another optimum (J 28.66-28.85) and the refinement went on from there, 6,726 Ipopt
+    iterations and 75 s in all, one warm start running 5,100 iterations with the multipliers
+    where the same point without them solved in 281. Now the refinement ends at the coarsened
+    mesh, and a start from the multipliers stops at a few times the mesh before's iterations."""
+    from pathlib import Path
+
+    res = ocdsl.load(Path(__file__).parent / "data" / "reorientation_mesh.yaml").solve()
+    assert res.status == "optimal" and res.ok and res.verified
+    assert res.tf == pytest.approx(28.6304077, rel=1e-7)
+    history = res.extra["mesh_history"]
+    assert history[-1].get("coarsening_left_the_optimum") and len(history) <= 6
+    assert res.iterations < 6000

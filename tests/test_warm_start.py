@@ -169,3 +169,19 @@ def test_a_warm_start_from_another_problem_is_named_in_a_note(configs, tmp_path)
         assert "it has no u" in notes[0] and "its y, theta are not in this problem" in notes[0], notes
         same = run_file(configs / name, tmp_path / f"again_{name}", warm_start=tmp_path / name)
         assert "notes" not in same.extra, same.extra.get("notes")
+
+
+def test_a_start_from_multipliers_stops_at_its_own_cap():
+    """``multipliers_max_iter`` stops the attempt from the mesh before's multipliers, and the
+    same point is solved again without them (the mesh refinement's multiplier_cap; unseen48
+    F2: 5,100 iterations with them, 281 without)."""
+    f = compile_file(DATA / "path_multiplier_lq.yaml")
+    tr_old, _ = _solve_on(f, Mesh.uniform("LGR", 6, 4))
+    snap = ws.take(tr_old)
+    guesses = {ph.name: make_guess(f.problem, ph) for ph in f.problem.phases}
+    tr = build(f.problem, {ph.name: Mesh.uniform("LGR", 11, 5) for ph in f.problem.phases}, guesses)
+    ws.prepare(tr.model)
+    mult = ws.apply(snap, tr)
+    info = ipopt.solve(tr.model, {**f.spec.solver.options, "tol": 1e-12}, multipliers=mult, multipliers_max_iter=1)
+    assert info.status == "optimal"
+    assert "Ipopt ended 'max_iter' after 1 iterations; solved again without them" in info.message

@@ -314,14 +314,16 @@ def _numbered_output_file(options: dict[str, Any]) -> dict[str, Any]:
 
 def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
           progress: Progress | None = None, on_iteration: Callable | None = None,
-          multipliers: Multipliers | None = None, transcription=None) -> SolveInfo:
+          multipliers: Multipliers | None = None, transcription=None,
+          multipliers_max_iter: int | None = None) -> SolveInfo:
     """Solve a Pyomo model with Ipopt; never raises for a failed solve (status 'error').
 
     With ``multipliers`` the solve starts from them as well as from the variables' values
     (Pyomo's ``SolverFactory('cyipopt')`` cannot pass them), with
     ``WARM_START_OPTIONS`` under the caller's options; if that solve does not end optimal or
     acceptable, the variables are reset to their starting values and the model is solved
-    again without the multipliers (the message says so, the iterations of both count). Bound
+    again without the multipliers (the message says so, the iterations of both count); the
+    attempt with them stops at ``multipliers_max_iter`` when given. Bound
     multipliers are loaded into the model's ``ipopt_zL_out`` / ``ipopt_zU_out`` suffixes when
     it has them (both paths).
 
@@ -366,8 +368,10 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         if multipliers is None:
             return _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
         start = [(v, v.value) for v in model.component_data_objects(pyo.Var) if not v.fixed]
-        warm = _attempt(model, limited(options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {})), verbose,
-                        progress, on_iteration, multipliers, transcription)
+        warm_options = options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {})
+        if multipliers_max_iter is not None:
+            warm_options["max_iter"] = min(int(warm_options["max_iter"]), int(multipliers_max_iter))
+        warm = _attempt(model, limited(warm_options), verbose, progress, on_iteration, multipliers, transcription)
         if warm.status in ("optimal", "acceptable", "time_limit", "interrupted"):
             return warm
         # never worse than without the multipliers: the same primal start, Ipopt's own duals

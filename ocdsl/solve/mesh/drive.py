@@ -101,7 +101,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from .. import ipopt
     from .. import warm_start as ws
     from ..failure_hints import failure_hints
-    from .restart import bisect_first, exploits_quadrature, restart, warm_cap
+    from .restart import bisect_first, exploits_quadrature, multiplier_cap, restart, warm_cap
 
     from ...run import _better, _start_record, recover_from_infeasibility
 
@@ -154,6 +154,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                             "state-constrained arcs located from the control polynomials only")
     noted = 0            # budget notes already printed
     first_iterations = None   # Ipopt's iterations on the first mesh (warm_cap)
+    last_iterations = None    # ... and on the mesh before (multiplier_cap)
     from ...progress import Stage
 
     stage = Stage("mesh refinement", spec.max_iterations, enabled=progress, at_most=True, interval=0.0)
@@ -190,7 +191,8 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
             bar = ipopt.Progress(progress, f"[mesh {it}]")
             capped = warm_cap(options, first_iterations) if it > 1 else None
             info = ipopt.solve(tr.model, options if capped is None else {**options, "max_iter": capped},
-                               verbose=verbose, progress=bar, multipliers=mult, transcription=tr)
+                               verbose=verbose, progress=bar, multipliers=mult, transcription=tr,
+                               multipliers_max_iter=multiplier_cap(last_iterations))
             if it == 1 and n_starts > 1:
                 # ``starts:`` with ``mesh:``: the starts on the first mesh, refinement from the best
                 start_records.append(_start_record(0, seed, info))
@@ -249,6 +251,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 tr, info, mult = redone
                 from_guess = mult is None
                 reg = getattr(tr.model, "mesh_regularisation", None)
+        last_iterations = info.iterations
 
 
         def first_solve(ms, bisections):
@@ -447,9 +450,14 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 free_shift = 0.0     # how far the free-time switch solve moved a breakpoint
                 if spec.move_switches:
                     try:
+                        # started from this mesh's solution, an aid capped as a warm start (unseen48
+                        # F2: the reorientation's ran to 3,000 iterations, 32 s, for nothing)
+                        free_options = {**options, "max_iter": min(multiplier_cap(info.iterations), int(
+                            options.get("max_iter", ipopt.DEFAULT_OPTIONS["max_iter"])))}
+
                         def solve_free(t):
                             ws.prepare(t.model)
-                            return ipopt.solve(t.model, options, transcription=t)
+                            return ipopt.solve(t.model, free_options, transcription=t)
 
                         def rebuild_here(ms, tr=tr, **kw):
                             """This iteration's build on ``ms``, started from ``tr``'s solution."""
@@ -555,6 +563,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # smallest converged mesh so far is kept for the end)
                 rec["coarsening_rejected"] = True
                 coarsening = False
+                if _left_the_optimum(info.objective, converged[-1][3].objective, spec.tolerance):
+                    # ... unless it solved to another optimum: refining that one only finds its
+                    # way back (unseen48 F2: the reorientation converged on mesh 4 at J
+                    # 28.6304068; its coarsened mesh ended at 28.852, and 8 more meshes, 60 s,
+                    # went on from there to max_iterations)
+                    rec["coarsening_left_the_optimum"] = True
+                    break
             elif solved_again and not (nudge_grace and any(memory.get("last") for memory in nudged.values())):
                 # the mesh solved again (breakpoints nudged by less than corner_tolerance) and
                 # its error fell by less than a tenth: refining on would repeat it (a rejected coarse mesh
@@ -709,6 +724,17 @@ def _largest_move(moved: dict, meshes: dict) -> float:
     phase by phase (0 where a phase's segment count changed: that is a new mesh, not a move)."""
     return max((float(np.max(np.abs(np.asarray(m.breakpoints) - np.asarray(meshes[k].breakpoints))))
                 for k, m in moved.items() if len(m.breakpoints) == len(meshes[k].breakpoints)), default=0.0)
+
+
+#: a coarsened mesh whose J differs from the converged mesh's by more than this many
+#: tolerances (relative to |J|, at least 1) solved to another optimum
+LEFT_THE_OPTIMUM = 100
+
+
+def _left_the_optimum(objective, converged_objective, tolerance: float) -> bool:
+    if objective is None or converged_objective is None:
+        return False
+    return abs(objective - converged_objective) > LEFT_THE_OPTIMUM * tolerance * max(1.0, abs(converged_objective))
 
 
 def _not_converging(growth: list) -> str:

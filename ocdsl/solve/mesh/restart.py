@@ -5,7 +5,10 @@ pendulum's third mesh ended infeasible after two multi-swing solutions).
 A warm-started solve is capped at a few times the first mesh's cold solve (``warm_cap``): the
 hanging chain's meshes 1-4 were spurious zigzags (J 4.79-4.95 against 5.068), and mesh 5 took
 2,516 Ipopt iterations (2.3 s of a 3.5 s run) to leave the last one's warm start; from the
-file's guess it took 89. Where neither start solves within the cap, the warm start runs again
+file's guess it took 89. Within that, the start from the mesh before's multipliers may take a few
+times the mesh before's iterations (``multiplier_cap``) before the same point is solved without
+them: the reorientation's fourth mesh (unseen48 F2), its third solved in 14, ran with them to
+5,100 iterations (32 s of a 75 s run), and without them solved in 281. Where neither start solves within the cap, the warm start runs again
 without it, as before the cap. A mesh whose zigzag exploits an integral's quadrature is no warm
 start at all (``exploits_quadrature``).
 
@@ -30,6 +33,12 @@ def warm_cap(options: dict, first_iterations: int | None) -> int | None:
     cap = max(WARM_CAP_MIN, WARM_CAP_FACTOR * int(first_iterations))
     given = options.get("max_iter")
     return None if given is not None and int(given) <= cap else cap
+
+
+def multiplier_cap(last_iterations: int | None) -> int | None:
+    """The max_iter of a warm start with the mesh before's multipliers (``last_iterations``
+    its solve's); None before there is one."""
+    return None if last_iterations is None else max(WARM_CAP_MIN, WARM_CAP_FACTOR * int(last_iterations))
 
 
 def restart(it: int, info, capped: int | None, *, cold: Callable, warm: Callable, solve: Callable, timer):
