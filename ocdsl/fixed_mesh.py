@@ -103,7 +103,9 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
         # (seed 4's unrestricted run: `optimal`, J 1.7e-5 above its bisected mesh's; seed 0's
         # paper mesh 8.7e-5: the docs always said "where no flight judged J")
         judged = flown is not None and not flown.get("inconclusive") and flown.get("judged", True)
-        unjudged = (flown or {}).get("inconclusive")
+        # the flight's own reason: doubted, not flown, or not corrected onto the final conditions
+        unjudged = (flown or {}).get("inconclusive") or (
+            flown.get("note") if flown is not None and flown.get("judged") is False else None)
         found = arcs.binding_arcs(tr, controls=not judged)
     if not found and judged:
         return []

@@ -222,6 +222,15 @@ def numbers_note(result) -> str:
     return " (last iterate, not a solution)" if result.iterations else " (the guess: the solve did not start)"
 
 
+def value_and_reference(value: float, reference: float) -> tuple[str, str]:
+    """Both at 10 digits, or at full precision where those read alike ("2 >= 2 (at_least)
+    FAIL" for 1.9999999999999996 against 2 with rtol 0, unseen54 F3)."""
+    shown, ref = f"{value:.10g}", f"{reference:.10g}"
+    if shown == ref and value != reference:
+        shown, ref = repr(float(value)), repr(float(reference))
+    return shown, ref
+
+
 def expect_comparison(check: dict[str, Any], note: str = "") -> str:
     """``NAME: VALUE vs REFERENCE (error)``, without the verdict; a run that ended before it had
     the value (interrupted before the first iterate) says so instead of printing nan; ``note``
@@ -235,8 +244,10 @@ def expect_comparison(check: dict[str, Any], note: str = "") -> str:
         # miss that passed (unseen22 m09)
         slack = max((check.get("rtol") or 0.0) * abs(check["reference"]), check.get("atol") or 0.0)
         within = f" + {slack:.2g}" if bound == "<=" and slack else f" - {slack:.2g}" if slack else ""
-        return f"{check['name']}: {value:.10g} {bound} {check['reference']:.10g}{within} ({check['compare']}){note}"
-    return f"{check['name']}: {value:.10g} vs {check['reference']:.10g} ({expect_error_text(check)}){note}"
+        shown, ref = value_and_reference(value, check["reference"])
+        return f"{check['name']}: {shown} {bound} {ref}{within} ({check['compare']}){note}"
+    shown, ref = value_and_reference(value, check["reference"])
+    return f"{check['name']}: {shown} vs {ref} ({expect_error_text(check)}){note}"
 
 
 def expect_error_text(check: dict[str, Any]) -> str:
@@ -244,6 +255,11 @@ def expect_error_text(check: dict[str, Any]) -> str:
     # against a reference of zero a relative error means nothing ("relative error inf ... pass"
     # for an exact 0, unseen19 e1): the absolute one is shown
     if check.get("rtol") is not None and check.get("relative_error") is not None and check.get("reference"):
+        if check.get("atol") is not None:
+            # either allowance passes it: both shown (unseen54 F4: "relative error 1.26e-03,
+            # rtol 1.0e-04 pass", the atol 1e-3 that passed it unsaid)
+            return (f"error {check['error']:.2e}, relative {check['relative_error']:.2e}; atol {check['atol']:.1e} "
+                    f"or rtol {check['rtol']:.1e}")
         return f"relative error {check['relative_error']:.2e}, rtol {check['rtol']:.1e}"
     limit = f", atol {check['atol']:.1e}" if check.get("atol") is not None else ""
     return f"error {check['error']:.2e}{limit}"

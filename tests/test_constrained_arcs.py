@@ -149,3 +149,33 @@ def test_a_flight_that_ran_and_judged_nothing_gives_its_own_reason():
     assert res.status == "mesh_not_converged" and not res.ok
     assert "it is not made for several phases" not in res.message
     assert "the flight of the minimum principle's control judged no J on this fixed mesh (H's minimiser" in res.message
+
+
+NONAUTONOMOUS_LQ = """
+name: nonauto_lq
+model: {states: [x], controls: [u], dynamics: {x: u}}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0]
+  objective: minimize integral(u**2/2 + t*x)
+method: {transcription: METHOD}
+"""
+
+
+@pytest.mark.parametrize("method, ok", [("LG, segments: 3, degree: 2", False), ("LG, segments: 3, degree: 4", True)])
+def test_a_flight_not_flown_judges_nothing(tmp_path, method, ok):
+    """unseen53 F1: x' = u, x(1) free, min int u^2/2 + t x (J* = -1/15, x cubic): LG 3 x 2
+    gave J = -0.0666581 (1.3e-4 off, lambda(tf) 9.3e-3 for 0), optimal, verified, certificate
+    pass, exit 0: H's minimiser, from the mesh's own costates, predicted a gain of 2.1e-7,
+    "not flown", and that counted as a judgement, so no bisection ran. Now it is bisected:
+    mesh_not_converged; degree 4 holds the cubic and stays optimal."""
+    p = tmp_path / "lq.yaml"
+    p.write_text(NONAUTONOMOUS_LQ.replace("METHOD", method))
+    res = run_file(p, None)
+    assert res.extra["bisection"] is not None
+    if ok:
+        assert res.status == "optimal" and res.objective == pytest.approx(-1 / 15, rel=1e-9)
+    else:
+        assert abs(res.objective + 1 / 15) > 1e-4 / 15
+        assert res.status == "mesh_not_converged" and not res.ok
+        assert "(H's minimiser gains" in res.message and "not flown)" in res.message

@@ -1361,3 +1361,23 @@ def test_the_reorientation_stops_where_its_coarsened_mesh_leaves_the_optimum():
     history = res.extra["mesh_history"]
     assert history[-1].get("coarsening_left_the_optimum") and len(history) <= 6
     assert res.iterations < 6000
+
+
+def test_an_estimate_that_finds_no_error_is_not_told_to_tighten(tmp_path):
+    """unseen53 F2: x' = u, min int u^2/2 + t x on LGL 3 x 3 with `mesh:` at tolerance 1e-10:
+    the estimate is 1e-16 (the polynomials meet x' = u exactly), the bisection refutes J
+    (1.2e-4), and the advice was "Tighten the tolerance, or raise max_iterations", which
+    changes nothing. It says to start from a finer mesh."""
+    p = tmp_path / "lq.yaml"
+    p.write_text("""
+name: nonauto_lq
+model: {states: [x], controls: [u], dynamics: {x: u}}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0]
+  objective: minimize integral(u**2/2 + t*x)
+method: {transcription: LGL, segments: 3, degree: 3, mesh: {tolerance: 1.0e-10, max_iterations: 30}}
+""")
+    res = ocdsl.load(p).solve()
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert "Start from a finer mesh" in res.message and "Tighten the tolerance" not in res.message

@@ -472,3 +472,24 @@ def test_a_closed_form_file_with_a_method_it_cannot_run_is_refused_at_check(tmp_
         load_pareto(path)
     line = next(i for i, ln in enumerate(path.read_text().splitlines(), 1) if "method: weighted" in ln)
     assert f"weighted.yaml:{line}" in str(e.value) and "runs method enumerate only" in str(e.value)
+
+
+def _on_curve(g):
+    s_grid = np.linspace(0, 1, 100001)
+
+    def solve(w, warm):
+        s = float(s_grid[int(np.argmin(w[0] * s_grid + w[1] * g(s_grid)))])
+        return P.ParetoPoint({"f1": s, "f2": float(g(s))}, {"s": s})
+    return solve
+
+
+def test_a_jump_of_the_weights_spacing_alone_is_no_warning(recwarn):
+    """unseen54 F5: on the convex front f2 = (1 - f1)^2 the weights 1 ... 0.7 all give its end
+    (0, 1) and 0.6 gives (0.25, 0.5625): "the front may be non-convex there". Weights bisected
+    between them close the jump; on a line (weighted sums find its ends only) it stays."""
+    convex = P.weighted(_on_curve(lambda s: (1 - s) ** 2), 11, ["f1", "f2"])
+    assert not convex.warnings
+    assert not [w for w in recwarn if issubclass(w.category, P.ParetoWarning)]
+    with pytest.warns(P.ParetoWarning, match="non-convex or flat"):
+        line = P.weighted(_on_curve(lambda s: 1 - s), 11, ["f1", "f2"])
+    assert "np.float64" not in line.warnings[0] and "(0.0, 1.0)" in line.warnings[0]

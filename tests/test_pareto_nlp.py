@@ -413,3 +413,34 @@ def test_an_infinite_number_of_epsilon_values_is_an_error_at_its_line(tmp_path):
     with pytest.raises(SpecError) as e:
         load_pareto(f)
     assert "front.yaml:25" in str(e.value) and "num must be a whole number >= 2" in str(e.value), str(e.value)
+
+
+@pytest.mark.parametrize("tail, line, message", [
+    ("expect:\n  objective: {value: 99, rtol: 1.0e-9}\n", 15, "a top-level `expect:` is not checked on a Pareto set"),
+    ("  expect: {n_solutions: 2, objective: {value: 99, rtol: 1.0e-9}}\n", 14,
+     "unknown check 'objective' in a Pareto set's expect"),
+])
+def test_expect_checks_a_pareto_set_does_not_run_are_refused(tmp_path, tail, line, message):
+    """unseen54 F1/F2: `objective: 99` under a top-level `expect:` of a solver: nlp file, or
+    under `pareto: expect:`, was read and never checked (`"expect": []`, ok, exit 0)."""
+    from ocdsl.spec.errors import SpecError
+
+    f = tmp_path / "front.yaml"
+    f.write_text("""name: energy-time front
+model: {states: [x, v], controls: [u], dynamics: {x: v, v: u}}
+parameters: {eps: 3}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [x(t0) == 0, v(t0) == 0, x(tf) == 1, v(tf) == 0, 0.5 <= tf <= eps]
+  objective: minimize integral(u**2)
+method: {transcription: LGR, segments: 4, degree: 6}
+pareto:
+  method: epsilon
+  objectives: {energy: integral(u**2), T: {expr: tf, sense: maximize}}
+  epsilon: {objective: T, parameter: eps, values: [4, 3]}
+  solver: nlp
+""" + tail)
+    with pytest.raises(SpecError) as e:
+        load_pareto(f)
+    (issue,) = e.value.issues
+    assert issue.line == line and message in issue.message, issue

@@ -563,3 +563,23 @@ def test_the_executor_example_of_the_docs_runs_as_written(tmp_path):
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[25, 49, 1]"
+
+
+def test_an_unsolved_points_objective_is_labelled_in_the_study_files(tmp_path):
+    """unseen54 F7: study.csv and study.json gave an infeasible point's last iterate as its
+    objective, unmarked (the console table said "(last iterate)")."""
+    import csv
+    import json
+
+    from ocdsl.study.spec import Point
+    from ocdsl.study.table import _Table
+
+    points = [Point(id="p0", parameters={"T": 1.4}), Point(id="p1", parameters={"T": 2.0})]
+    table = _Table(tmp_path, points, {})
+    table.set("p0", {"status": "infeasible", "ok": False, "objective": 1.34143}, {})
+    table.set("p1", {"status": "optimal", "ok": True, "objective": 1.5}, {})
+    table.write("complete", force=True)
+    rows = {r["id"]: r for r in csv.DictReader((tmp_path / "study.csv").open())}
+    assert rows["p0"]["objective_from"] == "last iterate" and rows["p1"]["objective_from"] == "solution"
+    doc = json.loads((tmp_path / "study.json").read_text())
+    assert [p["objective_from"] for p in doc["points"]] == ["last iterate", "solution"]

@@ -221,3 +221,26 @@ method: {transcription: LGR, segments: 4, degree: 4}
     assert any(n.startswith("control w appears in no dynamics") for n in notes), notes
     p.write_text(text.replace("v: u}", "v: u + 0.1*w}"))
     assert not any("appears in no dynamics" in n for n in run_file(p, tmp_path / "run2").extra.get("notes") or [])
+
+
+def test_an_expectation_that_misses_below_ten_digits_shows_the_digits():
+    """unseen54 F3: 1.9999999999999996 against 2 with rtol 0, at_least, read "2 >= 2
+    (at_least) FAIL"; the values are shown in full where ten digits read alike."""
+    from ocdsl.result_views import expect_comparison
+    from ocdsl.run import expect_check
+
+    miss = expect_check("objective", 1.9999999999999996, 2.0, 0.0, None, "at_least")
+    assert not miss["passed"]
+    assert expect_comparison(miss) == "objective: 1.9999999999999996 >= 2.0 (at_least)"
+    assert expect_comparison(expect_check("J", 2.0, 2.0, 0.0, None, "at_least")) == "J: 2 >= 2 (at_least)"
+
+
+def test_an_expectation_with_both_tolerances_shows_both():
+    """unseen54 F4: with rtol 1e-4 and atol 1e-3 the check passes on either, and printed
+    "relative error 1.26e-03, rtol 1.0e-04 pass" without the atol that passed it."""
+    from ocdsl.result_views import expect_comparison
+    from ocdsl.run import expect_check
+
+    check = expect_check("tf", 0.70710678, 0.708, 1e-4, 1e-3)
+    assert check["passed"]
+    assert "atol 1.0e-03 or rtol 1.0e-04" in expect_comparison(check) and "error 8.93e-04" in expect_comparison(check)

@@ -22,12 +22,40 @@ _CLOSED_FORM_KEYS = {"name", "description", "definitions", "model", "parameters"
                      "alternatives", "pareto", "expect"}
 
 
+#: what a Pareto set's ``expect`` checks: the set, not a point
+SET_CHECKS = ("n_solutions", "pareto_labels")
+
+
+def _set_checks(located: Located, solver: str) -> None:
+    """A Pareto set's ``expect`` names the set's checks only; a check it would not run is
+    refused (unseen54 F1/F2: `objective: 99` under a top-level `expect:` of a solver: nlp file,
+    or under `pareto: expect:`, was read and never checked: exit 0, `ok: true`)."""
+    doc = located.data
+    inner = (doc.get("pareto") or {}).get("expect") if isinstance(doc.get("pareto"), dict) else None
+    if solver != "closed_form" and isinstance(doc.get("expect"), dict) and doc["expect"]:
+        first = next(iter(doc["expect"]))
+        raise SpecError([located.issue(("expect", first), f"a top-level `expect:` is not checked on a Pareto set "
+                                       f"(its points differ in every value); the set's own checks go under "
+                                       f"`pareto: expect:` ({', '.join(SET_CHECKS)}); each point's values are in "
+                                       f"points/<label>/result.json")])
+    where = [("pareto", "expect", inner)] if isinstance(inner, dict) else []
+    if solver == "closed_form" and isinstance(doc.get("expect"), dict):
+        where.append(("expect", None, doc["expect"]))
+    for *path, checks in where:
+        unknown = [k for k in checks if k not in SET_CHECKS]
+        if unknown:
+            loc = tuple(p for p in path if p is not None) + (unknown[0],)
+            raise SpecError([located.issue(loc, f"unknown check '{unknown[0]}' in a Pareto set's expect: it "
+                                           f"checks {' and '.join(SET_CHECKS)}")])
+
+
 def check_sections(path: str | Path, located: Located, solver: str, method: str | None = None) -> None:
     """Compile the model and problem sections of a Pareto file; a SpecError lists every issue.
     What the NLP solver cannot run is refused here too (unseen12 F5: both ended in a traceback
     after `check` said ok)."""
     from .compile import _Compiler, validate
 
+    _set_checks(located, solver)
     if solver != "closed_form":
         if method == "weighted":
             raise SpecError([located.issue(("pareto", "method"), "method weighted runs with solver: closed_form "

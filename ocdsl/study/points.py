@@ -186,10 +186,13 @@ def _why_not_ok(data: dict) -> str:
     if data.get("certificate_verdict") == "failed":
         reasons.append("certificate failed")
     failed = [c for c in data.get("expect") or [] if not c.get("passed")]
+    if failed:
+        from ..result_views import value_and_reference
     for c in failed[:2]:
         value = c.get("value")
-        shown = f"{value:.10g}" if isinstance(value, (int, float)) else "no value"
-        reasons.append(f"expect {c.get('name')}: {shown} vs {c.get('reference'):.10g} FAIL")
+        shown, ref = value_and_reference(value, c.get("reference")) if isinstance(value, (int, float)) else \
+            ("no value", f"{c.get('reference'):.10g}")
+        reasons.append(f"expect {c.get('name')}: {shown} vs {ref} FAIL")
     return "; ".join(reasons) + ". " if reasons else ""
 
 

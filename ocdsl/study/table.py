@@ -21,8 +21,8 @@ if TYPE_CHECKING:
 
 
 class _Table:
-    FIXED = ["seed", "status", "ok", "verification", "objective", "tf", "iterations", "wall_time_s", "host",
-             "warm_start", "message"]
+    FIXED = ["seed", "status", "ok", "verification", "objective", "objective_from", "tf", "iterations",
+             "wall_time_s", "host", "warm_start", "message"]
 
     def __init__(self, out_dir: Path, points: list[Point], info: dict[str, Any]):
         self.out_dir, self.info = out_dir, info
@@ -38,7 +38,7 @@ class _Table:
             self.rows[p.id] = {"id": p.id, **{k: p.parameters.get(k) for k in self.pnames},
                                **{t: p.tags.get(t) for t in self.tagnames},
                                "seed": p.seed, "status": "pending", "ok": None, "verification": None,
-                               "objective": None, "tf": None,
+                               "objective": None, "objective_from": None, "tf": None,
                                "iterations": None, "wall_time_s": None, "host": None,
                                "warm_start": None, "message": ""}
         self.sense = "minimize"
@@ -48,6 +48,11 @@ class _Table:
     def set(self, pid: str, summary: dict[str, Any], meta: dict[str, Any]) -> None:
         self.sense = summary.pop("sense", self.sense) or self.sense
         self.rows[pid].update(summary)
+        row = self.rows[pid]
+        # what the number is, in the files as on the console (unseen54 F7: an infeasible
+        # point's last iterate in study.csv/json like a solution)
+        row["objective_from"] = None if row.get("objective") is None else (
+            "last iterate" if _last_iterate(row) else "solution")
         self.rows[pid].update(host=meta.get("host"), warm_start=meta.get("warm_start"))
 
     def counts(self) -> dict[str, int]:
@@ -179,9 +184,14 @@ def _objective_cell(r: dict) -> str:
     """A point's objective, labelled where its run found no solution (an infeasible point's
     last iterate was shown as its objective, 25, beside points that solved; unseen50 F6)."""
     text = _fmt(r["objective"])
-    if text and r["status"] not in GOOD + ("acceptable", "mesh_not_converged", "time_limit"):
+    if text and _last_iterate(r):
         text += " (last iterate)"
     return text
+
+
+def _last_iterate(r: dict) -> bool:
+    """The row's objective is the solver's last iterate, not a solution's."""
+    return r["status"] not in GOOD + ("acceptable", "mesh_not_converged", "time_limit")
 
 
 def _fmt(v: Any, digits: int = 6) -> str:

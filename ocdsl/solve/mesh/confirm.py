@@ -13,6 +13,10 @@ from .regularise import check_unregularised
 from .switches import with_switch_costates
 
 
+#: an estimate below this share of the tolerance found nothing to refine
+BLIND = 1e-3
+
+
 @dataclass
 class Confirmed:
     """The refinement's verdict after the confirmations, and their records."""
@@ -109,11 +113,20 @@ def confirm(file, chosen, status: str, message: str, *, converged: list, history
                        "max_iterations, or use LGR")
         elif bisected.agrees is False:
             status = "mesh_not_converged"
-            message = (f"the mesh refinement met its tolerance on one mesh only ({message}), but J = "
-                       f"{bisected.objective:.10g} there and {bisected.describe()}: the error estimate does not "
-                       "see what moves J (a chattering control, or a path constraint the bisected mesh meets only at "
-                       "its nodes, docs/mesh.md). Tighten the tolerance, or raise "
+            if chosen[0] < BLIND * spec.tolerance:
+                # nothing to refine: no tolerance or iteration count helps (unseen53 F2: x' = u,
+                # min int u^2/2 + t x, LGL 3 x 3, estimate 1e-16 at tolerance 1e-10, J 1.2e-4 off)
+                why = (f"the error estimate ({chosen[0]:.1e}) finds no error on this mesh, whose polynomials "
+                       "meet the dynamics exactly, so there was nothing to refine and a tighter tolerance or "
+                       "more iterations change nothing; J moves with the mesh all the same (the optimum is "
+                       "not a polynomial of the mesh's degree). Start from a finer mesh: more segments or a "
+                       "higher degree")
+            else:
+                why = ("the error estimate does not see what moves J (a chattering control, or a path constraint "
+                       "the bisected mesh meets only at its nodes, docs/mesh.md). Tighten the tolerance, or raise "
                        "max_iterations")
+            message = (f"the mesh refinement met its tolerance on one mesh only ({message}), but J = "
+                       f"{bisected.objective:.10g} there and {bisected.describe()}: {why}")
         else:
             why = (f"every mesh within tolerance holds {unchanged[0]} unchanged, where it binds" if unchanged
                    else "one mesh met the tolerance")

@@ -190,9 +190,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         with timer.measure("solve"):
             bar = ipopt.Progress(progress, f"[mesh {it}]")
             capped = warm_cap(options, first_iterations) if it > 1 else None
+            mcap = multiplier_cap(last_iterations)
             info = ipopt.solve(tr.model, options if capped is None else {**options, "max_iter": capped},
                                verbose=verbose, progress=bar, multipliers=mult, transcription=tr,
-                               multipliers_max_iter=multiplier_cap(last_iterations))
+                               multipliers_max_iter=mcap)
             if it == 1 and n_starts > 1:
                 # ``starts:`` with ``mesh:``: the starts on the first mesh, refinement from the best
                 start_records.append(_start_record(0, seed, info))
@@ -563,11 +564,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 # smallest converged mesh so far is kept for the end)
                 rec["coarsening_rejected"] = True
                 coarsening = False
-                if _left_the_optimum(info.objective, converged[-1][3].objective, spec.tolerance):
-                    # ... unless it solved to another optimum: refining that one only finds its
-                    # way back (unseen48 F2: the reorientation converged on mesh 4 at J
-                    # 28.6304068; its coarsened mesh ended at 28.852, and 8 more meshes, 60 s,
-                    # went on from there to max_iterations)
+                if info.iterations > (mcap or 0) and _left_the_optimum(info.objective, converged[-1][3].objective,
+                                                                       spec.tolerance):
+                    # ... unless its warm start did not take and it solved to another optimum:
+                    # refining that one only finds its way back (unseen48 F2: the reorientation
+                    # converged on mesh 4 at J 28.6304068; its coarsened mesh took 3,789
+                    # iterations to 28.657, and 8 more meshes, 60 s, went on from there to
+                    # max_iterations)
                     rec["coarsening_left_the_optimum"] = True
                     break
             elif solved_again and not (nudge_grace and any(memory.get("last") for memory in nudged.values())):
