@@ -396,6 +396,11 @@ def _certify(file: LoadedFile, result: Result, always_fly: bool = False) -> None
                                                                               (result.nlp or {}).get("variables")))
     except Exception as e:  # the certificate must never lose a solved run
         result.certificate = {"error": f"{type(e).__name__}: {e}", "passed": False}
+        return
+    from .solve.certify import minimum_condition_notes
+
+    notes = result.extra.setdefault("notes", [])
+    notes += [n for n in minimum_condition_notes(result.certificate) if n not in notes]
 
 
 def check_expectations(file: LoadedFile, values: dict[sp.Symbol, float], objective: float | None) -> list[dict]:

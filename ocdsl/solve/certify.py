@@ -19,6 +19,7 @@ from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
 from .certificate.end_arcs import end_arcs
 from .certificate.flown_control import flown_control
+from .certificate.minimum import check_phase
 from ..verify.objective_size import objective_scale, objective_size
 
 
@@ -91,6 +92,15 @@ def _shared_control_nodes(traj) -> list[float]:
     spec = traj.control_interpolation or {}
     bps = spec.get("breakpoints") or []
     return [float(bps[k]) for k, v in enumerate(spec.get("segment_starts") or []) if v is not None and k < len(bps)]
+
+
+def minimum_condition_notes(certificate: dict | None) -> list[str]:
+    """The minimum condition's notes where it found a better control (per phase)."""
+    if not certificate:
+        return []
+    phases = certificate.get("phases") or {"": certificate}
+    return [(f"phase '{name}': " if name else "") + c["minimum_condition"]["note"]
+            for name, c in phases.items() if (c.get("minimum_condition") or {}).get("note")]
 
 
 def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
@@ -184,6 +194,15 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
             kw["path_constraints"] = [(c.expr, c.lower, c.upper, c.text) for c in ph.path]
             kw["multipliers"] = {k: np.asarray(v, float) * nan for k, v in mus.items()}
         per_phase[ph.name] = cert = certificate(ph.model, params, arrays, bounds, L, kind, **kw)
+        if not ph.path:
+            # H's global minimum over the control's range, beside the first-order checks (a
+            # diagnosis: unseen48 F3, a local extremal of an H not convex in u)
+            try:
+                minimum = check_phase(ph.model, params, arrays, bounds, L)
+            except Exception:  # noqa: BLE001  (a diagnosis less, never a lost certificate)
+                minimum = None
+            if minimum is not None:
+                cert["minimum_condition"] = minimum
         # the ends' rows with no collocated control (the arrays above hold the nodes only)
         ends = end_arcs(ph.model, params, {"time": traj.time, "states": traj.states, "controls": traj.controls,
                                            "costates": traj.costates}, bounds, L,

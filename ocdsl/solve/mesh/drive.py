@@ -101,6 +101,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     from .. import ipopt
     from .. import warm_start as ws
     from ..failure_hints import failure_hints
+    from ..certify import minimum_condition_notes
     from .restart import bisect_first, exploits_quadrature, multiplier_cap, restart, warm_cap
 
     from ...run import _better, _start_record, recover_from_infeasibility
@@ -689,6 +690,13 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
     hints = failure_hints(file, tr_c, status)
     if status == "mesh_not_converged":
         hints += _undetermined_controls(result.certificate)
+        if minimum_condition_notes(result.certificate):
+            # more of the same cannot leave a local extremal (unseen48 F3: Newton's nose at 25
+            # iterations had the J of 12)
+            message = message.replace("Raise max_iterations or max_degree, or loosen the tolerance.",
+                                      "The control is not H's minimiser where the note below says: the "
+                                      "refinement follows a local extremal, which more iterations or a higher "
+                                      "degree do not change; start from a guess with the better control there.")
     result.message = ((f"{message.rstrip('.')}.{hints}" if hints else message)
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
                       + (f"; {terminal_notes[-1]}" if terminal_notes else ""))
