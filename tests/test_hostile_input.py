@@ -318,3 +318,15 @@ def test_a_guess_list_in_exponent_notation_compiles(tmp_path):
     assert "h: [1e0, 0e0]" in text
     (tmp_path / "g.yaml").write_text(text)
     compile_file(tmp_path / "g.yaml")
+
+
+@pytest.mark.parametrize("name", ["lambda", "if"])
+def test_a_keyword_as_a_state_used_in_the_dynamics_is_one_error(tmp_path, name):
+    """unseen55 F5: `states: [x, lambda]` with `x: lambda` gave the refusal and then a bare
+    "syntax error (invalid syntax)" at the dynamics: one mistake, two errors."""
+    import re
+
+    p = tmp_path / "problem.yaml"
+    p.write_text(re.sub(r"\bv\b", name, GOOD))
+    err = error_of(p)
+    assert [i.line for i in err.issues] == [3] and "not a valid state name" in err.issues[0].message, str(err)

@@ -47,6 +47,7 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
         # "overridden (file: ...)" note comes from here only
         self.file_values: dict[str, float | None] = {}
         self.issues: list[Issue] = []
+        self.refused_names: set[str] = set()   # declared names refused: their uses are no new error
         self.boundary_values: dict[sp.Symbol, BoundaryValue] = {}
         self.free: dict[sp.Symbol, FreeParameter] = {}
         self.free_locs: dict[sp.Symbol, tuple] = {}     # where each is declared, for errors
@@ -88,7 +89,10 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             if rest is not None:
                 self.issue(loc, rest.message, rest.text or None)
         except ExprError as e:
-            self.issue(loc, e.message, e.text or None)
+            # an expression that fails on a declared name already refused (`lambda`, a Python
+            # keyword: "syntax error" after "not a valid state name", unseen55 F5) is its echo
+            if not any(isinstance(a, str) and _mentions(a, self.refused_names) for a in args):
+                self.issue(loc, e.message, e.text or None)
         except (ValueError, KeyError) as e:
             self.issue(loc, str(e).strip("'\""))
         except RecursionError:     # SymPy on expressions nested inside others past its depth
@@ -408,3 +412,8 @@ class Compiler(ModelCompiler, PhaseCompiler, ConstraintCompiler):
             t0, tf = (sp.Symbol(f"t_{{{k},{ph.name}}}" if multi else f"t_{k}") for k in ("0", "f"))
             subs.update({s: sp.Integral(e, (TIME, t0, tf)) for s, e in ph.integrals.items()})
         return expr.xreplace(subs)
+
+
+def _mentions(text: str, names: set[str]) -> bool:
+    """``text`` uses one of ``names`` as a whole word."""
+    return any(re.search(rf"(?<![\w.]){re.escape(n)}(?!\w)", text) for n in names)

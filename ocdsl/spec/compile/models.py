@@ -92,6 +92,8 @@ class ModelCompiler:
                 where = loc + (group, i if group != "parameters" else name)
                 if not isinstance(name, str) or not NAME_RE.match(name) or name in RESERVED:
                     self.issue(where, f"'{name}' is not a valid {group[:-1]} name (reserved or not an identifier)")
+                    if isinstance(name, str):
+                        self.refused_names.add(name)
                     ok = False
                 elif name in declared:
                     self.issue(where, f"'{name}' is declared twice (also in {declared[name][0]})")
