@@ -166,3 +166,34 @@ def test_unit_direction_path_constraint():
     # the plain Hamiltonian (no path term) is not stationary: the failure this fixes
     plain = certificate(*args)
     assert "stationarity" in plain["failed"] and "path_multipliers" not in plain
+
+
+def test_a_multiplier_on_a_sliver_of_a_segment_is_weighed_by_its_share():
+    """unseen56 F1: the Chebyshev approximation of t^2 by a line as a minimax problem (min p,
+    |x - t^2| <= p, x(t0) free; p* = 1/8) touches its bound at t0, which LGR holds no node of:
+    the refinement bisected the first segment down to 3e-7, where the path multiplier (a
+    density) reached 1e6 and mu (g - b) 0.1 at Ipopt's slack: `certificate failed
+    (path_multipliers)`, exit 1, for p right to 1e-7. A node counts by its share of the phase."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "chebyshev_minimax_mesh.yaml", None)
+    assert res.status == "optimal" and res.verified
+    assert res.objective == pytest.approx(0.125, rel=1e-6)
+    cert = res.certificate
+    assert cert["path_multipliers"]["passed"] is True and not cert.get("failed"), cert.get("failed")
+
+
+def test_a_phase_without_controls_has_no_control_jump(tmp_path):
+    """unseen56 F3: the jump locator took numpy's argmax of no controls, and every mesh line said
+    "the locator stopped: attempt to get argmax of an empty sequence"."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from ocdsl.cli import main
+
+    out = CliRunner().invoke(main, ["run", str(Path(__file__).parent / "data" / "chebyshev_minimax_mesh.yaml"),
+                                    "--out", str(tmp_path / "run")]).output
+    assert "mesh  2:" in out and "the locator stopped" not in out, out
