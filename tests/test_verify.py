@@ -927,3 +927,18 @@ method: {transcription: LGR, segments: 10, degree: 4}
     (caveat,) = res.verification["caveats"]
     assert "x2 (size 1e-08), v2 (size 1.5e-08) span less than the NLP resolves" in caveat, caveat
     assert "deviation from a reference" not in caveat
+
+
+def test_an_integrand_infinite_at_the_start_is_named_not_an_escape():
+    """unseen56 F2: the brachistochrone as y(x), min int sqrt((1 + u^2)/(2 y)), y(0) = 0: the
+    integrand is infinite at t0, where LGR holds no node (J 17 % below the cycloid's). The
+    verification said "the state leaves the floating-point range ... the flow escapes in finite
+    time"; it names the integrand and the point."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "brachistochrone_yx_singular.yaml", None)
+    text = res.verification.get("summary", "") + " " + str(res.verification.get("error", ""))
+    assert not res.ok and "escapes in finite time" not in text
+    assert "sqrt(1/y)/2 is not finite at t = 0 (y = 0)" in text, text

@@ -59,6 +59,7 @@ class PhaseFunctions:
         self._subs = subs
         f = [substitute_numbers(e, subs) for e in phase.rhs()]
         self.integral_symbols = list(integrals)
+        self.integrands = [str(e) for e in integrals.values()]   # as written, for messages
         q = [substitute_numbers(phase.substitute(e), subs) for e in integrals.values()]
         self.path = list(phase.path)
         g = [substitute_numbers(phase.substitute(c.expr), subs) for c in self.path]

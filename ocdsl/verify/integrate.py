@@ -240,6 +240,30 @@ def _escape(sol, scale: np.ndarray) -> tuple[float, str] | None:
     return None
 
 
+def _not_finite_at_start(funcs, uf, a: float, y0) -> str:
+    """Why a piece cannot start: its rates are not finite at its first point (an integrand
+    sqrt((1 + u^2)/(2 y)) at y(t0) = 0 was "the state leaves the floating-point range ... the flow
+    escapes in finite time", unseen56 F2); "" where they are finite."""
+    from .functions import controls_at
+
+    y0 = np.asarray(y0, float)
+    with np.errstate(all="ignore"):
+        try:
+            rate = np.asarray(funcs.augmented_point(a, y0, controls_at(uf, np.array([a]), y0[None, :funcs.n])[0]), float)
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+            return ""
+    bad = np.flatnonzero(~np.isfinite(rate))
+    if not len(bad):
+        return ""
+    names = [str(x) for x in funcs.states] + list(getattr(funcs, "integrands", [str(q) for q in funcs.integral_symbols]))
+    at = ", ".join(f"{x} = {v:.6g}" for x, v in zip(funcs.states, y0[:funcs.n]))
+    what = ", ".join(f"{'the integrand of ' if i >= funcs.n else 'the rate of '}{names[i]}" for i in bad[:3])
+    return (f"{what} is not finite at t = {a:.6g} ({at}): a singular point of the model, which the "
+            "collocation nodes may not reach (LGR holds none at t0, LG none at either end), so the NLP's "
+            "quadrature leaves out what it contributes; start the phase off it, or write the problem so that "
+            "its terms stay finite there")
+
+
 def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:
     """Integrate piece by piece over ``breaks``; ``starts(k, y_end_previous)`` gives the start
     of piece ``k`` (the previous piece's end for the global pass). Returns the pass at
@@ -257,6 +281,9 @@ def integrate_pass(funcs, uf, grid, breaks, starts, rtol, scale, rho) -> Pass:
             sol, ok = _piece(funcs, uf, a, b, y0, grid[sel], rtol, atol, method)
             if ok:
                 break
+            singular = _not_finite_at_start(funcs, uf, a, y0)
+            if singular:
+                raise IntegrationFailure(singular)
             escape = _escape(sol, scale[:funcs.n])
             if escape is not None:
                 # past the floats, or a thousand times the trajectory's own size: the flow escapes
