@@ -417,3 +417,19 @@ def test_flights_at_the_tolerance_rtol_measure_what_rtol_1e12_does(configs, name
         assert abs(a.error - b.error) <= 1e-2 * tolerance, (a.segment, a.error, b.error)
     end, end_coarse = estimate.phase_end(pb, {}), estimate.phase_end(pb, {}, rtol)
     assert np.all(np.abs(end.x_end - end_coarse.x_end) / end.x_scale <= 1e-2 * tolerance)
+
+
+def test_a_segment_whose_flight_leaves_the_numbers_names_its_state(tmp_path):
+    """unseen56 F2 with `mesh:`: an integrand infinite at y(t0) = 0 made the first segment's
+    estimate inf, reported "state )" (no name)."""
+    from pathlib import Path
+
+    text = (Path(__file__).parent / "data" / "brachistochrone_yx_singular.yaml").read_text()
+    text = text.replace("method: {transcription: LGR, segments: 10, degree: 4}",
+                        "method: {transcription: LGR, segments: 10, degree: 4, mesh: {tolerance: 1.0e-6, "
+                        "max_iterations: 2}}")
+    (tmp_path / "yx.yaml").write_text(text)
+    import ocdsl
+
+    res = ocdsl.load(tmp_path / "yx.yaml").solve()
+    assert res.status == "mesh_not_converged" and "state y (not finite)" in res.message, res.message

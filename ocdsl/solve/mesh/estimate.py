@@ -277,7 +277,10 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
                 rel2 = np.abs(sol2.y.T - x_poly) / scale
                 if np.isfinite(rel2).all() and float(np.max(rel2)) < disc:
                     x_int, rel, disc, smoothed = sol2.y.T, rel2, float(np.max(rel2)), True
-        which = ph.states[int(np.nanargmax(np.nanmax(rel, axis=0)))].name if np.isfinite(rel).any() else ""
+        # a flight that left the numbers names the first state it lost (unseen56 F2: "state )")
+        which = (ph.states[int(np.nanargmax(np.nanmax(rel, axis=0)))].name if np.isfinite(rel).any() else
+                 f"{ph.states[int(np.flatnonzero(~np.isfinite(rel).all(axis=0))[0])].name} (not finite)"
+                 if rel.size and not np.isfinite(rel).all() else "")
         integral_err = float(np.max(q_err)) if nq else 0.0
         if nq and not (integral_err <= disc):
             which = names_q[int(np.argmax(np.where(np.isfinite(q_err), q_err, np.inf)))]
