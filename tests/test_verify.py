@@ -942,3 +942,18 @@ def test_an_integrand_infinite_at_the_start_is_named_not_an_escape():
     text = res.verification.get("summary", "") + " " + str(res.verification.get("error", ""))
     assert not res.ok and "escapes in finite time" not in text
     assert "sqrt(1/y)/2 is not finite at t = 0 (y = 0)" in text, text
+
+
+def test_a_target_met_at_rest_is_not_called_stopped_short():
+    """unseen47 F3: x' = -x + u, 0 <= u <= 1, x(0) = 0, x(tf) = 1, min tf: no finite tf reaches
+    x = 1; Ipopt stops near tf = 20.7 where the miss falls below its tolerance. The free-final-
+    time check fails rightly, but its advice was "the solver stopped short of the optimum (often
+    at the guess of tf); refine the mesh or start from another tf"."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "asymptotic_target.yaml", None)
+    summary = res.verification["summary"]
+    assert not res.ok and summary.startswith("not verified: free final time")
+    assert "`x(tf) == 1` is met with its states at rest" in summary and "stopped short" not in summary, summary

@@ -213,7 +213,7 @@ def _summary(failed: list[dict], notes: list[str], settings: VerifySettings,
     phase = f" in phase {c['phase']}" if c.get("phase") and c["phase"] != "main" else ""
     more = f"; {len(failed) - 1} more failed" if len(failed) > 1 else ""
     hints = HINTS if settings.open_loop else {**HINTS, **CLOSED_LOOP_HINTS}
-    hint = notes[0] if notes else hints.get(c["name"], "")
+    hint = notes[0] if notes else c.get("hint") or hints.get(c["name"], "")
     if not notes and settings.open_loop and mesh_tolerance is not None and c["name"] in REFINE_HINTED \
             and not mesh_met:
         hint = ("the refinement did not reach its tolerance (its message says where it stopped): the mesh "
@@ -707,6 +707,7 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
             continue                              # at a bound: its multiplier is unknown
         moving = False
         pinned = _controls_on_bounds_at_end(ph, run, tol)   # none left to correct a miss at t_f
+        resting = []        # final equalities met with their states at rest
         for c in problem.boundary:
             v = evaluate(c.expr, point)
             sc = sensitivity_scale(c.expr, point, scales)
@@ -714,6 +715,10 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
             if active and abs(_d_dtf(c.expr, ph, run, problem, point)) * duration > tol * sc:
                 moving = True
                 break
+            if c.lower == c.upper and any(problem.boundary_values[s].phase == ph.name
+                                          and problem.boundary_values[s].which == "tf"
+                                          for s in c.expr.free_symbols if s in problem.boundary_values):
+                resting.append(c.text or str(c.expr))      # an equality at t_f that t_f does not move
             if pinned and c.lower == c.upper and _arrives_with_zero_rate(c.expr, ph, run, problem, tol):
                 # met at second order (h' = -sqrt(h) + u reaches h = 0 with rate 0): ending
                 # earlier misses it all the same, so the first-order test does not apply
@@ -725,9 +730,19 @@ def _free_final_time_checks(problem, runs, point, scales, tol, checks) -> None:
         g = _d_dtf(obj.expr, ph, run, problem, point)
         if g == 0.0 and not (obj.expr.free_symbols & ({ph.tf_symbol} | set(ph.integrals))):
             continue                              # the objective does not depend on this t_f
+        more = {}
+        earlier = (g > 0) == (obj.sense != "maximize")      # J improves by ending earlier
+        if resting and earlier:
+            # a target met with its states at rest: reached only as t -> infinity (x' = -x + u,
+            # u <= 1, x(tf) = 1), or held for any later t_f; "the solver stopped short ... start
+            # from another tf" moved the answer to another arbitrary t_f (unseen47 F3)
+            more["hint"] = (f"`{resting[0]}` is met with its states at rest at t_f (they no longer move it): a "
+                            "target approached only as t_f grows (then no finite t_f reaches it, and Ipopt "
+                            "stopped where the miss fell below its tolerance), or one that every later t_f "
+                            "meets as well; check that it is reachable in finite time before refining")
         checks.append(row("free final time", ph.name, abs(g) * duration / j_scale, tol,
                           f"dJ/dtf = {g:.6g} at tf = {T:.10g}",
-                          "objective stationary in tf (no active constraint moves with it)"))
+                          "objective stationary in tf (no active constraint moves with it)", **more))
 
 
 def _controls_on_bounds_at_end(ph, run, tol: float) -> bool:
