@@ -329,9 +329,9 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
         # J 8.6e-6 above J*, lambda(tf) 9.3e-3 for 0), so a fixed mesh is bisected
         return {"claimed": claimed, "predicted_gain": predicted, "limit": limit, "corners": corner_times, "passed": True,
                 "judged": False,
-                "note": f"H's minimiser gains {predicted:.1e} over the solution's control to first order "
-                        "(with the mesh's own costates), "
-                        f"below the {share * wanted:.1e} a flight would need: not flown"}
+                "note": (f"H's minimiser gains {predicted:.1e} over the solution's control to first order "
+                         if predicted > 0 else "H's minimiser predicts no gain over the solution's control ")
+                        + f"(with the mesh's own costates), below the {share * wanted:.1e} a flight would need: not flown"}
     t_tab, U_tab, cuts = _tabulate(tt, U_min, G_min, bounds, corners)
     from ...verify.integrate import IntegrationFailure, step_budget, time_budget
 
