@@ -4,6 +4,8 @@ and passes the certificate at J = 12.24, while the problem's optimum is 12.1956;
 ``optimal`` and exited 0."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -154,15 +156,7 @@ def test_a_flight_that_ran_and_judged_nothing_gives_its_own_reason():
     assert "the flight of the minimum principle's control judged no J on this fixed mesh (H's minimiser" in res.message
 
 
-NONAUTONOMOUS_LQ = """
-name: nonauto_lq
-model: {states: [x], controls: [u], dynamics: {x: u}}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [x(t0) == 0]
-  objective: minimize integral(u**2/2 + t*x)
-method: {transcription: METHOD}
-"""
+NONAUTONOMOUS_LQ = Path(__file__).parent / "data" / "nonautonomous_lq.yaml"
 
 
 @pytest.mark.parametrize("method, ok", [("LG, segments: 3, degree: 2", False), ("LG, segments: 3, degree: 4", True)])
@@ -173,7 +167,7 @@ def test_a_flight_not_flown_judges_nothing(tmp_path, method, ok):
     "not flown", and that counted as a judgement, so no bisection ran. Now it is bisected:
     mesh_not_converged; degree 4 holds the cubic and stays optimal."""
     p = tmp_path / "lq.yaml"
-    p.write_text(NONAUTONOMOUS_LQ.replace("METHOD", method))
+    p.write_text(NONAUTONOMOUS_LQ.read_text().replace("LG, segments: 3, degree: 2", method))
     res = run_file(p, None)
     assert res.extra["bisection"] is not None
     if ok:

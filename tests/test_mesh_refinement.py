@@ -1368,16 +1368,12 @@ def test_an_estimate_that_finds_no_error_is_not_told_to_tighten(tmp_path):
     the estimate is 1e-16 (the polynomials meet x' = u exactly), the bisection refutes J
     (1.2e-4), and the advice was "Tighten the tolerance, or raise max_iterations", which
     changes nothing. It says to start from a finer mesh."""
+    from pathlib import Path
+
     p = tmp_path / "lq.yaml"
-    p.write_text("""
-name: nonauto_lq
-model: {states: [x], controls: [u], dynamics: {x: u}}
-problem:
-  time: {t0: 0, tf: 1}
-  constraints: [x(t0) == 0]
-  objective: minimize integral(u**2/2 + t*x)
-method: {transcription: LGL, segments: 3, degree: 3, mesh: {tolerance: 1.0e-10, max_iterations: 30}}
-""")
+    p.write_text((Path(__file__).parent / "data" / "nonautonomous_lq.yaml").read_text().replace(
+        "LG, segments: 3, degree: 2",
+        "LGL, segments: 3, degree: 3, mesh: {tolerance: 1.0e-10, max_iterations: 30}"))
     res = ocdsl.load(p).solve()
     assert res.status == "mesh_not_converged" and not res.ok
     assert "Start from a finer mesh" in res.message and "Tighten the tolerance" not in res.message
