@@ -515,3 +515,19 @@ method: {{transcription: LGR, segments: 4, degree: 4}}
     res = run_file(tmp_path / "x.yaml", tmp_path / "x")
     assert res.status == "optimal", res.message
     assert res.objective == pytest.approx(shifted.objective, rel=1e-8)
+
+
+@pytest.mark.ipopt
+def test_scalar_lq_regulator_with_a_free_end_matches_the_riccati_solution():
+    """Kirk (1970) sec. 5.2, written from the docs alone (seventeenth session's hook): x' = u,
+    x(0) = 1, min int x^2 + u^2 on [0, 1], x(1) free. Riccati p = tanh(1 - t), u = -p x, so
+    J* = tanh(1) and x(1) = 1/cosh(1), both recomputed here. No flight judges J (H's minimiser
+    is the solution's control), so the fixed mesh is bisected, and agrees."""
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "lq_tanh_free_end.yaml", None)
+    assert res.status == "optimal" and res.ok and res.verified
+    assert res.objective == pytest.approx(math.tanh(1.0), rel=1e-10)
+    x = res.phases[0].states["x"]
+    assert x[-1] == pytest.approx(1 / math.cosh(1.0), rel=1e-9)
+    assert res.extra["bisection"]["agrees"] is True
