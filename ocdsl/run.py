@@ -228,7 +228,7 @@ def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, see
     cannot hold together (solve/diagnose.py) in the message. Used by the single solve and by
     the first mesh of an adaptive one (``build_model(guesses)``: its own build of that mesh)."""
     from .solve import ipopt
-    from .transcribe.guess import make_guess
+    from .transcribe.guess import flown_guess, make_guess
     from .transcribe.pseudospectral import build
 
     problem, method = file.problem, file.method
@@ -238,6 +238,28 @@ def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, see
     starts_tried = [guesses]
     tried = "the guess" if starts == 1 else f"{starts} starts"
     out = Recovered(info, tr, [])
+    flown = {ph.name: flown_guess(problem, ph, guesses[ph.name]) if ph.name not in previous else None
+             for ph in problem.phases}
+    if any(g is not None for g in flown.values()):
+        # the guessed controls flown from x(t0) give states that meet the dynamics: a start the
+        # file's constant state guess was not (unseen57 F1)
+        flown_guesses = {k: g if g is not None else guesses[k] for k, g in flown.items()}
+        with timer.measure("diagnose"):
+            if build_model is None:
+                ftr = build(problem, meshes, flown_guesses)
+                fscaled = _scale(file, ftr)
+            else:
+                ftr, fscaled = build_model(flown_guesses), None
+            finfo = ipopt.solve(ftr.model, options, verbose=verbose,
+                                progress=ipopt.Progress(progress, "[from the flown guess]"), transcription=ftr)
+        out.records.append({**_start_record(len(out.records) + starts, None, finfo), "flown_guess": True})
+        tried += " and from the guessed controls flown from x(t0)"
+        starts_tried.append(flown_guesses)
+        if finfo.status in ("optimal", "acceptable"):
+            finfo.message += (" (Solved from the guessed controls flown from x(t0): from the file's state guess, "
+                              "which does not meet the dynamics, Ipopt had converged to a point of local "
+                              "infeasibility.)")
+            return Recovered(finfo, ftr, out.records, flown_guesses, fscaled)
     if any(ph.name not in previous for ph in problem.phases):
         # a point of local infeasibility is a fact about one start (a guess with the controls
         # at 0 makes z' = x u2 - y u1 degenerate): before diagnosing, one more start from

@@ -559,3 +559,19 @@ def test_an_objective_whose_names_cancel_is_refused_at_check(tmp_path):
     with pytest.raises(SpecError) as err:
         compile_file(p)
     assert "simplifies to the constant 0" in str(err.value) and ":16:" in str(err.value)
+
+
+def test_a_control_guess_is_flown_from_x_t0_before_infeasibility_is_diagnosed():
+    """unseen57 F1: the fed-batch ethanol fermenter (Chen & Hwang) with `guess: {u: 3}` alone:
+    the states were guessed constant at x(t0) (the volume at 10 where u = 3 takes it to 193),
+    Ipopt ended locally infeasible, and the relaxed solve named the correct `x1(t0) == 1` and
+    `x4(t0) == 10` as unmet. The guessed control flown from x(t0) is feasible; the solve from
+    those states is tried before the diagnosis, and solves."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "ethanol_control_guess.yaml", None)
+    assert res.status != "infeasible" and res.objective > 1.9e4, (res.status, res.message[:300])
+    assert "x1(t0) == 1" not in res.message
+    assert any(r.get("flown_guess") for r in res.extra["starts"]), res.extra.get("starts")
