@@ -238,20 +238,25 @@ def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, see
     starts_tried = [guesses]
     tried = "the guess" if starts == 1 else f"{starts} starts"
     out = Recovered(info, tr, [])
+
+    def solve_from(start: dict, label: str):
+        """(transcription, SolveInfo, scaling) of the problem built from ``start`` and solved."""
+        with timer.measure("diagnose"):
+            if build_model is None:
+                t = build(problem, meshes, start)
+                scaled = _scale(file, t)
+            else:
+                t, scaled = build_model(start), None
+            return t, ipopt.solve(t.model, options, verbose=verbose, progress=ipopt.Progress(progress, label),
+                                  transcription=t), scaled
+
     flown = {ph.name: flown_guess(problem, ph, guesses[ph.name]) if ph.name not in previous else None
              for ph in problem.phases}
     if any(g is not None for g in flown.values()):
         # the guessed controls flown from x(t0) give states that meet the dynamics: a start the
         # file's constant state guess was not (unseen57 F1)
         flown_guesses = {k: g if g is not None else guesses[k] for k, g in flown.items()}
-        with timer.measure("diagnose"):
-            if build_model is None:
-                ftr = build(problem, meshes, flown_guesses)
-                fscaled = _scale(file, ftr)
-            else:
-                ftr, fscaled = build_model(flown_guesses), None
-            finfo = ipopt.solve(ftr.model, options, verbose=verbose,
-                                progress=ipopt.Progress(progress, "[from the flown guess]"), transcription=ftr)
+        ftr, finfo, fscaled = solve_from(flown_guesses, "[from the flown guess]")
         out.records.append({**_start_record(len(out.records) + starts, None, finfo), "flown_guess": True})
         tried += " and from the guessed controls flown from x(t0)"
         starts_tried.append(flown_guesses)
@@ -265,16 +270,8 @@ def recover_from_infeasibility(file: LoadedFile, meshes, previous, timer, *, see
         # at 0 makes z' = x u2 - y u1 degenerate): before diagnosing, one more start from
         # seeded random controls
         rs = base + starts
-        with timer.measure("diagnose"):
-            retry_guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=rs)
-                             for ph in problem.phases}
-            if build_model is None:
-                rtr = build(problem, meshes, retry_guesses)
-                rscaled = _scale(file, rtr)
-            else:
-                rtr, rscaled = build_model(retry_guesses), None
-            rinfo = ipopt.solve(rtr.model, options, verbose=verbose,
-                                progress=ipopt.Progress(progress, "[retry]"), transcription=rtr)
+        retry_guesses = {ph.name: make_guess(problem, ph, previous.get(ph.name), seed=rs) for ph in problem.phases}
+        rtr, rinfo, rscaled = solve_from(retry_guesses, "[retry]")
         out.records.append({**_start_record(starts, rs, rinfo), "retry": True})
         tried += f" and from seeded random controls (seed {rs})"
         starts_tried.append(retry_guesses)
