@@ -1348,11 +1348,12 @@ def test_a_coarsened_mesh_at_another_optimum_ends_the_refinement():
 @pytest.mark.slow
 def test_the_reorientation_stops_where_its_coarsened_mesh_leaves_the_optimum():
     """Betts' minimum-time reorientation (ex. 6.12, tf* = 28.6304077) from a random guess with
-    4 starts (unseen48 F2): mesh 4 converged (1,014 variables), its coarsened mesh solved to
-    another optimum (J 28.66-28.85) and the refinement went on from there, 6,726 Ipopt
-    iterations and 75 s in all, one warm start running 5,100 iterations with the multipliers
-    where the same point without them solved in 281. Now the refinement ends at the coarsened
-    mesh, and a start from the multipliers stops at a few times the mesh before's iterations."""
+    4 starts (unseen48 F2): 6,726 Ipopt iterations and 75 s, mesh 4's warm start running to
+    5,100 iterations with the multipliers where the same point without them solved in 281.
+    With a start from the multipliers stopped at a few times the mesh before's iterations,
+    mesh 4 converged (1,014 variables) and its coarsened mesh solved to another optimum (J
+    28.657), from which the refinement went on to `mesh_not_converged`; now it ends at the
+    coarsened mesh."""
     from pathlib import Path
 
     res = ocdsl.load(Path(__file__).parent / "data" / "reorientation_mesh.yaml").solve()

@@ -568,10 +568,10 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 if info.iterations > (mcap or 0) and _left_the_optimum(info.objective, converged[-1][3].objective,
                                                                        spec.tolerance):
                     # ... unless its warm start did not take and it solved to another optimum:
-                    # refining that one only finds its way back (unseen48 F2: the reorientation
-                    # converged on mesh 4 at J 28.6304068; its coarsened mesh took 3,789
-                    # iterations to 28.657, and 8 more meshes, 60 s, went on from there to
-                    # max_iterations)
+                    # refining that one only finds its way back (unseen48 F2, with the
+                    # multiplier cap: the reorientation converged on mesh 4 at J 28.6304068;
+                    # its coarsened mesh took 3,789 iterations to 28.657, and the meshes refined
+                    # from it ended `mesh_not_converged` after 94 s)
                     rec["coarsening_left_the_optimum"] = True
                     break
             elif solved_again and not (nudge_grace and any(memory.get("last") for memory in nudged.values())):
