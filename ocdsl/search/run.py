@@ -207,6 +207,7 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
             display.stop()
     timings["solve"] = time.perf_counter() - t0
     x_best = res.x
+    stages = [("swarm", res.x)]     # the points before the refinement, for _within_control_bounds
     pso_only = None
     if spec.polish.method == "least_squares":
         t0 = time.perf_counter()
@@ -214,7 +215,7 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         pso_only = {"fitness": res.f, "tf": d0["tf"], "max_error_over_zeta": float(d0["ratio"].max()),
                     "decision_vector": dict(zip(pp.names(), map(float, res.x)))}
         x_best, pinfo = polish(pp, res.x, spec.polish)
-        x_polished = x_best
+        stages.append(("polish", x_best))
         pso_only.update(pinfo)
         timings["polish"] = time.perf_counter() - t0
     continuation = None
@@ -223,7 +224,7 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         d1 = pp.details(x_best)
         polished = {"tf": d1["tf"], "max_error_over_zeta": float(d1["ratio"].max()), "fitness": d1["fitness"]}
         x_best, cinfo, ctable = continue_tf(pp, x_best, spec.polish, spec.continuation, progress=progress)
-        x_continued = x_best
+        stages.append(("continuation", x_best))
         continuation = {"polished": polished, **cinfo}
         timings["continuation"] = time.perf_counter() - t0
     refined = None
@@ -243,8 +244,6 @@ def run(problem, spec, executor: MapLike | None = None, progress: bool = True,
         refined["automatic"] = automatic
         timings["refine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    stages = [("swarm", res.x)] + ([("polish", x_polished)] if pso_only is not None else []) \
-        + ([("continuation", x_continued)] if continuation is not None else [])
     x_best, kept = _within_control_bounds(pp, problem, x_best, stages)
     det = pp.details(x_best)
     phase, solution = solution_record(pp, x_best, det)

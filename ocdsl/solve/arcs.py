@@ -49,6 +49,10 @@ class Level:
     final_times: dict = field(default_factory=dict)   # the free final times of that solve
 
 
+
+#: how Bisection.describe begins (``qualified_notes`` finds the notes that quote it)
+BISECTED = "with every segment bisected"
+
 @dataclass(frozen=True)
 class Bisection:
     """J on the file's mesh against J with every segment bisected, and bisected again where
@@ -111,7 +115,7 @@ class Bisection:
         """What the solves gave: "with every segment bisected (N variables) J = ..."."""
         first = self.levels[0]
         d, measured = self.differences(), self.differences(judged=False)
-        text = f"with every segment bisected ({first.variables} variables) "
+        text = f"{BISECTED} ({first.variables} variables) "
         if first.objective is None:
             return text + f"Ipopt ended {first.status}"
         text += f"J = {first.objective:.10g} (relative difference {measured[0]:.1e}"
@@ -231,6 +235,11 @@ def free_final_times(tr) -> dict[str, float]:
     return {pb.phase.name: float(pyo.value(pb.block.tf)) for pb in tr.phases if pb.phase.tf is None}
 
 
+#: how the notes of final_time_spread begin, and where their reading of the spread starts
+#: (``qualified_notes`` rewrites that reading)
+WEAK_TF, FLAT_IN_TF = "the final time is weakly determined:", ": J is flat in t_f"
+
+
 def final_time_spread(solutions: list[tuple[float, dict]], tolerance: float) -> str | None:
     """A note when solutions whose J agree within ``tolerance`` (the run's, on other meshes)
     put a free final time far further apart than that: J is flat in t_f near the optimum, and
@@ -252,9 +261,9 @@ def final_time_spread(solutions: list[tuple[float, dict]], tolerance: float) -> 
                          f"{max(ts):.10g} (relative spread {spread:.1e})")
     if not parts:
         return None
-    return (f"the final time is weakly determined: solutions on other meshes whose J agree to {spread_j:.1e} "
-            f"give {'; '.join(parts)}: J is flat in t_f near the optimum, so t_f is less certain than J (its "
-            "error may well exceed that spread; J is not affected)")
+    return (f"{WEAK_TF} solutions on other meshes whose J agree to {spread_j:.1e} give {'; '.join(parts)}"
+            f"{FLAT_IN_TF} near the optimum, so t_f is less certain than J (its error may well exceed that "
+            "spread; J is not affected)")
 
 
 #: what a fixed mesh's run is checked against when nothing binds and no flight judged J
@@ -310,3 +319,23 @@ def _bound_text(name: str, lo: float, hi: float) -> str:
     if math.isfinite(lo) and math.isfinite(hi):
         return f"{lo:g} <= {name} <= {hi:g}"
     return f"{name} >= {lo:g}" if math.isfinite(lo) else f"{name} <= {hi:g}"
+
+
+def qualified_notes(notes: list[str], bisection_agrees: bool) -> list[str]:
+    """``notes`` of a run whose trajectory does not fly (a dynamics check of the verification
+    failed): an agreeing bisection and a weakly determined t_f speak of the NLP's J, which is no
+    trajectory's then, and say so (unseen47 F4: x' = u - x, max x(tf), tf unbounded: J = 1.19
+    above the supremum 1, dynamics 0.139 off, and the notes "with every segment bisected ... J =
+    1.191199352 (within a quarter of the verification's tolerance)" and "t_f is less certain
+    than J (... J is not affected)")."""
+    out = []
+    for n in notes:
+        if bisection_agrees and BISECTED in n:
+            n += ("; both are the NLP's J, and the trajectory does not satisfy the dynamics (the verification "
+                  "failed), so the agreement says nothing of the problem's J")
+        elif n.startswith(WEAK_TF) and FLAT_IN_TF in n:
+            n = (n.split(FLAT_IN_TF)[0] + ": the trajectory does not satisfy the dynamics (the verification "
+                 "failed), so this is no optimum's t_f and J is not established either; a t_f that moves this "
+                 "far between meshes may be running away (a bound on t_f shows it)")
+        out.append(n)
+    return out

@@ -19,7 +19,6 @@ from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
 from .certificate.end_arcs import end_arcs
 from .certificate.flown_control import flown_control
-from .certificate.minimum import check_phase
 from ..verify.objective_size import objective_scale, objective_size
 
 
@@ -188,21 +187,13 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
         kw["breakpoints"] = (traj.control_interpolation or {}).get("breakpoints") or ()
         kw["lgl"] = str((result.method or {}).get("transcription", "")).upper() == "LGL"
         kw["refined"] = mesh_tolerance is not None
+        kw["sample_minimum"] = not ph.path
         # path constraints with their multipliers (costates.path_multipliers): H_aug
         mus = {f"mu_{k}": traj.extra.get(f"mu_{k}") for k in range(len(ph.path))}
         if ph.path and all(v is not None for v in mus.values()):
             kw["path_constraints"] = [(c.expr, c.lower, c.upper, c.text) for c in ph.path]
             kw["multipliers"] = {k: np.asarray(v, float) * nan for k, v in mus.items()}
         per_phase[ph.name] = cert = certificate(ph.model, params, arrays, bounds, L, kind, **kw)
-        if not ph.path:
-            # H's global minimum over the control's range, beside the first-order checks (a
-            # diagnosis: unseen48 F3, a local extremal of an H not convex in u)
-            try:
-                minimum = check_phase(ph.model, params, arrays, bounds, L)
-            except Exception:  # noqa: BLE001  (a diagnosis less, never a lost certificate)
-                minimum = None
-            if minimum is not None:
-                cert["minimum_condition"] = minimum
         # the ends' rows with no collocated control (the arrays above hold the nodes only)
         ends = end_arcs(ph.model, params, {"time": traj.time, "states": traj.states, "controls": traj.controls,
                                            "costates": traj.costates}, bounds, L,

@@ -505,29 +505,18 @@ def constant_value(value) -> float:
     `sqrt(2)`); a ValueError otherwise. `inf`, `nan` and `1e400` are refused (unseen40 F3)."""
     import math
 
-    if not isinstance(value, str):
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(repr(value)) from None
-        if not math.isfinite(number):
-            raise ValueError(repr(value))
-        return number
     try:
         number = float(value)
-    except ValueError:
-        pass
-    else:
-        if not math.isfinite(number):
+    except (TypeError, ValueError):
+        if not isinstance(value, str):
+            raise ValueError(repr(value)) from None
+        try:
+            e = parse_expression(value.strip(), Scope(names={}))
+        except (ExprError, SyntaxError, TypeError, ValueError):
+            raise ValueError(value) from None
+        if e.free_symbols:
             raise ValueError(value)
-        return number
-    try:
-        e = parse_expression(value.strip(), Scope(names={}))
-    except (ExprError, SyntaxError, TypeError, ValueError):
-        raise ValueError(value) from None
-    if e.free_symbols:
-        raise ValueError(value)
-    number = float(e)
+        number = float(e)
     if not math.isfinite(number):
-        raise ValueError(value)
+        raise ValueError(value if isinstance(value, str) else repr(value))
     return number

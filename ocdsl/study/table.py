@@ -47,13 +47,13 @@ class _Table:
 
     def set(self, pid: str, summary: dict[str, Any], meta: dict[str, Any]) -> None:
         self.sense = summary.pop("sense", self.sense) or self.sense
-        self.rows[pid].update(summary)
         row = self.rows[pid]
+        row.update(summary)
         # what the number is, in the files as on the console (unseen54 F7: an infeasible
         # point's last iterate in study.csv/json like a solution)
         row["objective_from"] = None if row.get("objective") is None else (
             "last iterate" if _last_iterate(row) else "solution")
-        self.rows[pid].update(host=meta.get("host"), warm_start=meta.get("warm_start"))
+        row.update(host=meta.get("host"), warm_start=meta.get("warm_start"))
 
     def counts(self) -> dict[str, int]:
         """``ok``: points whose own run is ok (solved, expect checks passed, verified or not

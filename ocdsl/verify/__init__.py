@@ -89,30 +89,6 @@ def attach_verification(problem, result, settings: VerifySettings | None = None)
     tables: dict[str, dict[str, np.ndarray]] = {}
     result.verification = verify_result(problem, result, settings, tables=tables)
     result.tables.update(tables)
-    _qualify_notes(result)
-
-
-def _qualify_notes(result) -> None:
-    """Notes on J's agreement across meshes speak of the NLP's J: where the trajectory does not
-    fly (a dynamics check failed) that J is no trajectory's, and they say so (unseen47 F4: x' =
-    u - x, max x(tf), tf unbounded: J = 1.19 above the supremum 1, dynamics 0.139 off, and the
-    notes "with every segment bisected ... J = 1.191199352 (within a quarter of the
-    verification's tolerance)" and "t_f is less certain than J (... J is not affected)")."""
-    notes = (result.extra or {}).get("notes")
-    checks = (result.verification or {}).get("checks") or []
-    if not notes or not any(c["name"].startswith("dynamics") and c.get("passed") is False for c in checks):
-        return
-    out = []
-    for n in notes:
-        if "within a quarter of the verification's tolerance" in n:
-            n += ("; both are the NLP's J, and the trajectory does not satisfy the dynamics (the verification "
-                  "failed), so the agreement says nothing of the problem's J")
-        elif n.startswith("the final time is weakly determined") and ": J is flat in t_f" in n:
-            n = (n.split(": J is flat in t_f")[0] + ": the trajectory does not satisfy the dynamics (the "
-                 "verification failed), so this is no optimum's t_f and J is not established either; a t_f "
-                 "that moves this far between meshes may be running away (a bound on t_f shows it)")
-        out.append(n)
-    result.extra["notes"] = out
 
 
 def verify_result(problem, result, settings: VerifySettings | None = None,

@@ -255,7 +255,7 @@ def _not_finite_at_start(funcs, uf, a: float, y0) -> str:
     bad = np.flatnonzero(~np.isfinite(rate))
     if not len(bad):
         return ""
-    names = [str(x) for x in funcs.states] + list(getattr(funcs, "integrands", [str(q) for q in funcs.integral_symbols]))
+    names = [str(x) for x in funcs.states] + funcs.integrands
     at = ", ".join(f"{x} = {v:.6g}" for x, v in zip(funcs.states, y0[:funcs.n]))
     what = ", ".join(f"{'the integrand of ' if i >= funcs.n else 'the rate of '}{names[i]}" for i in bad[:3])
     return (f"{what} is not finite at t = {a:.6g} ({at}): a singular point of the model, which the "

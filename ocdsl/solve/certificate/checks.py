@@ -12,6 +12,7 @@ from ocdsl.solve import pchip
 from ocdsl.symbolic.model import Model
 
 from .conditions import symbolic_conditions
+from .minimum import minimum_condition
 from .nodes import _arrays, _hamiltonian_nodes, _Numeric
 from .path import (_held_fraction, _path_active, _path_check, _path_item, _path_sizes, _state_arcs,
                    _state_touches)
@@ -73,7 +74,8 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
                 shared_nodes: Sequence[float] = (), breakpoints: Sequence[float] = (),
                 tied_controls: Sequence[Mapping] = (),
                 lgl: bool = False,
-                refined: bool = False) -> dict[str, Any]:
+                refined: bool = False,
+                sample_minimum: bool = True) -> dict[str, Any]:
     """Check the first-order optimality conditions of a collocated solution.
 
     Parameters
@@ -115,6 +117,9 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     breakpoints : the mesh's segment ends (times). With them an explicit time dependence
         of H is integrated on each segment's own polynomial through its nodes, else by PCHIP
         through all nodes.
+    sample_minimum : without path constraints, sample H over each control's range at the nodes
+        (``minimum_condition``, a diagnosis; a path constraint moves H's minimiser, so the
+        caller turns it off where the phase has any, with or without their multipliers).
     refined : the mesh came from mesh refinement, which puts breakpoints on the switches it
         locates (a bang-bang answer with every switch on one is not judged by H's mean; on a
         fixed mesh a switch pinned to a breakpoint is what that mean catches).
@@ -345,6 +350,15 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     if path:
         out["path_multipliers"] = _path_check(num, path, t, X, U, Mu, term_scale, tol)
         checks += ("path_multipliers",)
+    elif sample_minimum:
+        # H's global minimum over the control's range: a diagnosis beside the first-order checks,
+        # not one of them (unseen48 F3, a local extremal of an H not convex in u)
+        try:
+            minimum = minimum_condition(num, t, X, U, Lam, bounds, [c.name for c in model.controls])
+        except Exception:  # noqa: BLE001  (a diagnosis less, never a lost certificate)
+            minimum = None
+        if minimum is not None:
+            out["minimum_condition"] = minimum
     mean_ok = (expected is None or h["mean_deviation"] <= h_floor
                or (h.get("relative_mean_deviation") or math.inf) <= tol.hamiltonian_mean)
     on_breakpoints = refined and _switches_on_breakpoints(t, side, breakpoints)

@@ -11,9 +11,11 @@ It is a diagnosis: the NLP's costates carry the mesh's error, so it says where t
 an extremal but not H's minimum, and leaves the verdict to the other checks."""
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
+
+from .nodes import _hamiltonian_nodes
 
 #: grid points per control (one control); per axis for two; each control alone for more
 SAMPLES_ONE, SAMPLES_TWO = 401, 61
@@ -56,8 +58,6 @@ def _hamiltonian(num, t, X, U, Lam) -> np.ndarray:
 def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], names: list[str]) -> dict[str, Any] | None:
     """``num``: the phase's _Numeric; t, X, U, Lam at the nodes; ``bounds`` per control
     (+-inf where missing). None where H cannot be evaluated over the grid."""
-    from .nodes import _hamiltonian_nodes
-
     if U.shape[1] == 0 or len(t) < 2:
         return None
     H_own, _, H_terms, _ = _hamiltonian_nodes(num, t, X, U, Lam)
@@ -101,19 +101,3 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
                    "over the control's range), and no finer mesh or more iterations change that; a guess with the "
                    "better control there starts the solve on the other branch")
     return out
-
-
-def check_phase(model, parameter_values: Mapping, trajectory: Mapping, control_bounds: Mapping,
-                lagrange) -> dict[str, Any] | None:
-    """``minimum_condition`` on a phase's certificate arrays (``certify_result``'s)."""
-    from .nodes import _arrays, _Numeric
-
-    t, X, U, Lam = _arrays(model, trajectory)
-    if Lam is None:
-        return None
-    names = [c.name for c in model.controls]
-    bounds = []
-    for n in names:
-        lo, hi = (tuple(control_bounds.get(n) or (None, None)) + (None, None))[:2]
-        bounds.append((-np.inf if lo is None else float(lo), np.inf if hi is None else float(hi)))
-    return minimum_condition(_Numeric(model, parameter_values, lagrange), t, X, U, Lam, bounds, names)

@@ -19,7 +19,7 @@ from .flown import (announce_again, beaten_meshes, refined_again, refuted_corner
                     second_pass_recorded, with_breakpoints)
 from .locate import locate_features, locate_switches, misplaced
 from .confirm import confirm
-from .outcome import GOOD, _objective_disagreement, outcome, record
+from .outcome import GOOD, RAISE_ADVICE, _objective_disagreement, outcome, record
 from .refine import MeshStalled, refine, same_mesh
 from .switches import solve_switch_times
 from .regularise import chattering_segments, merge_intervals, regularise
@@ -693,10 +693,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         if minimum_condition_notes(result.certificate):
             # more of the same cannot leave a local extremal (unseen48 F3: Newton's nose at 25
             # iterations had the J of 12)
-            message = message.replace("Raise max_iterations or max_degree, or loosen the tolerance.",
-                                      "The control is not H's minimiser where the note below says: the "
-                                      "refinement follows a local extremal, which more iterations or a higher "
-                                      "degree do not change; start from a guess with the better control there.")
+            message = message.replace(RAISE_ADVICE, "The control is not H's minimiser where the note below "
+                                      "says: the refinement follows a local extremal, which more iterations or a "
+                                      "higher degree do not change; start from a guess with the better control there.")
     result.message = ((f"{message.rstrip('.')}.{hints}" if hints else message)
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
                       + (f"; {terminal_notes[-1]}" if terminal_notes else ""))

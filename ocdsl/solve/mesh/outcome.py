@@ -4,6 +4,11 @@ from __future__ import annotations
 GOOD = ("optimal", "acceptable")
 
 
+#: the advice to a refinement that ran out of iterations (drive.py replaces it where the
+#: certificate shows the run follows a local extremal)
+RAISE_ADVICE = "Raise max_iterations or max_degree, or loosen the tolerance."
+
+
 def _path_bound_hint(problem, tr=None) -> str:
     """What to do when a control is bounded by path constraints (`u <= 1 + x`, `-p <= u <= p`):
     the switch locators and the switch-time solves know box bounds only, so a control that
@@ -126,7 +131,7 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
                    f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
                    f"largest estimated error {max_err:.3e} {where}. "
                    + (f"Stopped early because {stalled}." if stalled else
-                      "Raise max_iterations or max_degree, or loosen the tolerance.")
+                      RAISE_ADVICE)
                    + _path_bound_hint(problem, _tr))
     return status, chosen, message, disagree, stalled
 

@@ -8,9 +8,9 @@ hanging chain's meshes 1-4 were spurious zigzags (J 4.79-4.95 against 5.068), an
 file's guess it took 89. Within that, the start from the mesh before's multipliers may take a few
 times the mesh before's iterations (``multiplier_cap``) before the same point is solved without
 them: the reorientation's fourth mesh (unseen48 F2), its third solved in 14, ran with them to
-5,100 iterations (32 s of a 75 s run), and without them solved in 281. Where neither start solves within the cap, the warm start runs again
-without it, as before the cap. A mesh whose zigzag exploits an integral's quadrature is no warm
-start at all (``exploits_quadrature``).
+5,100 iterations (32 s of a 75 s run), and without them solved in 281. Where neither start
+solves within the cap, the warm start runs again without it, as before the cap. A mesh whose
+zigzag exploits an integral's quadrature is no warm start at all (``exploits_quadrature``).
 
 A first mesh that cannot solve for want of nodes (infeasible where the problem is not, or no
 freedom left by many end values) is bisected before the run gives up (``bisect_first``)."""
