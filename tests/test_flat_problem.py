@@ -468,3 +468,42 @@ def test_a_bound_on_an_atan2_heading_that_fails_the_solve_is_named(tmp_path):
     assert "th is atan2 of the outputs' derivatives, and its bounds and path constraints see its principal " \
            "value in (-pi, pi]" in res.message, res.message
     assert ".." not in res.message
+
+
+KINKED = """
+name: double integrator, min int u^2 + x^2, on a coarse cubic spline
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 2}
+  constraints: [x(t0) == 1, v(t0) == 0, x(tf) == 0, v(tf) == 0]
+  objective: minimize integral(u**2 + x**2)
+method: {transcription: flat-bspline, degree: 3, control_points: 7, collocation_points: 7}
+"""
+
+
+@pytest.mark.ipopt
+def test_a_control_with_kinks_at_the_knots_is_flown_span_by_span(tmp_path):
+    """u = x'' of a cubic spline is piecewise linear with kinks at the knots. The run folder
+    declares a cubic per knot span, which flies the spline's own control: the dynamics check
+    finds the trajectory exact. One cubic through every row smeared each kink over its
+    neighbours and failed "dynamics" on a trajectory without error (unseen49 F3)."""
+    from ocdsl.verify.interpolate import control_interpolant
+
+    res = ocdsl.load(write(tmp_path, KINKED)).solve()
+    tr = res.phase()
+    spec = tr.control_interpolation
+    assert spec["kind"] == "cubic"
+    np.testing.assert_allclose(spec["breakpoints"], np.linspace(0, 2, 5), atol=1e-12)
+    dyn = next(c for c in res.verification["checks"] if c["name"].startswith("dynamics"))
+    assert dyn["passed"] and dyn["value"] < 1e-8, dyn
+    # between the rows: the span cubics give x'' of the spline; one cubic through all rows does not
+    tt = np.linspace(0.0, 2.0, 1601)
+    bounds = [(-np.inf, np.inf)]
+    per_span = control_interpolant(tr, ["u"], bounds).at(tt)[:, 0]
+    one_cubic = control_interpolant(tr, ["u"], bounds, {"kind": "cubic"}).at(tt)[:, 0]
+    exact = np.interp(tt, tr.time, tr.controls["u"])     # piecewise linear: exact between rows on a span
+    assert np.max(np.abs(per_span - exact)) < 1e-9
+    assert np.max(np.abs(one_cubic - exact)) > 1e-5

@@ -35,6 +35,7 @@ import numpy as np
 import sympy as sp
 
 from ..pyomo_logs import evaluation_unlogged
+from .bspline import clamped_knots
 from ..result import PhaseTrajectory, Result
 from ..symbolic.flatness import FlatnessError, flatten
 from ..symbolic.model import TIME
@@ -488,26 +489,29 @@ def _value(expr, what: str) -> float:
 
 def solved_result(file, mp: "_Mapped", nlp, info) -> Result:
     """The Result of a solved flat NLP: every state and control on ``dense_points`` per
-    phase (at least 8 per knot span, so that the cubic through the rows that the run folder
-    declares follows the spline), residuals, boundary values, expect checks."""
+    phase (at least 8 per knot span, so that the cubic per knot span through the rows that
+    the run folder declares follows the spline), residuals, boundary values, expect checks."""
     import pyomo.core as pyo
 
     from ..run import check_expectations
 
     problem, method, opts = file.problem, file.method, mp.opts
     tau = np.linspace(0.0, 1.0, max(method.dense_points, 8 * (opts.n_ctrl - opts.degree) + 1))
+    knots = np.unique(clamped_knots(opts.degree, opts.n_ctrl))
     phases, dense = [], {}
     for ph in problem.phases:
         p = nlp.phases[ph.name]
         with np.errstate(all="ignore"):       # a singular flat map's inf or nan: the verification's
             num = p.numeric(tau)
         t0 = float(pyo.value(mp.t0[ph.name]))
+        # the controls are smooth inside knot spans, only continuous at the knots
+        spans = {"kind": "cubic", "breakpoints": (t0 + np.interp(knots, tau, num["t"])).tolist()}
         traj = PhaseTrajectory(ph.name, num["t"] + t0,
                                {s.name: num[s.name] for s in ph.states},
                                {c.name: _unwrapped(ph, c, num[c.name], mp.flatmaps[ph.name].controls.get(c))
                                 for c in ph.controls},
                                extra={k: v for k, v in num.items() if k.startswith("residual_")},
-                               control_interpolation={"kind": "cubic"})
+                               control_interpolation=spans)
         dense[ph.name] = max([float(np.max(np.abs(v))) for v in traj.extra.values()] or [0.0])
         phases.append(traj)
     values: dict[sp.Symbol, float] = {}
