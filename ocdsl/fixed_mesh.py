@@ -10,7 +10,7 @@ import math
 
 from .result import Result
 from .spec.compile import LoadedFile
-from .verify.objective_size import objective_size
+from .verify.objective_size import objective_constant, objective_size, own_size
 
 
 def tie_jumping_end_controls(file: LoadedFile, info, tr, meshes, timer, *, verbose=False) -> tuple:
@@ -43,7 +43,8 @@ def tie_jumping_end_controls(file: LoadedFile, info, tr, meshes, timer, *, verbo
         again = ipopt.solve(tied.model, file.spec.solver.options, verbose=verbose, transcription=tied)
     shown = "; ".join(f"{'t_f' if e == 'end' else 't0'}" + (f" of phase {k}" if len(file.problem.phases) > 1 else "")
                       for k, v in ends.items() for e in sorted(v))
-    size = objective_size(info.objective, abs(info.objective))      # relative below |J| = 1
+    constant = objective_constant(file.problem)
+    size = objective_size(info.objective, own_size(info.objective, constant), constant)  # relative below 1
     if again.status not in ("optimal", "acceptable") or again.objective is None:
         return info, tr, [f"the control at {shown} jumps off its segment's other nodes; tied to its segment's "
                           f"polynomial the problem ended {again.status}: the untied solution is reported"]
@@ -157,7 +158,7 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
 
     tol = file.spec.verify.tolerance
     J = float(result.objective or 0.0)
-    size = objective_size(J, result.extra.get("objective_scale"))
+    size = objective_size(J, result.extra.get("objective_scale"), objective_constant(problem))
     with timer.measure("post"):
         params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
         suspects: dict[str, list[int]] = {}
@@ -260,7 +261,7 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
     # Ipopt's own accuracy: its tolerance on the (scaled) objective's optimality, in units of
     # the objective's own size where that is below 1
     floor = 10 * float(options.get("tol", 1e-8)) * (objective_size(0.0, objective_scale))
-    check = Bisection(float(objective), (), file.spec.verify.tolerance, floor)
+    check = Bisection(float(objective), (), file.spec.verify.tolerance, floor, objective_constant(problem))
     while not check.levels or check.needs_second:
         meshes = {name: mesh.bisected() for name, mesh in meshes.items()}
         if build_model is None:
@@ -276,7 +277,7 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
         level = Level(float(info.objective) if good else None, info.status,
                       int((info.nlp or {}).get("variables", 0)), int(info.iterations or 0),
                       free_final_times(tr) if good else {})
-        check = Bisection(check.objective, check.levels + (level,), check.tolerance, floor)
+        check = Bisection(check.objective, check.levels + (level,), check.tolerance, floor, check.constant)
         if not good:
             break
     return check

@@ -98,3 +98,52 @@ def test_an_optimum_of_zero_in_a_states_end_value_is_measured_against_the_states
     assert res.status == "optimal" and res.ok and res.verified, (res.status, res.message)
     assert res.extra["objective_scale"] == pytest.approx(0.25, rel=1e-2)
     assert res.certificate["passed"], res.certificate.get("failed")
+
+
+OFFSET = """\
+name: x' = u, min int u^2/2 + t x, on a coarse LG mesh
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0]
+  objective: minimize OFFSET
+method: {transcription: LG, segments: 3, degree: 2}
+"""
+# J* = -1/15 (u = (t^2 - 1)/2); LG 3 x 2 is 1.2e-4 above it, which the bisection finds
+
+
+@pytest.mark.parametrize("objective", ["integral(u**2/2 + t*x)", "1.0e8 + integral(u**2/2 + t*x)",
+                                       "integral(1.0e8 + u**2/2 + t*x)", "3.0e7*tf + integral(u**2/2 + t*x)"])
+def test_a_constant_in_the_objective_does_not_change_the_verdict(objective, tmp_path):
+    """A constant part of J moves neither the optimum nor the mesh's error: 1e8 added to J
+    made the bisection's change of J 8e-14 of J, and the coarse mesh `optimal`, exit 0
+    (unseen59 F2). J's changes are measured against J less its constant part."""
+    path = tmp_path / "offset.yaml"
+    path.write_text(OFFSET.replace("OFFSET", objective))
+    res = run_file(path, None)
+    assert res.status == "mesh_not_converged" and not res.ok, (res.status, res.message)
+    assert res.extra["bisection"]["relative_differences"][0] == pytest.approx(1.2e-4, rel=0.05)
+
+
+def test_the_objective_constant_is_what_no_decision_moves(tmp_path):
+    import math
+
+    import ocdsl
+    from ocdsl.verify.objective_size import objective_constant
+
+    def constant(objective, time="{t0: 0, tf: 2}"):
+        path = tmp_path / "c.yaml"
+        path.write_text(OFFSET.replace("OFFSET", objective).replace("{t0: 0, tf: 1}", time))
+        return objective_constant(ocdsl.load(path).file.problem)
+
+    assert constant("5 + x(tf) + integral(u**2)") == 5.0
+    assert constant("integral(1 + u**2)") == pytest.approx(2.0)
+    assert constant("2*integral(exp(-t) + t*x)") == pytest.approx(2 * (1 - math.exp(-2)))
+    assert constant("3*tf + integral(u**2)") == pytest.approx(6.0)
+    # a free final time: t's terms and tf itself are decided
+    assert constant("3*tf + integral(1 + u**2) + 4", "{t0: 0, tf: free}") == 4.0
+    # J not linear in the integral: its coefficient is decided
+    assert constant("integral(1 + u**2)**2") == 0.0

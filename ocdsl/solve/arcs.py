@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..verify.objective_size import own_size
+
 # relative to 1 + |bound|: Ipopt leaves an active bound within about 1e-8; a state leaving its
 # bound from rest (Goddard's r >= 1 from r(t0) = 1) is 7e-7 above it at the first node
 ACTIVE_TOL = 1e-7
@@ -61,6 +63,7 @@ class Bisection:
     levels: tuple[Level, ...]
     tolerance: float
     floor: float                    # an absolute difference this small is the NLP's own accuracy
+    constant: float = 0.0           # J's constant part (verify/objective_size.py): not J's size
 
     def _objectives(self) -> list[float]:
         out = [self.objective]
@@ -74,7 +77,8 @@ class Bisection:
         """Relative differences of successive objectives; ``judged``: an absolute one below the
         floor counted as 0 (what the verdict uses; the messages print the measured ones)."""
         js = self._objectives()
-        return [0.0 if judged and abs(b - a) <= self.floor else abs(b - a) / max(abs(a), abs(b), 1e-300)
+        return [0.0 if judged and abs(b - a) <= self.floor
+                else abs(b - a) / max(own_size(a, self.constant), own_size(b, self.constant), 1e-300)
                 for a, b in zip(js, js[1:])]
 
     @property
@@ -111,6 +115,13 @@ class Bisection:
                 "relative_differences": d, "estimated_error": self.error,
                 "tolerance": self.tolerance, "agrees": self.agrees}
 
+    def shown(self, j: float) -> str:
+        """``j`` with ten digits of J less its constant part (as many more as the constant takes)."""
+        extra = 0
+        if 0.0 < own_size(j, self.constant) < abs(j):
+            extra = math.ceil(math.log10(abs(j) / own_size(j, self.constant)))
+        return f"{j:.{min(10 + extra, 17)}g}"
+
     def describe(self) -> str:
         """What the solves gave: "with every segment bisected (N variables) J = ..."."""
         first = self.levels[0]
@@ -118,7 +129,9 @@ class Bisection:
         text = f"{BISECTED} ({first.variables} variables) "
         if first.objective is None:
             return text + f"Ipopt ended {first.status}"
-        text += f"J = {first.objective:.10g} (relative difference {measured[0]:.1e}"
+        of = (f" of J less its constant part {self.constant:g}"
+              if own_size(first.objective, self.constant) < abs(first.objective) else "")
+        text += f"J = {self.shown(first.objective)} (relative difference{of} {measured[0]:.1e}"
         if len(self.levels) < 2:
             if d[0] > self.tolerance:
                 return text + f", more than the verification's tolerance {self.tolerance:g})"
@@ -129,7 +142,7 @@ class Bisection:
         text += f"), and bisected again ({second.variables} variables) "
         if second.objective is None:
             return text + f"Ipopt ended {second.status}"
-        text += f"J = {second.objective:.10g} (relative difference {measured[1]:.1e}): "
+        text += f"J = {self.shown(second.objective)} (relative difference {measured[1]:.1e}): "
         if self.error == math.inf:
             return text + "the differences do not shrink"
         return text + f"this mesh's error is about {self.error:.1e} (Richardson), against the verification's tolerance {self.tolerance:g}"
@@ -304,7 +317,7 @@ def note(found: list[PhaseArcs], multi_phase: bool, check: Bisection | None, unj
 def mismatch_message(found: list[PhaseArcs], multi_phase: bool, check: Bisection, unjudged: str | None = None) -> str:
     why = ("the mesh misses these arcs' junctions or the controls' switches" if found
            else "the mesh is too coarse for the optimum")
-    return (f"J = {check.objective:.10g} on this mesh but {check.describe()}: "
+    return (f"J = {check.shown(check.objective)} on this mesh but {check.describe()}: "
             f"{describe(found, multi_phase, unjudged)}, "
             f"and J is this mesh's optimum, not the problem's ({why}). "
             "`mesh:` places the junctions and refines until the error estimate meets its tolerance "

@@ -304,7 +304,7 @@ def flown_control(problem: Problem, result: Result, lagrange, params: dict, tole
     U_min, G_min, corners = found
     corner_times = [c for c, _, _ in corners]
     claimed = float(result.objective)
-    size = objective_size(claimed, result.extra.get("objective_scale"))
+    size = objective_size(claimed, result.extra.get("objective_scale"), result.extra.get("objective_constant", 0.0))
     limit = tolerance * size
     # what H's minimiser gains over the solution's own control, to first order (for a convex
     # problem an upper bound of J - J*): far below the limit, the flight cannot refute the claim

@@ -26,6 +26,7 @@ from .regularise import chattering_segments, merge_intervals, regularise
 from .segments import close_mesh, control_polys, dense_trajectory
 from .terminal import TerminalError, terminal_error
 from .budget import Budget
+from ...verify.objective_size import objective_constant, own_size
 
 # above this amplification of the open-loop flight (``flight_amplification``) the terminal
 # conditions are judged piece by piece (``segment_ends``): the segment errors (1e-6 and more)
@@ -566,7 +567,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 rec["coarsening_rejected"] = True
                 coarsening = False
                 if info.iterations > (mcap or 0) and _left_the_optimum(info.objective, converged[-1][3].objective,
-                                                                       spec.tolerance):
+                                                                       spec.tolerance, objective_constant(file.problem)):
                     # ... unless its warm start did not take and it solved to another optimum:
                     # refining that one only finds its way back (unseen48 F2, with the
                     # multiplier cap: the reorientation converged on mesh 4 at J 28.6304068;
@@ -664,7 +665,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         beaten = beaten_meshes(result, converged, problem.objective.sense, spec.tolerance)
         kept = [c for c in converged if c[1] not in beaten]
         if (beaten and len(kept) >= 2 and any(c is chosen for c in kept)
-                and _objective_disagreement(kept, spec.tolerance) is None):
+                and _objective_disagreement(kept, spec.tolerance, objective_constant(file.problem)) is None):
             status = "optimal"
             message = (f"mesh converged: iterations {[c[1] for c in kept]} are within tolerance {spec.tolerance:.1e} "
                        f"and agree in J; iteration(s) {beaten}, also within it, are no optimum: the control the "
@@ -741,10 +742,12 @@ def _largest_move(moved: dict, meshes: dict) -> float:
 LEFT_THE_OPTIMUM = 100
 
 
-def _left_the_optimum(objective, converged_objective, tolerance: float) -> bool:
+def _left_the_optimum(objective, converged_objective, tolerance: float, constant: float = 0.0) -> bool:
+    """``constant``: J's constant part (verify/objective_size.py), not J's size."""
     if objective is None or converged_objective is None:
         return False
-    return abs(objective - converged_objective) > LEFT_THE_OPTIMUM * tolerance * max(1.0, abs(converged_objective))
+    size = max(1.0, own_size(converged_objective, constant))
+    return abs(objective - converged_objective) > LEFT_THE_OPTIMUM * tolerance * size
 
 
 def _not_converging(growth: list) -> str:

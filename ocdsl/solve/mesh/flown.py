@@ -15,14 +15,16 @@ import math
 import numpy as np
 
 from ..certificate.flown_control import FLIGHT_RESOLUTION
+from ...verify.objective_size import own_size
 
 
 
 
-def _margin(tolerance: float, objective: float) -> float:
-    """What a J must differ by to count: the mesh tolerance x (1 + |J|), at least the flight's
-    resolution."""
-    return max(tolerance, FLIGHT_RESOLUTION) * (1.0 + abs(float(objective)))
+def _margin(tolerance: float, objective: float, result) -> float:
+    """What a J must differ by to count: the mesh tolerance x (1 + |J - C|), at least the
+    flight's resolution; C J's constant part (verify/objective_size.py, from the certificate)."""
+    constant = float(result.extra.get("objective_constant", 0.0))
+    return max(tolerance, FLIGHT_RESOLUTION) * (1.0 + own_size(objective, constant))
 
 
 def _shown(corners: dict) -> str:
@@ -41,7 +43,7 @@ def refuted_corners(result, tolerance: float) -> dict[str, list[float]]:
     times = list(check.get("corners") or []) + list(check.get("switches") or [])
     if not times or len(result.phases) != 1:
         return {}
-    margin = _margin(tolerance, check["claimed"])
+    margin = _margin(tolerance, check["claimed"], result)
     beaten = check.get("feasible") and check.get("gain", 0.0) > margin
     doubted = bool(check.get("inconclusive")) and check.get("predicted_gain", 0.0) > margin
     if not (beaten or doubted):
@@ -70,7 +72,7 @@ def beaten_meshes(result, converged: list, sense: str, tolerance: float) -> list
     if not check.get("feasible") or check.get("flown") is None:
         return []
     flown = float(check["flown"])
-    margin = _margin(tolerance, flown)
+    margin = _margin(tolerance, flown, result)
     sign = 1.0 if sense == "minimize" else -1.0
     return [c[1] for c in converged if c[3].objective is not None and sign * (c[3].objective - flown) > margin]
 
@@ -166,7 +168,7 @@ def second_pass_no_better(first, again, sense: str, tolerance: float) -> str | N
         return None
     if again.objective is not None and math.isfinite(float(again.objective)):
         sign = 1.0 if sense == "minimize" else -1.0
-        if sign * (float(first.objective) - float(again.objective)) > _margin(tolerance, first.objective):
+        if sign * (float(first.objective) - float(again.objective)) > _margin(tolerance, first.objective, first):
             return None
     shown = "none" if again.objective is None else f"{float(again.objective):.10g}"
     return (f"the control that minimises H predicted a gain of {check['predicted_gain']:.1e} its flight did not "

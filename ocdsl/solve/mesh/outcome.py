@@ -1,6 +1,8 @@
 """How a mesh refinement ended: which mesh is reported, with what status and message."""
 from __future__ import annotations
 
+from ...verify.objective_size import objective_constant, own_size
+
 GOOD = ("optimal", "acceptable")
 
 
@@ -45,16 +47,17 @@ def _path_bound_hint(problem, tr=None) -> str:
             "-1 <= w <= 1 (docs/mesh.md).")
 
 
-def _objective_disagreement(converged: list, tolerance: float) -> str | None:
+def _objective_disagreement(converged: list, tolerance: float, constant: float = 0.0) -> str | None:
     """Meshes within the error tolerance must agree in J to it too: on Fuller's problem three
     of them (the second and third by coarsening) gave J 5e-4 apart, still falling, while every
     segment's state error was 2e-8; the estimate does not see an unresolved chattering control,
     and the smallest of them was called converged 1.1e-3 above the optimum. A relative spread
-    (with a floor of 1e-8 for objectives near zero) above the tolerance is no convergence."""
+    (with a floor of 1e-8 for objectives near zero) above the tolerance is no convergence;
+    ``constant``: J's constant part (verify/objective_size.py), not J's size."""
     values = [c[3].objective for c in converged if c[3].objective is not None]
     if len(values) < 2:
         return None
-    spread = (max(values) - min(values)) / max(max(abs(v) for v in values), 1e-8)
+    spread = (max(values) - min(values)) / max(max(own_size(v, constant) for v in values), 1e-8)
     if spread <= tolerance:
         return None
     iterations = [c[1] for c in converged]
@@ -69,7 +72,7 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
     drive's records (max_err, iteration, tr, info, meshes, errors); ``status`` None when the
     loop ran out of iterations or met the tolerance."""
     chosen = None
-    disagree = _objective_disagreement(converged, spec.tolerance)
+    disagree = _objective_disagreement(converged, spec.tolerance, objective_constant(problem))
     if status is None and disagree:
         # the finest mesh within the error tolerance, as the message says (not the last mesh
         # solved: harmonic oscillator, iteration 25 with error 2.3e-6 was reported as it; nor

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...verify.objective_size import own_size
 from .segments import solution_arrays, zigzag
 
 
@@ -101,12 +102,13 @@ class Unregularised:
     plain_status: str
     tolerance: float
     size: float                        # J's resolved size (verify/objective_size.py): both are relative to it
+    constant: float = 0.0              # J's constant part (verify/objective_size.py)
 
     @property
     def difference(self) -> float:
         if self.plain_objective is None:
             return math.nan
-        return abs(self.plain_objective - self.objective) / max(self.size, abs(self.plain_objective))
+        return abs(self.plain_objective - self.objective) / max(self.size, own_size(self.plain_objective, self.constant))
 
     @property
     def relative_term(self) -> float:
@@ -147,14 +149,15 @@ def check_unregularised(tr, objective: float, weight: float, build_plain, solve,
     import pyomo.core as pyo
 
     from ...transcribe.guess import solved_guesses
-    from ...verify.objective_size import resolved_size
+    from ...verify.objective_size import objective_constant, resolved_size
 
     term = float(pyo.value(tr.model.mesh_regularisation))
-    size = resolved_size(objective, objective_scale)
-    skipped = Unregularised(weight, float(objective), term, None, SKIPPED, tolerance, size)
+    constant = objective_constant(tr.problem)
+    size = resolved_size(objective, objective_scale, constant)
+    skipped = Unregularised(weight, float(objective), term, None, SKIPPED, tolerance, size, constant)
     if skipped.relative_term <= tolerance:
         return skipped
     info = solve(build_plain(solved_guesses(tr.problem, tr)))
     good = info.status in ("optimal", "acceptable") and info.objective is not None
     return Unregularised(weight, float(objective), term, float(info.objective) if good else None, info.status,
-                         tolerance, size)
+                         tolerance, size, constant)

@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from ...verify.objective_size import objective_constant, own_size
+
 DELTA = 1e-7          # normalised-time step of the finite difference
 
 
@@ -116,6 +118,7 @@ def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec,
     the switch on t = 1.978 for 2, called converged)."""
     out = dict(features)
     tol = spec.corner_tolerance
+    size = 1.0 + own_size(objective, objective_constant(tr.problem))
     free: dict = {}
     plan: dict = {}       # phase -> [(switch located, breakpoint index)]
     for pb in tr.phases:
@@ -135,7 +138,7 @@ def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec,
             g = breakpoint_gradient(tr, rebuild, name, q)
             # insignificant: moving the breakpoint by corner_tolerance changes J by far less
             # than the tolerance asks of it
-            if not math.isfinite(g) or (pinned and abs(g) * tol <= 1e-2 * spec.tolerance * (1.0 + abs(objective))):
+            if not math.isfinite(g) or (pinned and abs(g) * tol <= 1e-2 * spec.tolerance * size):
                 continue
             plan.setdefault(name, []).append((f, q))
             free.setdefault(name, set()).add(q)
@@ -276,7 +279,7 @@ def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: fl
         return None
     info = solve(model)
     if info.status != "optimal" or info.objective is None \
-            or abs(info.objective - objective) > spec.tolerance * (1.0 + abs(objective)):
+            or abs(info.objective - objective) > spec.tolerance * (1.0 + own_size(objective, objective_constant(tr.problem))):
         return None
     meshes = solved_meshes(model)
     for pb in model.phases:
