@@ -1030,6 +1030,34 @@ def test_a_control_that_is_not_hs_minimiser_is_named():
     assert mc["better_control"]["u"] == 0.0
     assert "Raise max_iterations" not in res.message and "not H's minimiser" in res.message
     assert any("the control is not H's minimiser" in n for n in res.extra["notes"])
+    assert mc["stationary"] is True and "the solution is an extremal" in mc["note"]
+
+
+TINY_OBJECTIVE = """name: x' = u, min 1e-8 int u^2/2 + t x
+model:
+  states: [x]
+  controls: [u]
+  dynamics: {x: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0]
+  objective: minimize 1.0e-8*integral(u**2/2 + t*x)
+method: {transcription: LG, segments: 3, degree: 2}
+"""
+
+
+def test_a_control_that_is_not_stationary_either_is_no_extremal(tmp_path):
+    """unseen59 F4: an objective of 1e-8 in size, Ipopt stops at its start (u = 0, gradient
+    below tol). H = 1e-8 (u^2/2 + t x) + lambda u is strictly convex in u, so u = 0 is neither
+    its minimiser nor stationary: the note called it "an extremal ... the other branch" and
+    measured the gain against the terms at u = 0 (about 0): "lower by 4.4e+290 of its terms"."""
+    path = tmp_path / "tiny.yaml"
+    path.write_text(TINY_OBJECTIVE)
+    res = run_file(path, None)
+    mc = res.certificate["minimum_condition"]
+    assert mc["passed"] is False and mc["stationary"] is False
+    assert "extremal" not in mc["note"] and "branch of them" in mc["note"]
+    assert mc["worst_share"] < 10.0
 
 
 def test_a_convex_hamiltonian_meets_the_minimum_condition():

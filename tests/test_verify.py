@@ -974,3 +974,50 @@ def test_notes_on_js_agreement_say_when_the_trajectory_does_not_fly():
     agree = [n for n in notes if "within a quarter" in n]
     assert agree and all("says nothing of the problem's J" in n for n in agree), notes
     assert not any("J is not affected" in n or "near the optimum" in n for n in notes), notes
+
+
+OFFSET_BRYSON_DENHAM = """\
+name: Bryson-Denham about 1e7
+parameters: {X0: 1.0e7}
+model:
+  states: [x, v]
+  controls: [u]
+  dynamics: {x: v, v: u}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x <= X0 + 1/9, x(t0) == X0, v(t0) == 1, x(tf) == X0, v(tf) == -1]
+  objective: minimize integral(u**2/2)
+  guess: {x: 1.0e7}
+method: {transcription: LGR, segments: 6, degree: 3}
+"""
+
+
+@pytest.mark.ipopt
+@pytest.mark.parametrize("options", ["", "solver: {options: {bound_relax_factor: 0}}\n"])
+def test_a_bound_broken_within_ipopts_relaxation_is_measured_against_the_states_travel(options, tmp_path):
+    """Bryson-Denham with x measured from 1e7 (J* = 4 for the bound 1/9 above it). Ipopt
+    relaxes a bound by 1e-8 of its size, 0.1 here, and the solution broke it by 1e-4 (9e-4 of
+    the 0.111 x travels), J 9e-4 below J*: measured against 1e-3 of |x| that passed, `optimal,
+    verified`, exit 0 (unseen59 F1). Without the relaxation the same file is right and verified."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "bd.yaml"
+    path.write_text(OFFSET_BRYSON_DENHAM + options)
+    res = run_file(path, None)
+    bounds = next(c for c in res.verification["checks"] if c["name"] == "state bounds")
+    if options:
+        assert res.ok and res.verified and res.objective == pytest.approx(4.0, rel=1e-6)
+        assert bounds["passed"]
+    else:
+        assert res.objective < 4.0 * (1 - 1e-4)          # below J*: the bound is broken
+        assert not res.verified and not res.ok and not bounds["passed"]
+        assert "bound_relax_factor" in res.verification["summary"]
+        assert "refine" not in res.verification["summary"].split("here,")[0]
+
+
+def test_bound_scales_are_the_travel_not_the_magnitude():
+    from ocdsl.verify.checks import bound_scales
+
+    X = np.column_stack([1e7 + np.linspace(0, 0.111, 5), np.linspace(0.0, 2.0, 5), np.full(5, 3.0)])
+    bounds = [(-np.inf, 1e7 + 1 / 9), (0.0, 2.0), (-np.inf, np.inf)]
+    np.testing.assert_allclose(bound_scales(X, bounds), [1.0, 2.0, 1e-7])    # 1e-7 of 1e7; range; resolution

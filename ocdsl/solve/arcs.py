@@ -181,7 +181,8 @@ def _binding_rows(tr, controls: bool = False):
         for text, values, s_nodes, lo, hi in rows:
             s_nodes = np.asarray(s_nodes, float)
             inner = (s_nodes > 1e-12) & (s_nodes < 1 - 1e-12)
-            on = activity(np.asarray(values, float), lo, hi, ACTIVE_TOL) != 0
+            values = np.asarray(values, float)
+            on = activity(values, lo, hi, ACTIVE_TOL, span=float(np.ptp(values)) if len(values) else None) != 0
             # a state held at its bound by a boundary condition and leaving it (arriving at
             # it) is at the bound at the end node and, within the tolerance, at the next one:
             # no arc (the brachistochrone's x >= 0 from x(t0) = 0)
@@ -329,9 +330,12 @@ def _value(v) -> float:
 
 
 def _bound_text(name: str, lo: float, hi: float) -> str:
+    def shown(b: float) -> str:     # the shortest that reads back (1e+07 was 10000000.111, unseen59 F5)
+        return next(t for t in (f"{b:.{d}g}" for d in (6, 10, 15, 17)) if float(t) == b)
+
     if math.isfinite(lo) and math.isfinite(hi):
-        return f"{lo:g} <= {name} <= {hi:g}"
-    return f"{name} >= {lo:g}" if math.isfinite(lo) else f"{name} <= {hi:g}"
+        return f"{shown(lo)} <= {name} <= {shown(hi)}"
+    return f"{name} >= {shown(lo)}" if math.isfinite(lo) else f"{name} <= {shown(hi)}"
 
 
 def qualified_notes(notes: list[str], bisection_agrees: bool) -> list[str]:

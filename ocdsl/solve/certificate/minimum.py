@@ -19,8 +19,12 @@ from .nodes import _hamiltonian_nodes
 
 #: grid points per control (one control); per axis for two; each control alone for more
 SAMPLES_ONE, SAMPLES_TWO = 401, 61
-#: a node's H beaten by more than this share of its terms (|L| + |lambda|^T |f|)
+#: a node's H beaten by more than this share of its terms (|L| + |lambda|^T |f|, the larger of
+#: the solution's control's and the better control's)
 GAIN_SHARE = 1e-2
+#: dH/du within this share of its terms: the solution's control is stationary there (the
+#: refined Newton nose's beaten nodes: up to 3 %, its costates carrying the mesh's error)
+STATIONARY_SHARE = 1e-1
 #: ... at this many nodes or more
 MIN_NODES = 2
 #: rows per evaluation of H (nodes x samples)
@@ -60,7 +64,7 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
     (+-inf where missing). None where H cannot be evaluated over the grid."""
     if U.shape[1] == 0 or len(t) < 2:
         return None
-    H_own, _, H_terms, _ = _hamiltonian_nodes(num, t, X, U, Lam)
+    H_own, dHdu, H_terms, dHdu_terms = _hamiltonian_nodes(num, t, X, U, Lam)
     N = len(t)
     best, best_U = H_own.copy(), U.copy()
     chunk = max(1, CHUNK_ROWS // N)       # samples per evaluation: every node at once
@@ -82,7 +86,11 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
                 best[better] = low[better]
                 best_U[better] = trial.reshape(k, N, -1)[i[better], np.flatnonzero(better)]
     gain = H_own - best
-    scale = np.maximum(H_terms, 1e-300)
+    # the terms at the better control too: a control of 0 with costates near 0 has terms of 0,
+    # and the share was "4.4e+290" (unseen59 F4)
+    with np.errstate(all="ignore"):
+        terms_best = _hamiltonian_nodes(num, t, X, best_U, Lam)[2]
+    scale = np.maximum.reduce([H_terms, np.nan_to_num(terms_best), np.full(len(t), 1e-300)])
     beaten = gain > GAIN_SHARE * scale
     out: dict[str, Any] = {"passed": bool(beaten.sum() < MIN_NODES), "nodes": int(len(t)),
                            "nodes_beaten": int(beaten.sum())}
@@ -94,10 +102,30 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
                control={n: float(U[k, j]) for j, n in enumerate(names)},
                better_control={n: float(best_U[k, j]) for j, n in enumerate(names)})
     shown = lambda d: ", ".join(f"{n} = {v:.4g}" for n, v in d.items())  # noqa: E731
-    out["note"] = (f"the control is not H's minimiser at {out['nodes_beaten']} of {len(t)} nodes, t in "
-                   f"[{out['first']:.4g}, {out['last']:.4g}] (at t = {out['worst_time']:.4g}, {shown(out['control'])} "
-                   f"where {shown(out['better_control'])} gives an H lower by {out['worst_share']:.1e} of its terms): "
-                   "the solution is an extremal, not the minimum principle's (which asks for H's global minimum "
-                   "over the control's range), and no finer mesh or more iterations change that; a guess with the "
-                   "better control there starts the solve on the other branch")
+    where = (f"the control is not H's minimiser at {out['nodes_beaten']} of {len(t)} nodes, t in "
+             f"[{out['first']:.4g}, {out['last']:.4g}] (at t = {out['worst_time']:.4g}, {shown(out['control'])} "
+             f"where {shown(out['better_control'])} gives an H lower by {out['worst_share']:.1e} of its terms)")
+    moving = ~_stationary(U, dHdu, dHdu_terms, bounds)[beaten]
+    out["stationary"] = bool(moving.mean() <= 0.5)
+    if not out["stationary"]:
+        # not an extremal: dH/du is not 0 there either (a solve stopped at its start, unseen59 F4)
+        out["note"] = (f"{where}, and not stationary at {int(moving.sum())} of them (dH/du is not 0 within its "
+                       "terms): the solve stopped short of the minimum principle's conditions, not on another "
+                       "branch of them")
+    else:
+        out["note"] = (f"{where}: the solution is an extremal, not the minimum principle's (which asks for H's "
+                       "global minimum over the control's range), and no finer mesh or more iterations change "
+                       "that; a guess with the better control there starts the solve on the other branch")
     return out
+
+
+def _stationary(U, dHdu, dHdu_terms, bounds) -> np.ndarray:
+    """Per node: every control stationary (dH/du within STATIONARY_SHARE of its terms) or at a
+    bound (the sign of dH/du there is the certificate's switching check)."""
+    ok = np.abs(dHdu) <= STATIONARY_SHARE * np.maximum(dHdu_terms, 1e-300)
+    for j, (lo, hi) in enumerate(bounds):
+        if np.isfinite(lo):
+            ok[:, j] |= U[:, j] <= lo + 1e-6 * (1 + abs(lo))
+        if np.isfinite(hi):
+            ok[:, j] |= U[:, j] >= hi - 1e-6 * (1 + abs(hi))
+    return ok.all(axis=1)

@@ -315,7 +315,7 @@ def estimate_errors(pb, params: dict, *, active_tol: float = 1e-6, extra_points:
             act.append(activity(Uc[:, j], ulo[j], uhi[j], active_tol))
         for j in range(nx):
             if math.isfinite(xlo[j]) or math.isfinite(xhi[j]):
-                act.append(activity(Xc[:, j], xlo[j], xhi[j], active_tol))
+                act.append(activity(Xc[:, j], xlo[j], xhi[j], active_tol, span=float(np.ptp(X[:, j]))))
         if g is not None:
             tc = t0 + (tf - t0) * s_nodes
             gv = np.array([np.asarray(g(*Xc[i], *Uc[i], tc[i], *pvals), float).reshape(-1)

@@ -227,7 +227,7 @@ def locate_junctions(pb, params: dict, active_tol: float, memory: dict | None = 
     out = []
     for j, (order, i, ub) in ubs.items():
         lo, hi = ph.bounds_of(ph.states[j])
-        act = [activity(X[lay.support[k], j], lo, hi, active_tol) for k in range(K)]
+        act = [activity(X[lay.support[k], j], lo, hi, active_tol, span=float(np.ptp(X[:, j]))) for k in range(K)]
         full = [bool(a.all()) and len(set(a.tolist())) == 1 for a in act]
         # off the bound inside (the ends may touch it: a junction), and clearly so somewhere:
         # a state that sits at its bound up to solver noise is no unconstrained arc

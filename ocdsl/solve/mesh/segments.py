@@ -91,13 +91,21 @@ def seg_polys(lay, k, X, U):
     return xs, us
 
 
-def activity(values, lo, hi, tol):
-    """-1 at the lower bound, +1 at the upper bound, 0 inside (per value)."""
+def activity(values, lo, hi, tol, span: float | None = None):
+    """-1 at the lower bound, +1 at the upper bound, 0 inside (per value): within ``tol`` x
+    (1 + |bound|) of it, Ipopt's own resolution of a bound; with ``span`` (the quantity's
+    range over the phase), not farther than 1e-3 of that span (at least ``tol``): a state about
+    1e7 travelling 0.11 to x <= 1e7 + 1/9 was "at its bound" at 17 nodes up to 0.087 below it,
+    where 2 are (unseen59 F5)."""
+    def near(b: float) -> float:
+        d = tol * (1 + abs(b))
+        return d if span is None else min(d, max(1e-3 * span, tol))
+
     out = np.zeros(len(values), int)
     if math.isfinite(lo):
-        out[values <= lo + tol * (1 + abs(lo))] = -1
+        out[values <= lo + near(lo)] = -1
     if math.isfinite(hi):
-        out[values >= hi - tol * (1 + abs(hi))] = 1
+        out[values >= hi - near(hi)] = 1
     return out
 
 
