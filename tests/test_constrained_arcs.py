@@ -176,3 +176,18 @@ def test_a_flight_not_flown_judges_nothing(tmp_path, method, ok):
         assert abs(res.objective + 1 / 15) > 1e-4 / 15
         assert res.status == "mesh_not_converged" and not res.ok
         assert "(H's minimiser gains" in res.message and "not flown)" in res.message
+
+
+def test_at_a_bound_is_within_a_share_of_the_quantitys_range():
+    """unseen59 F5: a state about 1e7 travelling 0.11 to x <= 1e7 + 1/9 was "at its bound at 17
+    nodes" up to 0.087 below it (1e-7 x (1 + |b|) is 1 there), and the bound printed `x <= 1e+07`."""
+    from ocdsl.solve.arcs import _bound_text
+    from ocdsl.solve.mesh.segments import activity
+
+    b = 1e7 + 1 / 9
+    x = 1e7 + np.array([0.0, 0.0973, 0.1111, 0.11111111, 0.1112, 0.0973, 0.0])
+    assert activity(x, -np.inf, b, 1e-7).tolist() == [1, 1, 1, 1, 1, 1, 1]       # by |b| alone
+    assert activity(x, -np.inf, b, 1e-7, span=float(np.ptp(x))).tolist() == [0, 0, 1, 1, 1, 0, 0]
+    # a quantity of order 1: as before
+    assert activity(np.array([0.0, 1 - 1e-8, 0.5]), 0.0, 1.0, 1e-7, span=1.0).tolist() == [-1, 1, 0]
+    assert _bound_text("x", -np.inf, b) == "x <= 10000000.111111112" and _bound_text("x", 0.0, 1.0) == "0 <= x <= 1"
