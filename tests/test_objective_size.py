@@ -147,3 +147,45 @@ def test_the_objective_constant_is_what_no_decision_moves(tmp_path):
     assert constant("3*tf + integral(1 + u**2) + 4", "{t0: 0, tf: free}") == 4.0
     # J not linear in the integral: its coefficient is decided
     assert constant("integral(1 + u**2)**2") == 0.0
+
+
+ZERMELO_TINY = """\
+name: Zermelo, minimum time written as 1e-9 tf
+model:
+  states: [x, y]
+  controls: [theta]
+  parameters: {V: 1.0, w: 0.5}
+  dynamics: {x: V*cos(theta) + w, y: V*sin(theta)}
+problem:
+  time: {t0: 0, tf: free}
+  constraints: [-pi <= theta <= pi, x(t0) == 0, y(t0) == 0, x(tf) == 1, y(tf) == 1, 0.1 <= tf <= 10]
+  objective: minimize 1.0e-9*tf
+  guess: {tf: 1.5, theta: 1.0}
+method: {transcription: LGR, segments: 4, degree: 4}
+"""
+
+
+@pytest.mark.parametrize("route", ["direct", "pynumero"])
+def test_an_objective_too_small_for_ipopts_tolerance_is_scaled_for_it(route, tmp_path, monkeypatch):
+    """unseen59 F3: Ipopt's tolerance is on J's gradient in the problem's units. J = 1e-9 tf
+    stopped with t_f 4e-4 off (`mesh_not_converged`, "refine the mesh"), and 1e-8 int(u^2/2 +
+    t x) after 0 iterations at its guess (J = 0). The objective's first-order size at the
+    start (1.5e-9) sets Ipopt's obj_scaling_factor: t_f right on the same mesh, either route."""
+    from ocdsl.transcribe import pseudospectral
+
+    monkeypatch.setitem(pseudospectral.FAST, "direct_nlp", route == "direct")
+    path = tmp_path / "zermelo.yaml"
+    path.write_text(ZERMELO_TINY)
+    res = run_file(path, None)
+    assert res.ok and res.status == "optimal", (res.status, res.message)
+    assert res.tf == pytest.approx(1.0971675407097272, rel=1e-8)
+    # 1 / (1e-9 tf) at its start: 1.5 (the guess), 1.097 (a solve from the solution)
+    assert 1 / 1.5e-9 * (1 - 1e-9) <= res.nlp["objective_scaled_by"] <= 1 / 1.097e-9
+    assert res.nlp["evaluation"].startswith("PyNumero") == (route == "pynumero")
+
+
+def test_an_objective_of_ordinary_size_is_left_to_ipopt(tmp_path):
+    path = tmp_path / "zermelo.yaml"
+    path.write_text(ZERMELO_TINY.replace("1.0e-9*tf", "tf"))
+    res = run_file(path, None)
+    assert res.ok and "objective_scaled_by" not in res.nlp

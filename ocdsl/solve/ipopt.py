@@ -68,6 +68,12 @@ TOO_FEW_HINT = (": the NLP has more equality constraints than free unknowns; a m
 # still name one
 DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mumps_permuting_scaling": 0,
                    "bound_relax_factor": 1e-9, "option_file_name": ""}
+# an objective whose first-order size at the start, sum |dJ/dx_i| max(1, |x_i|) (Ipopt's own
+# scaling of it included), is below this is scaled up to 1 for Ipopt (obj_scaling_factor):
+# Ipopt's tolerance is on J's gradient, and a J of 1e-9 in size was "optimal" after 0
+# iterations at its guess, a free t_f 4e-4 off (unseen59 F3); below SIZELESS_OBJECTIVE the
+# gradient is taken for 0 (a start at J's stationary point)
+SMALL_OBJECTIVE, SIZELESS_OBJECTIVE = 1e-4, 1e-12
 # Ipopt's ApplicationReturnStatus codes that cyipopt's messages lack ("Unknown status")
 STATUS_CODES = {-4: "time_limit", -5: "time_limit", 5: "interrupted"}
 
@@ -425,14 +431,14 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
                 raise _BadStart("the initial guess puts a root at 0, where its derivative is infinite "
                                 f"(the NLP evaluator would stop the process): {root}. Ipopt was not started")
             else:
-                msg, nlp, code = _solve_pynumero(model, opts, verbose, callback, multipliers)
+                msg, nlp, code, scaled = _solve_pynumero(model, opts, verbose, callback, multipliers)
             if direct is None:
                 nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
                             "nonzeros": int(nlp.nnz_jacobian()),
                             "hessian_nonzeros": int(nlp.nnz_hessian_lag()),
                             "equality_constraints": int(nlp.n_eq_constraints()),
                             "inequality_constraints": int(nlp.n_ineq_constraints()),
-                            "evaluation": f"PyNumero (ASL): {why}", "ipopt": ipopt_c.cyipopt_name()}
+                            "evaluation": f"PyNumero (ASL): {why}", "ipopt": ipopt_c.cyipopt_name(), **scaled}
     except _BadStart as e:
         return SolveInfo("error", str(e), 0, None, time.perf_counter() - t)
     except Exception as e:  # evaluation errors, bad options...
@@ -473,6 +479,21 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     iterations = history[-1][0] if history else 0
     _count_cut(status)
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
+
+
+def _objective_scaled(opts: dict, gradient, x, model_scale: float) -> dict:
+    """``opts`` with Ipopt's obj_scaling_factor where the objective is too small for its
+    tolerance (``SMALL_OBJECTIVE``) and the options set none; ``model_scale``: the objective's
+    own scaling factor (``scaling: {mode: auto}``), 1 without."""
+    import numpy as np
+
+    if "obj_scaling_factor" in opts:
+        return opts
+    with np.errstate(all="ignore"):
+        size = abs(float(model_scale)) * float(np.sum(np.abs(gradient) * np.maximum(1.0, np.abs(x))))
+    if not (SIZELESS_OBJECTIVE < size < SMALL_OBJECTIVE):
+        return opts
+    return {**opts, "obj_scaling_factor": 1.0 / size}
 
 
 def direct_nlp(transcription):
@@ -541,10 +562,16 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     else:
         problem = cyipopt.Problem(n=nlp.n, m=nlp.m, problem_obj=nlp, lb=nlp.xl, ub=nlp.xu, cl=nlp.gl, cu=nlp.gu)
     library = ipopt_c.name()
-    for k, v in opts.items():
-        problem.add_option(k, v)
     model = transcription.model if transcription is not None else None
     sf = getattr(model, "scaling_factor", None)
+    objective_scale = 1.0
+    if sf is not None:
+        import pyomo.core as pyo
+
+        objective_scale = float(sf.get(next(model.component_data_objects(pyo.Objective, active=True)), 1.0))
+    opts = _objective_scaled(opts, nlp.gradient(nlp.x0), nlp.x0, objective_scale)
+    for k, v in opts.items():
+        problem.add_option(k, v)
     if sf is not None:     # the model's scaling suffix, in this NLP's variable and row order
         import numpy as np
         import pyomo.core as pyo
@@ -564,7 +591,8 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     if transcription is not None and STATUS_MAP.get(msg) == "infeasible":
         msg += diagnose.infeasibility_message(transcription, nlp, x)
-    return msg, {**nlp.info(), "ipopt": library}, info.get("status")
+    scaled = {"objective_scaled_by": opts["obj_scaling_factor"]} if "obj_scaling_factor" in opts else {}
+    return msg, {**nlp.info(), "ipopt": library, **scaled}, info.get("status")
 
 
 def pynumero_nlp(model):
@@ -594,8 +622,9 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
     that every Ipopt return code comes back: Pyomo's solver raised ``KeyError: b'Unknown
     status'`` on a solve that ran out of the run's wall-clock time (Ipopt's -5, which
     cyipopt has no message for), so a time limit read as an error and its iterate was lost
-    (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code).
-    Models with grey-box blocks are not handled here."""
+    (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code, the
+    objective's scaling where it was too small: ``_objective_scaled``). Models with grey-box
+    blocks are not handled here."""
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
     nlp = pynumero_nlp(model)
@@ -607,6 +636,7 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         problem.set_problem_scaling(1.0 if obj is None else obj,
                                     np.ones(len(problem.x_lb())) if xs is None else xs,
                                     np.ones(len(problem.g_lb())) if gs is None else gs)
+    opts = _objective_scaled(opts, problem.gradient(problem.x_init()), problem.x_init(), 1.0 if obj is None else obj)
     for k, v in opts.items():
         problem.add_option(k, v)
     start = {} if multipliers is None else _start_multipliers(
@@ -619,4 +649,5 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))
     finally:
         problem.close()
-    return info["status_msg"], nlp, info["status"]
+    scaled = {"objective_scaled_by": opts["obj_scaling_factor"]} if "obj_scaling_factor" in opts else {}
+    return info["status_msg"], nlp, info["status"], scaled

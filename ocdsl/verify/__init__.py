@@ -235,7 +235,8 @@ def _summary(failed: list[dict], notes: list[str], settings: VerifySettings,
     return f"not verified: {c['name']}{phase} {c['value']:.3g} > {c['limit']:.3g}{where}{more}. {hint}"
 
 
-# Ipopt's default bound_relax_factor: it relaxes a bound b by this share of max(1, |b|)
+# Ipopt's default bound_relax_factor (ocdsl's is 1e-9): it relaxes a bound b by this share
+# of max(1, |b|)
 IPOPT_BOUND_RELAX = 1e-8
 
 
@@ -253,9 +254,9 @@ def _relaxed_bound_hint(X, bounds, names, reach, tol: float) -> dict:
             if tol * reach[j] < worst_over <= relaxed:
                 n, travel = names[j], float(np.nanmax(X[:, j]) - np.nanmin(X[:, j]))
                 return {"hint": (f"the solution's own rows break {n}'s bound {b:.15g} by {worst_over:.2g} "
-                                 f"({n} travels {travel:.3g} over the phase): Ipopt relaxes a "
-                                 f"bound by its bound_relax_factor (1e-8) of the bound's size, {relaxed:.2g} "
-                                 f"here, and refining changes nothing; write {n} as a deviation from a "
+                                 f"({n} travels {travel:.3g} over the phase), within Ipopt's relaxation of a "
+                                 f"bound that large (its bound_relax_factor times the bound's size, up to "
+                                 f"{relaxed:.2g} here), and refining changes nothing; write {n} as a deviation from a "
                                  f"reference of its size ({n} = {b:.6g} + d{n}), or give `solver: {{options: "
                                  "{bound_relax_factor: 0}}`")}
     return {}
