@@ -74,6 +74,11 @@ DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mu
 # iterations at its guess, a free t_f 4e-4 off (unseen59 F3); below SIZELESS_OBJECTIVE the
 # gradient is taken for 0 (a start at J's stationary point)
 SMALL_OBJECTIVE, SIZELESS_OBJECTIVE = 1e-4, 1e-12
+# Ipopt relaxes a bound b by bound_relax_factor x max(1, |b|): on a variable far from 0 whose
+# room to its bound is small, a large share of that room. Where some variable needs a factor
+# this many times smaller, the factor becomes what every variable's room needs
+# (``_bounds_kept``)
+RELAX_TIGHTER = 1e-2
 # Ipopt's ApplicationReturnStatus codes that cyipopt's messages lack ("Unknown status")
 STATUS_CODES = {-4: "time_limit", -5: "time_limit", 5: "interrupted"}
 
@@ -369,21 +374,23 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         return out
 
     options = _numbered_output_file(options or {})
+    given = frozenset(options)         # the caller's own options: never adapted (_adapted)
     opts = limited(options_with(DEFAULT_OPTIONS, options))
     try:
         if multipliers is None:
-            return _attempt(model, opts, verbose, progress, on_iteration, None, transcription)
+            return _attempt(model, opts, verbose, progress, on_iteration, None, transcription, given)
         start = [(v, v.value) for v in model.component_data_objects(pyo.Var) if not v.fixed]
         warm_options = options_with(DEFAULT_OPTIONS, WARM_START_OPTIONS, options or {})
         if multipliers_max_iter is not None:
             warm_options["max_iter"] = min(int(warm_options["max_iter"]), int(multipliers_max_iter))
-        warm = _attempt(model, limited(warm_options), verbose, progress, on_iteration, multipliers, transcription)
+        warm = _attempt(model, limited(warm_options), verbose, progress, on_iteration, multipliers, transcription,
+                        given)
         if warm.status in ("optimal", "acceptable", "time_limit", "interrupted"):
             return warm
         # never worse than without the multipliers: the same primal start, Ipopt's own duals
         for v, x in start:
             v.set_value(x, skip_validation=True)
-        info = _attempt(model, limited(opts), verbose, progress, on_iteration, None, transcription)
+        info = _attempt(model, limited(opts), verbose, progress, on_iteration, None, transcription, given)
         info.message = (f"{info.message} (started from the given multipliers Ipopt ended '{warm.status}' "
                         f"after {warm.iterations} iterations; solved again without them, iterations "
                         "counted together)")
@@ -396,7 +403,8 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
             progress.close()
 
 
-def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcription=None) -> SolveInfo:
+def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcription=None,
+             given: frozenset = frozenset()) -> SolveInfo:
     import pyomo.core as pyo
 
     from ..transcribe import pseudospectral
@@ -426,12 +434,12 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
             direct, why = direct_nlp(transcription)
             if direct is not None:
                 msg, nlp_info, code = _solve_direct_nlp(direct, opts, verbose, callback, multipliers,
-                                                        transcription)
+                                                        transcription, given)
             elif transcription is not None and (root := _root_of_zero(transcription)):
                 raise _BadStart("the initial guess puts a root at 0, where its derivative is infinite "
                                 f"(the NLP evaluator would stop the process): {root}. Ipopt was not started")
             else:
-                msg, nlp, code, scaled = _solve_pynumero(model, opts, verbose, callback, multipliers)
+                msg, nlp, code, scaled = _solve_pynumero(model, opts, verbose, callback, multipliers, given)
             if direct is None:
                 nlp_info = {"variables": int(nlp.n_primals()), "constraints": int(nlp.n_constraints()),
                             "nonzeros": int(nlp.nnz_jacobian()),
@@ -487,13 +495,54 @@ def _objective_scaled(opts: dict, gradient, x, model_scale: float) -> dict:
     own scaling factor (``scaling: {mode: auto}``), 1 without."""
     import numpy as np
 
-    if "obj_scaling_factor" in opts:
-        return opts
     with np.errstate(all="ignore"):
         size = abs(float(model_scale)) * float(np.sum(np.abs(gradient) * np.maximum(1.0, np.abs(x))))
     if not (SIZELESS_OBJECTIVE < size < SMALL_OBJECTIVE):
         return opts
     return {**opts, "obj_scaling_factor": 1.0 / size}
+
+
+def _bounds_kept(brf: float, x, lower, upper) -> float:
+    """Ipopt's bound_relax_factor so that no bound is relaxed by more than ``brf`` x max(1, the
+    variable's room): its bounds' span, or with one bound the distance of its start from it.
+    x about 1e7 starting 0.11 below x <= 1e7 + 1/9 broke the bound by 1e-4 (9e-4 of that room;
+    J 9e-4 below J*, "optimal, verified", unseen59 F1); a furnace at 1200 K capped 0.07 K above
+    its start, by 1.2e-6 K (J 2.7e-3 below, unseen32)."""
+    import numpy as np
+
+    x, lo, hi = (np.asarray(a, float) for a in (x, lower, upper))
+    has_lo, has_hi = np.abs(lo) < 1e19, np.abs(hi) < 1e19
+    both = has_lo & has_hi
+    need = np.full(len(x), np.inf)
+    with np.errstate(all="ignore"):
+        for has, b in ((has_lo, lo), (has_hi, hi)):
+            room = np.where(both, hi - lo, np.abs(x - b))
+            need = np.where(has, np.minimum(need, brf * np.maximum(1.0, room) / np.maximum(1.0, np.abs(b))), need)
+    tightest = float(np.min(need)) if len(need) else np.inf
+    return tightest if tightest < RELAX_TIGHTER * brf else brf
+
+
+def _adapted(opts: dict, given: frozenset, gradient, x, lower, upper, model_scale: float) -> dict:
+    """``opts`` adapted to the NLP at its start: Ipopt's objective scaling where the caller's
+    options (``given``) set none (``_objective_scaled``), and its bound relaxation, whoever set
+    the factor, lowered where a variable's room needs it (``_bounds_kept``; 0 stays 0)."""
+    if "obj_scaling_factor" not in given:
+        opts = _objective_scaled(opts, gradient, x, model_scale)
+    if float(opts.get("bound_relax_factor", 1e-8)) > 0:
+        brf = _bounds_kept(float(opts.get("bound_relax_factor", 1e-8)), x, lower, upper)
+        if brf != float(opts.get("bound_relax_factor", 1e-8)):
+            opts = {**opts, "bound_relax_factor": brf}
+    return opts
+
+
+def _adaptations(opts: dict, given: frozenset) -> dict:
+    """What ``_adapted`` changed, for the SolveInfo's NLP record."""
+    out = {}
+    if "obj_scaling_factor" in opts and "obj_scaling_factor" not in given:
+        out["objective_scaled_by"] = opts["obj_scaling_factor"]
+    if opts.get("bound_relax_factor") != DEFAULT_OPTIONS["bound_relax_factor"]:
+        out["bound_relax_factor"] = opts.get("bound_relax_factor")
+    return out
 
 
 def direct_nlp(transcription):
@@ -538,7 +587,7 @@ class _BadStart(Exception):
 
 
 def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callable,
-                      multipliers: Multipliers | None, transcription=None):
+                      multipliers: Multipliers | None, transcription=None, given: frozenset = frozenset()):
     """Ipopt on a ``DirectNLP`` (cyipopt.Problem), starting from the model's values and, when
     given, the multipliers; the solution, duals and bound multipliers are loaded into the
     model as ``_solve_pynumero`` does. Returns (Ipopt's status message, the
@@ -569,7 +618,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
         import pyomo.core as pyo
 
         objective_scale = float(sf.get(next(model.component_data_objects(pyo.Objective, active=True)), 1.0))
-    opts = _objective_scaled(opts, nlp.gradient(nlp.x0), nlp.x0, objective_scale)
+    opts = _adapted(opts, given, nlp.gradient(nlp.x0), nlp.x0, nlp.xl, nlp.xu, objective_scale)
     for k, v in opts.items():
         problem.add_option(k, v)
     if sf is not None:     # the model's scaling suffix, in this NLP's variable and row order
@@ -591,8 +640,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     if transcription is not None and STATUS_MAP.get(msg) == "infeasible":
         msg += diagnose.infeasibility_message(transcription, nlp, x)
-    scaled = {"objective_scaled_by": opts["obj_scaling_factor"]} if "obj_scaling_factor" in opts else {}
-    return msg, {**nlp.info(), "ipopt": library, **scaled}, info.get("status")
+    return msg, {**nlp.info(), "ipopt": library, **_adaptations(opts, given)}, info.get("status")
 
 
 def pynumero_nlp(model):
@@ -614,7 +662,7 @@ def pynumero_nlp(model):
 
 
 def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callable,
-                    multipliers: Multipliers | None = None):
+                    multipliers: Multipliers | None = None, given: frozenset = frozenset()):
     """What Pyomo's cyipopt solver does (pynumero ``algorithms/solvers/cyipopt_solver.py``,
     ``PyomoCyIpoptSolver.solve``: PyomoNLP -> CyIpoptNLP -> options -> solve -> load the
     primals, duals and bound multipliers into the model), except that cyipopt's ``solve``
@@ -623,7 +671,7 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
     status'`` on a solve that ran out of the run's wall-clock time (Ipopt's -5, which
     cyipopt has no message for), so a time limit read as an error and its iterate was lost
     (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code, the
-    objective's scaling where it was too small: ``_objective_scaled``). Models with grey-box
+    adapted options: ``_adapted``). Models with grey-box
     blocks are not handled here."""
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
@@ -636,7 +684,8 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         problem.set_problem_scaling(1.0 if obj is None else obj,
                                     np.ones(len(problem.x_lb())) if xs is None else xs,
                                     np.ones(len(problem.g_lb())) if gs is None else gs)
-    opts = _objective_scaled(opts, problem.gradient(problem.x_init()), problem.x_init(), 1.0 if obj is None else obj)
+    opts = _adapted(opts, given, problem.gradient(problem.x_init()), problem.x_init(), problem.x_lb(), problem.x_ub(),
+                    1.0 if obj is None else obj)
     for k, v in opts.items():
         problem.add_option(k, v)
     start = {} if multipliers is None else _start_multipliers(
@@ -649,5 +698,4 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))
     finally:
         problem.close()
-    scaled = {"objective_scaled_by": opts["obj_scaling_factor"]} if "obj_scaling_factor" in opts else {}
-    return info["status_msg"], nlp, info["status"], scaled
+    return info["status_msg"], nlp, info["status"], _adaptations(opts, given)

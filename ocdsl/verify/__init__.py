@@ -35,8 +35,7 @@ import sympy as sp
 from ..result_views import completed_solution
 from ..symbolic.model import TIME
 from ..symbolic.problem import INF
-from .checks import (RESOLUTION, bound_scales, end_control_jumps, evaluate, integral_scales, irregular_controls,
-                     path_scales,
+from .checks import (RESOLUTION, end_control_jumps, evaluate, integral_scales, irregular_controls, path_scales,
                      path_violations, relative_violation,
                      row, sensitivity_scale, state_scale, worst)
 from .admissible import project, row_values
@@ -216,11 +215,10 @@ def _summary(failed: list[dict], notes: list[str], settings: VerifySettings,
     hints = HINTS if settings.open_loop else {**HINTS, **CLOSED_LOOP_HINTS}
     hint = notes[0] if notes else c.get("hint") or hints.get(c["name"], "")
     if not notes and settings.open_loop and mesh_tolerance is not None and c["name"] in REFINE_HINTED \
-            and not c.get("hint") and not mesh_met:
+            and not mesh_met:
         hint = ("the refinement did not reach its tolerance (its message says where it stopped): the mesh "
                 "does not resolve the solution yet")
-    elif not notes and settings.open_loop and mesh_tolerance is not None and c["name"] in REFINE_HINTED \
-            and not c.get("hint"):
+    elif not notes and settings.open_loop and mesh_tolerance is not None and c["name"] in REFINE_HINTED:
         # "refine the mesh (... or `mesh:`)" to a run that refined its mesh (unseen32: `mesh:
         # {tolerance: 1e-5}`, its estimate 6.3e-6, the verification 1.66e-5 on that segment)
         tol = settings.tolerance
@@ -233,33 +231,6 @@ def _summary(failed: list[dict], notes: list[str], settings: VerifySettings,
     if c.get("scale_note"):
         hint = f"{c['scale_note']}. {hint}"
     return f"not verified: {c['name']}{phase} {c['value']:.3g} > {c['limit']:.3g}{where}{more}. {hint}"
-
-
-# Ipopt's default bound_relax_factor (ocdsl's is 1e-9): it relaxes a bound b by this share
-# of max(1, |b|)
-IPOPT_BOUND_RELAX = 1e-8
-
-
-def _relaxed_bound_hint(X, bounds, names, reach, tol: float) -> dict:
-    """``{"hint": ...}`` where the solution's own rows break a state's bound by more than the
-    tolerance of the state's travel, but within Ipopt's relaxation of that bound: refining
-    changes nothing there (unseen59 F1: x about 1e7, x <= 1e7 + 1/9 broken by 1e-4 at the
-    rows)."""
-    for j, (lo, hi) in enumerate(bounds):
-        for b, over in ((lo, lo - X[:, j]), (hi, X[:, j] - hi)):
-            if not math.isfinite(b) or not len(over):
-                continue
-            worst_over = float(np.nanmax(over))
-            relaxed = IPOPT_BOUND_RELAX * max(1.0, abs(b))
-            if tol * reach[j] < worst_over <= relaxed:
-                n, travel = names[j], float(np.nanmax(X[:, j]) - np.nanmin(X[:, j]))
-                return {"hint": (f"the solution's own rows break {n}'s bound {b:.15g} by {worst_over:.2g} "
-                                 f"({n} travels {travel:.3g} over the phase), within Ipopt's relaxation of a "
-                                 f"bound that large (its bound_relax_factor times the bound's size, up to "
-                                 f"{relaxed:.2g} here), and refining changes nothing; write {n} as a deviation from a "
-                                 f"reference of its size ({n} = {b:.6g} + d{n}), or give `solver: {{options: "
-                                 "{bound_relax_factor: 0}}`")}
-    return {}
 
 
 def _numbers(values: dict) -> dict[str, float]:
@@ -578,12 +549,10 @@ def _verify_phase(ph, traj, interpolation, params, settings, checks, tables,
     Ug = controls_at(uf, grid, Yl[:, :funcs.n])
     sbounds = bounds_of(ph, names_x, "states")
     if any(math.isfinite(b) for lo_hi in sbounds for b in lo_hi):
-        reach = bound_scales(X, sbounds)
-        err = np.column_stack([relative_violation(Yl[:, j], lo, hi, reach[j])
+        err = np.column_stack([relative_violation(Yl[:, j], lo, hi, scale_x[j])
                                for j, (lo, hi) in enumerate(sbounds)])
         v, where = worst(err, names_x, grid)
-        checks.append(row("state bounds", pname, v, tol, where, f"{len(grid)} points",
-                          **_relaxed_bound_hint(X, sbounds, names_x, reach, tol)))
+        checks.append(row("state bounds", pname, v, tol, where, f"{len(grid)} points"))
     _control_bounds_check(ph, traj, names_u, ubounds, tol, checks)
     if funcs.g is not None:
         G = funcs.g(grid, Yl[:, :funcs.n], Ug)

@@ -31,22 +31,6 @@ def state_scale(X: np.ndarray) -> np.ndarray:
     return np.maximum.reduce([rng, 1e-3 * size, np.full(X.shape[1], RESOLUTION)])
 
 
-# a bound's own resolution, as a share of its size: ten times Ipopt's relaxation of it
-# (bound_relax_factor, 1e-8 of max(1, |b|))
-BOUND_RESOLUTION_SHARE = 1e-7
-
-
-def bound_scales(X: np.ndarray, bounds) -> np.ndarray:
-    """Per state, what a violation of its bounds is measured against: its range over the rows,
-    at least ``BOUND_RESOLUTION_SHARE`` of its finite bounds' size and the NLP's resolution.
-    Not ``state_scale``'s 1e-3 of its magnitude: a state about 1e7 travelling 0.11 to its bound
-    x <= 1e7 + 1/9 broke it by 1e-4 (Ipopt relaxes a bound by 1e-8 of its size, 0.1 here),
-    9e-4 of its travel and J 9e-4 below the optimum, and passed against 1e4 (unseen59 F1)."""
-    rng = np.nanmax(X, axis=0) - np.nanmin(X, axis=0) if X.size else np.zeros(len(bounds))
-    size = np.array([max([1.0] + [abs(b) for b in lo_hi if math.isfinite(b)]) for lo_hi in bounds])
-    return np.maximum.reduce([np.nan_to_num(rng), BOUND_RESOLUTION_SHARE * size, np.full(len(bounds), RESOLUTION)])
-
-
 def row(name: str, phase: str | None, value: float, limit: float, where: str = "", detail: str = "",
         **more: Any) -> dict[str, Any]:
     value = float(value)

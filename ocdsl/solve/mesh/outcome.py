@@ -72,7 +72,8 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
     drive's records (max_err, iteration, tr, info, meshes, errors); ``status`` None when the
     loop ran out of iterations or met the tolerance."""
     chosen = None
-    disagree = _objective_disagreement(converged, spec.tolerance, objective_constant(problem))
+    disagree = _objective_disagreement(converged, spec.tolerance,
+                                       objective_constant(problem) if problem is not None else 0.0)
     if status is None and disagree:
         # the finest mesh within the error tolerance, as the message says (not the last mesh
         # solved: harmonic oscillator, iteration 25 with error 2.3e-6 was reported as it; nor
