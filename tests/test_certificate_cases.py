@@ -1066,3 +1066,41 @@ def test_a_convex_hamiltonian_meets_the_minimum_condition():
     for name in ("double_integrator.yaml", "goddard.yaml"):
         res = run_file(Path(__file__).parents[1] / "configs" / name, None)
         assert res.certificate["minimum_condition"]["passed"] is True, (name, res.certificate["minimum_condition"])
+
+
+FISHERY = """\
+name: Gordon-Schaefer fishery, discounted
+parameters: {p: 2, c: 0.4, d: D}
+model:
+  states: [x]
+  controls: [E]
+  dynamics: {x: x*(1 - x) - E*x}
+problem:
+  time: {t0: 0, tf: TF}
+  constraints: [0 <= E <= 1, x(t0) == 0.9]
+  objective: maximize integral(exp(-d*t)*(p*x - c)*E)
+  guess: {E: 0.5}
+method: {transcription: LGR, segments: 10, degree: 4, mesh: {tolerance: 1.0e-7, max_iterations: 12}}
+"""
+
+
+@pytest.mark.parametrize("d, tf, undetermined", [(5, 100, True), (0.1, 10, False)])
+def test_a_control_that_j_does_not_determine_is_not_judged(d, tf, undetermined, tmp_path):
+    """unseen60 F1: discounted at 5 over [0, 100], the integrand's weight is below 1e-9 after
+    t = 4: the harvest went back to its guess there (stock 0.5 where the optimum holds 0.234),
+    J right to 7e-9, and the certificate passed on "rounding" nodes. It is now inconclusive
+    and says where J does not determine the control; a discount of 0.1 over [0, 10] is judged."""
+    path = tmp_path / "fishery.yaml"
+    path.write_text(FISHERY.replace("d: D", f"d: {d}").replace("tf: TF", f"tf: {tf}"))
+    res = run_file(path, None)
+    st = res.certificate["stationarity"]
+    if undetermined:
+        assert res.status == "optimal" and res.objective == pytest.approx(0.230907020503, rel=1e-6)
+        assert st["passed"] is None and "J does not determine E there" in st["inconclusive"]
+        first = float(st["inconclusive"].split("on t in [")[1].split(",")[0])
+        assert 3.0 < first < 5.0          # e^{-5 t} x 100 below 1e-7 from t = 4.1
+        from ocdsl.result import certificate_verdict
+
+        assert certificate_verdict(res.certificate) == "inconclusive"
+    else:
+        assert "inconclusive" not in st
