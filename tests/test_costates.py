@@ -79,3 +79,25 @@ def test_a_converged_fixed_time_l1_mesh_gives_pmp_costates_and_switch_times(conf
     assert np.allclose(hamiltonian[np.isfinite(hamiltonian)], H, rtol=1e-6)
     times = sorted(t for c in res.certificate["bang_bang"]["per_control"].values() for t in c["switch_times"])
     assert np.allclose(times, [t1, t2], atol=1e-7)
+
+
+def test_a_maximisations_costates_are_those_of_minus_j(tmp_path):
+    """docs/problem-language.md: the exported costates are of the minimisation form, so for
+    `maximize` of -J (unseen60 F4: read as shadow prices they had the wrong sign). Max x(1) -
+    int u^2/2 with x' = u: u = 1, dJ*/dx = 1, so lambda_x = -1 along the whole phase."""
+    from ocdsl.api import run_file
+
+    path = tmp_path / "max.yaml"
+    path.write_text("""\
+name: max x(1) - int u^2/2
+model: {states: [x], controls: [u], dynamics: {x: u}}
+problem:
+  time: {t0: 0, tf: 1}
+  constraints: [x(t0) == 0]
+  objective: maximize x(tf) - integral(u**2/2)
+method: {transcription: LGR, segments: 2, degree: 3}
+""")
+    res = run_file(path, None)
+    assert res.ok and res.objective == pytest.approx(0.5, rel=1e-9)
+    lam = np.asarray(res.phase().costates["x"], float)
+    np.testing.assert_allclose(lam[np.isfinite(lam)], -1.0, atol=1e-7)
