@@ -1055,7 +1055,9 @@ def test_a_small_objective_is_not_waived_by_an_absolute_floor(tmp_path):
     -6.953e-9, its bisection found the exact -7.0833e-9 (1.8 % away), and the run said
     `optimal, verified`, exit 0: "|dJ| within Ipopt's accuracy 1e-09", a floor of 10 x tol
     absolute, as the refinement's bisection was given no size of the objective. Measured
-    against the objective's own size, the difference fails."""
+    against the objective's own size, the difference fails. Ipopt's objective is left
+    unscaled (obj_scaling_factor 1): ocdsl now scales so small an objective for Ipopt, which
+    then finds the exact J on the first mesh, and the floor is what this test is about."""
     path = tmp_path / "small.yaml"
     path.write_text("""name: corner problem in two phases, cost x 1e-8
 model: {states: [x], controls: [u], dynamics: {x: u}}
@@ -1072,6 +1074,7 @@ links:
   - continuous(early, late)
 objective: minimize 0
 method: {transcription: LGR, segments: 2, degree: 3, mesh: {tolerance: 1.0e-8}}
+solver: {options: {obj_scaling_factor: 1}}
 """)
     res = ocdsl.load(path).solve()
     exact = -17 / 24 * 1e-8

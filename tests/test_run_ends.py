@@ -450,7 +450,7 @@ def test_every_attempt_of_a_solve_gets_the_time_left(monkeypatch):
 
     seen = []
 
-    def attempt(model, opts, verbose, progress, on_iteration, multipliers, transcription=None):
+    def attempt(model, opts, verbose, progress, on_iteration, multipliers, transcription=None, given=frozenset()):
         seen.append((multipliers is not None, opts.get("max_wall_time")))
         _time.sleep(0.2)
         return ipopt.SolveInfo("max_iter" if multipliers is not None else "optimal", "", 1, 0.0, 0.2)

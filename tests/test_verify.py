@@ -1006,7 +1006,7 @@ def test_a_bound_far_from_zero_is_not_relaxed_by_a_share_of_its_size(given, tmp_
     options = "" if given is None else f"solver: {{options: {{bound_relax_factor: {given!r}}}}}\n"
     path.write_text(OFFSET_BRYSON_DENHAM + options)
     res = run_file(path, None)
-    assert res.ok and res.verified and res.objective == pytest.approx(4.0, rel=1e-7)
+    assert res.ok and res.verified and res.objective == pytest.approx(4.0, rel=1e-6)    # 9e-4 below before
     assert res.nlp["bound_relax_factor"] == pytest.approx((given or 1e-9) / (1e7 + 1 / 9), rel=1e-6)
 
 
