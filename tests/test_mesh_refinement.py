@@ -1381,3 +1381,21 @@ def test_an_estimate_that_finds_no_error_is_not_told_to_tighten(tmp_path):
     res = ocdsl.load(p).solve()
     assert res.status == "mesh_not_converged" and not res.ok
     assert "Start from a finer mesh" in res.message and "Tighten the tolerance" not in res.message
+
+
+def test_a_refinement_that_cycles_through_moved_switches_says_so():
+    """unseen60 F2: a chemotherapy schedule met the tolerance at iterations 13 and 22, each time
+    the switch-time solve moved a switch off its breakpoint and the refinement from there did
+    not meet it again; 12 -> 25 iterations gave the same verdict after "Raise max_iterations"."""
+    from types import SimpleNamespace
+
+    from ocdsl.solve.mesh.outcome import RAISE_ADVICE, _cycle_advice
+
+    spec = SimpleNamespace(tolerance=1e-7)
+    history = [{"iteration": i + 1, "objective": 0.2679618 - 1e-8 * i, "max_error": e}
+               for i, e in enumerate([2.8e-2, 8.8e-8, 1.8e-3, 2.2e-7, 8.8e-8, 2.3e-5])]
+    assert _cycle_advice(history, spec) == ""           # no switch moved: the usual advice stands
+    history[1]["switches_moved"] = history[4]["switches_moved"] = {"main": [0.0, 0.75, 1.0]}
+    text = _cycle_advice(history, spec)
+    assert "iteration(s) [2, 5]" in text and "cycles" in text and RAISE_ADVICE not in text
+    assert "at iteration 6" in text

@@ -1,6 +1,8 @@
 """How a mesh refinement ended: which mesh is reported, with what status and message."""
 from __future__ import annotations
 
+import math
+
 from ...verify.objective_size import objective_constant, own_size
 
 GOOD = ("optimal", "acceptable")
@@ -63,6 +65,22 @@ def _objective_disagreement(converged: list, tolerance: float, constant: float =
     iterations = [c[1] for c in converged]
     return (f"the meshes within tolerance {tolerance:.1e} (iterations {iterations}) disagree in the "
             f"objective by {spread:.2e} (relative): the error estimate does not see what moves J")
+
+
+def _cycle_advice(history: list, spec) -> str:
+    """Where meshes within the tolerance had their switches moved off a breakpoint and the
+    refinement from the moved meshes never met it again: it cycles, and more iterations repeat
+    the cycle (unseen60 F2: chemotherapy, within tolerance at iterations 13 and 22, 12 -> 25
+    iterations gave the same verdict after "Raise max_iterations")."""
+    moved = [h for h in history if h.get("switches_moved") and (h.get("max_error") or math.inf) <= spec.tolerance]
+    if not moved:
+        return ""
+    last = history[-1]
+    return (f"Meshes within the tolerance (iteration(s) {[h['iteration'] for h in moved]}, J = "
+            f"{moved[-1]['objective']:.10g} at the last) held a switch on a breakpoint that the switch-time solve "
+            "moved, and the meshes from the moved switches did not meet the tolerance again: the refinement "
+            f"cycles, and more iterations repeat it (J = {last['objective']:.10g} at iteration {last['iteration']}, "
+            "its switches where the NLP puts them).")
 
 
 def outcome(converged: list, best, last, history: list, status: str | None, message: str, stalled: str,
@@ -135,7 +153,7 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
                    f"{len(history)} of {spec.max_iterations} iterations: best mesh (iteration {it_c}) has "
                    f"largest estimated error {max_err:.3e} {where}. "
                    + (f"Stopped early because {stalled}." if stalled else
-                      RAISE_ADVICE)
+                      _cycle_advice(history, spec) or RAISE_ADVICE)
                    + _path_bound_hint(problem, _tr))
     return status, chosen, message, disagree, stalled
 
