@@ -1099,7 +1099,7 @@ def test_a_control_that_j_does_not_determine_is_not_judged(d, tf, undetermined, 
     st = res.certificate["stationarity"]
     if undetermined:
         assert res.status == "optimal" and res.objective == pytest.approx(0.230907020503, rel=1e-6)
-        assert st["passed"] is None and "J does not determine E there" in st["inconclusive"]
+        assert st["passed"] is None and "J does not determine it there" in st["inconclusive"]
         first = float(st["inconclusive"].split("on t in [")[1].split(",")[0])
         assert 3.0 < first < 5.0          # e^{-5 t} x 100 below 1e-7 from t = 4.1
         from ocdsl.result import certificate_verdict

@@ -785,7 +785,9 @@ def test_an_objective_held_to_a_size_far_above_j_says_how_far_j_is_verified(tmp_
     (caveat,) = v["caveats"]
     assert "of J, not 1e-05 of J" in caveat and "T = 1200 + dT" in caveat, caveat
     share = float(caveat.split(" in its units, ")[1].split(" of J")[0])
-    assert share > abs(res.objective - 0.0204115634) / 0.0204115634 > 1e-5     # the miss lies inside
+    # the miss lies inside (5.6e-5 before Ipopt's bound relaxation was kept within T's room
+    # and the estimate measured the integral against its own size; 6e-8 since)
+    assert share > abs(res.objective - 0.0204115634) / 0.0204115634
     assert _check(v, "objective", "local")["precision"] == caveat and v["status"] == "verified"
     (tmp_path / "di.yaml").write_text(yaml.safe_dump(DI))
     assert not run_file(tmp_path / "di.yaml", None).verification["caveats"]

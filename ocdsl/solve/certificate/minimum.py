@@ -30,6 +30,9 @@ STATIONARY_SHARE = 1e-1
 MIN_NODES = 2
 #: rows per evaluation of H (nodes x samples)
 CHUNK_ROWS = 200_000
+#: a share of the phase at least this long where H's terms stay below the NLP's resolution
+#: whatever the control: J does not determine the control there
+UNDETERMINED_SHARE = 0.05
 
 
 def _ranges(U: np.ndarray, bounds: list[tuple[float, float]]) -> list[np.ndarray]:
@@ -86,6 +89,7 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
                 better = low < best
                 best[better] = low[better]
                 best_U[better] = trial.reshape(k, N, -1)[i[better], np.flatnonzero(better)]
+    undetermined = _undetermined(num, t, X, U, Lam, bounds, H_terms, names)
     gain = H_own - best
     # the terms at the better control too: a control of 0 with costates near 0 has terms of 0,
     # and the share was "4.4e+290" (unseen59 F4)
@@ -96,9 +100,16 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
     # discount e^{-5 t} late in [0, 100]) are not judged: "lower by 41 times its terms" of
     # 1e-10 at a control on its bound 1e-8 was "another branch" of a convex H (unseen60 F3)
     resolved = scale * float(t[-1] - t[0]) > RESOLUTION
-    beaten = (gain > GAIN_SHARE * scale) & resolved
+    # a better control within a millionth of the range of the solution's own is the barrier's
+    # distance from a bound the solution sits on (c = 1.135e-8 on c >= 1e-8 of [1e-8, 10], H
+    # with ln c: "2.1e-02 lower", unseen60 F3), not another control
+    spans = np.array([g[-1] - g[0] for g in _ranges(U, bounds)])
+    apart = np.any(np.abs(best_U - U) > 1e-6 * spans, axis=1)
+    beaten = (gain > GAIN_SHARE * scale) & resolved & apart
     out: dict[str, Any] = {"passed": bool(beaten.sum() < MIN_NODES), "nodes": int(len(t)),
                            "nodes_beaten": int(beaten.sum())}
+    if undetermined:
+        out["undetermined"] = undetermined
     if beaten.sum() < MIN_NODES:
         return out
     k = int(np.argmax(np.where(beaten, gain / scale, -np.inf)))
@@ -122,6 +133,37 @@ def minimum_condition(num, t, X, U, Lam, bounds: list[tuple[float, float]], name
                        "global minimum over the control's range), and no finer mesh or more iterations change "
                        "that; a guess with the better control there starts the solve on the other branch")
     return out
+
+
+def _undetermined(num, t, X, U, Lam, bounds, H_terms, names) -> dict | None:
+    """Where H's terms (|L| + |lambda|^T |f|) stay below the NLP's resolution at the solution's
+    control and at every control's range ends, over ``UNDETERMINED_SHARE`` of the phase or
+    more but not all of it: J does not determine the controls there (an integrand discounted
+    by e^{-5 t} over [0, 100] after t = 4). An exact tracking optimum (L = 0, lambda = 0) has
+    terms at the other controls, a singular arc in |lambda| |f|: neither is undetermined."""
+    duration = float(t[-1] - t[0])
+    if duration <= 0:
+        return None
+    terms = H_terms.copy()
+    for j, grid in enumerate(_ranges(U, bounds)):
+        for end in (grid[0], grid[-1]):
+            trial = U.copy()
+            trial[:, j] = end
+            with np.errstate(all="ignore"):
+                terms = np.maximum(terms, np.nan_to_num(_hamiltonian_nodes(num, t, X, trial, Lam)[2], nan=np.inf))
+    faint = terms * duration <= RESOLUTION
+    share = np.empty(len(t))
+    share[1:-1] = 0.5 * (t[2:] - t[:-2])
+    share[0], share[-1] = 0.5 * (t[1] - t[0]), 0.5 * (t[-1] - t[-2])
+    part = float(share[faint].sum() / duration)
+    if part < UNDETERMINED_SHARE or faint.all():
+        return None
+    first, last = float(t[faint][0]), float(t[faint][-1])
+    return {"share": part, "first": first, "last": last,
+            "note": (f"H's terms are below what the NLP resolves ({RESOLUTION:g}) on t in [{first:.4g}, {last:.4g}] "
+                     f"({part:.0%} of the phase) whatever {', '.join(names)}: J does not determine "
+                     f"{'it' if len(names) == 1 else 'them'} there (an integrand made negligible by a discount), "
+                     "and the trajectory there is not judged")}
 
 
 def _stationary(U, dHdu, dHdu_terms, bounds) -> np.ndarray:

@@ -694,9 +694,11 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         if minimum_condition_notes(result.certificate):
             # more of the same cannot leave a local extremal (unseen48 F3: Newton's nose at 25
             # iterations had the J of 12)
-            message = message.replace(RAISE_ADVICE, "The control is not H's minimiser where the note below "
-                                      "says: the refinement follows a local extremal, which more iterations or a "
-                                      "higher degree do not change; start from a guess with the better control there.")
+            extremal = ("The control is not H's minimiser where the note below says: the refinement follows a "
+                        "local extremal, which more iterations or a higher degree do not change; start from a guess "
+                        "with the better control there.")
+            message = (message.replace(RAISE_ADVICE, extremal) if RAISE_ADVICE in message
+                       else f"{message.rstrip('.')}. {extremal}")
     result.message = ((f"{message.rstrip('.')}.{hints}" if hints else message)
                       + (f"; symbolic steps: {'; '.join(dict.fromkeys(budget.notes))}" if budget.notes else "")
                       + (f"; {terminal_notes[-1]}" if terminal_notes else ""))
