@@ -575,3 +575,17 @@ def test_a_control_guess_is_flown_from_x_t0_before_infeasibility_is_diagnosed():
     assert res.status != "infeasible" and res.objective > 1.9e4, (res.status, res.message[:300])
     assert "x1(t0) == 1" not in res.message
     assert any(r.get("flown_guess") for r in res.extra["starts"]), res.extra.get("starts")
+
+
+def test_an_acceptable_end_from_large_variables_says_why(tmp_path):
+    """unseen61 F1: Bryson-Denham's altitude floor in SI (h about 6.5e6 m) with `mesh:` ends
+    `acceptable` on every mesh (the refinement's tol 1e-10 is below the rounding of h), exit 1
+    on a J right to 8e-15, with no word why; the hint names the spread and the remedy."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "altitude_floor_si_mesh.yaml", None)
+    assert res.status == "acceptable" and not res.ok
+    assert res.objective == pytest.approx(94777.49666666667, rel=1e-9)
+    assert "Ipopt met only its acceptable level" in res.message and "scaling: {mode: auto}" in res.message
