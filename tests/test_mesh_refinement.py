@@ -1399,3 +1399,15 @@ def test_a_refinement_that_cycles_through_moved_switches_says_so():
     text = _cycle_advice(history, spec)
     assert "iteration(s) [2, 5]" in text and "cycles" in text and RAISE_ADVICE not in text
     assert "at iteration 6" in text
+
+
+def test_a_stalled_refinement_with_regularise_on_says_how_strong_it_is():
+    """unseen61 F2: Goddard in metres with the config's `regularise: 1e-8` stalled and was told
+    "`regularise:` in mesh:", which it had; the weight is in J's units (its term 2e-9 of J)."""
+    from ocdsl.solve.mesh.drive import _not_converging
+
+    growth = [(200, 1e-3), (900, 9e-4), (4000, 8e-4)]
+    plain = _not_converging(growth)
+    assert "`regularise:` in mesh:" in plain
+    on = _not_converging(growth, (1e-8, 2.1e-9))
+    assert "`regularise: 1e-08` is on, its term 2.1e-09 of J" in on and "in J's units" in on

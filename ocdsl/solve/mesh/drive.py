@@ -593,7 +593,9 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 nudge_grace = False
             solved_before = (dict(meshes), max_err)
             growth.append((int(info.nlp.get("variables", 0)), max_err))
-            grown = _not_converging(growth)
+            reg_term = (rec.get("regularisation") or {}).get("value")
+            grown = _not_converging(growth, None if reg_term is None or not info.objective else
+                                    (reg_weight, abs(float(reg_term)) / max(abs(float(info.objective)), 1e-300)))
             if grown:
                 stalled = f"mesh iteration {it}: the refinement is not converging: {grown}"
                 rec["stalled"] = stalled
@@ -752,13 +754,20 @@ def _left_the_optimum(objective, converged_objective, tolerance: float, constant
     return abs(objective - converged_objective) > LEFT_THE_OPTIMUM * tolerance * size
 
 
-def _not_converging(growth: list) -> str:
+def _not_converging(growth: list, regularised: tuple[float, float] | None = None) -> str:
     """Why refining on only grows the NLP, from (variables, largest error) of each refined mesh,
     or "": two refinements that multiplied it by GROWTH_LIMIT while the error fell by less than
     ten times (unseen10 F2: a bioreactor's singular feed arcs, 10 -> 813 segments and 15,600
     variables, error 2.2e-1 -> 2.2e-2, no result in 150 s), or FLAT_MESHES that grew it by
-    FLAT_GROWTH with no tenth off the error; both only past GROWTH_FLOOR variables."""
+    FLAT_GROWTH with no tenth off the error; both only past GROWTH_FLOOR variables.
+    ``regularised``: (the weight, its term's share of J) where `regularise` is on: the advice
+    then says how strong it is rather than naming a key the file has (unseen61 F2: Goddard in
+    metres, w = 1e-8 a term of 2e-9 of J against 2e-7 in Earth radii)."""
     advice = "(a singular arc or a chattering control? `regularise:` in mesh:, docs/mesh.md)"
+    if regularised is not None:
+        weight, share = regularised
+        advice = (f"(a singular arc or a chattering control? `regularise: {weight:g}` is on, its term {share:.1e} "
+                  "of J: the weight is in J's units, so a J in other units needs it scaled alike; docs/mesh.md)")
     if len(growth) >= 3 and growth[-1][0] >= max(GROWTH_LIMIT * growth[-3][0], GROWTH_FLOOR) \
             and growth[-1][1] > 0.1 * growth[-3][1]:
         return (f"the NLP grew from {growth[-3][0]} to {growth[-1][0]} variables in two meshes while the largest "
