@@ -124,6 +124,15 @@ def fixed_mesh_arcs(file: LoadedFile, result: Result, tr, meshes, timer, *, verb
     if check.agrees is False:
         result.status = "mesh_not_converged"
         result.message = arcs.mismatch_message(found, multi, check, unjudged)
+        from .solve.certify import stopped_short
+
+        if stopped_short(result.certificate):
+            # a spurious KKT point (SI orbit raising, thrust angle on its bound: 1.65 % off, the
+            # bisection elsewhere again) is no mesh matter (unseen61 F4)
+            result.message += (". But the certificate finds the control neither H's minimiser nor stationary "
+                               "(the note says where): the solve stopped at a point of the NLP's equations that "
+                               "is no extremal of the problem, which refining does not cure; start from another "
+                               "guess, or give the variables their sizes (`scaling: {mode: auto, variables: ...}`)")
         return []
     flat = arcs.final_time_spread([(result.objective, arcs.free_final_times(tr))]
                                   + [(lv.objective, lv.final_times) for lv in check.levels], file.spec.verify.tolerance)

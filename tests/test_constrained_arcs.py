@@ -191,3 +191,17 @@ def test_at_a_bound_is_within_a_share_of_the_quantitys_range():
     # a quantity of order 1: as before
     assert activity(np.array([0.0, 1 - 1e-8, 0.5]), 0.0, 1.0, 1e-7, span=1.0).tolist() == [-1, 1, 0]
     assert _bound_text("x", -np.inf, b) == "x <= 10000000.111111112" and _bound_text("x", 0.0, 1.0) == "0 <= x <= 1"
+
+
+def test_a_spurious_kkt_point_is_not_blamed_on_the_mesh_alone():
+    """unseen61 F4: Bryson's orbit raising in SI units stopped at a point with the thrust angle
+    on its -pi bound, 1.65 % short; the bisection moved J elsewhere again and the message said
+    only that the mesh misses the arcs' junctions. The certificate finds the control neither H's
+    minimiser nor stationary: the message says refining does not cure that."""
+    from pathlib import Path
+
+    from ocdsl.api import run_file
+
+    res = run_file(Path(__file__).parent / "data" / "orbit_raising_si_spurious.yaml", None)
+    assert res.status == "mesh_not_converged" and not res.ok
+    assert "no extremal of the problem" in res.message and "refining does not cure" in res.message

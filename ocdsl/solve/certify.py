@@ -93,6 +93,13 @@ def _shared_control_nodes(traj) -> list[float]:
     return [float(bps[k]) for k, v in enumerate(spec.get("segment_starts") or []) if v is not None and k < len(bps)]
 
 
+def stopped_short(certificate: dict | None) -> bool:
+    """Some phase's control is neither H's minimiser nor stationary where the minimum condition
+    sampled it: the NLP stopped at a point that is no extremal of the problem."""
+    phases = (certificate or {}).get("phases") or {"": certificate or {}}
+    return any((c.get("minimum_condition") or {}).get("stationary") is False for c in phases.values())
+
+
 def minimum_condition_notes(certificate: dict | None) -> list[str]:
     """The minimum condition's notes where it found a better control (per phase)."""
     if not certificate:
