@@ -1013,7 +1013,7 @@ def test_a_bound_far_from_zero_is_not_relaxed_by_a_share_of_its_size(given, tmp_
 
 
 def test_bound_relaxation_kept_within_each_variables_room():
-    from ocdsl.solve.ipopt import _bounds_kept
+    from ocdsl.solve.start_options import _bounds_kept
 
     inf = 1e20
     # ordinary sizes: the factor as given

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .process_state import floating_point_environment_kept, heap_kept
+from .start_options import adaptations, adapted
 
 SQUARE = "Feasible point for square problem found."
 STATUS_MAP = {
@@ -68,19 +69,6 @@ TOO_FEW_HINT = (": the NLP has more equality constraints than free unknowns; a m
 # still name one
 DEFAULT_OPTIONS = {"mu_strategy": "adaptive", "max_iter": 3000, "tol": 1e-8, "mumps_permuting_scaling": 0,
                    "bound_relax_factor": 1e-9, "option_file_name": ""}
-# an objective whose gradient at the start, sum |dJ/dx_i| over the NLP's variables (what
-# Ipopt's tolerance is on, entry by entry; the sum keeps a fine mesh's small quadrature
-# weights from counting), is below this is scaled up to 1 for Ipopt (obj_scaling_factor): a J
-# of 1e-9 in size was "optimal" after 0 iterations at its guess, a free t_f 4e-4 off (unseen59
-# F3), and 1e-9 int T of a thrust of 1e4 N "did not determine T" (unseen61 F3); below
-# SIZELESS_OBJECTIVE the gradient is taken for 0 (a start at J's stationary point). Not under
-# `scaling: {mode: auto}`, which scales the objective and the variables itself
-SMALL_OBJECTIVE, SIZELESS_OBJECTIVE = 1e-4, 1e-12
-# Ipopt relaxes a bound b by bound_relax_factor x max(1, |b|): on a variable far from 0 whose
-# room to its bound is small, a large share of that room. Where some variable needs a factor
-# this many times smaller, the factor becomes what every variable's room needs
-# (``_bounds_kept``)
-RELAX_TIGHTER = 1e-2
 # Ipopt's ApplicationReturnStatus codes that cyipopt's messages lack ("Unknown status")
 STATUS_CODES = {-4: "time_limit", -5: "time_limit", 5: "interrupted"}
 
@@ -376,7 +364,7 @@ def solve(model, options: dict[str, Any] | None = None, verbose: bool = False,
         return out
 
     options = _numbered_output_file(options or {})
-    given = frozenset(options)         # the caller's own options: never adapted (_adapted)
+    given = frozenset(options)         # the caller's own options (start_options.adapted)
     opts = limited(options_with(DEFAULT_OPTIONS, options))
     try:
         if multipliers is None:
@@ -491,64 +479,6 @@ def _attempt(model, opts, verbose, progress, on_iteration, multipliers, transcri
     return SolveInfo(status, msg, iterations, obj, elapsed, nlp_info, history)
 
 
-def _objective_scaled(opts: dict, gradient, scaled: bool) -> dict:
-    """``opts`` with Ipopt's obj_scaling_factor where the objective is too small for its
-    tolerance (``SMALL_OBJECTIVE``) and the options set none; ``scaled``: the model carries
-    `scaling: {mode: auto}`'s factors (then nothing is added)."""
-    import numpy as np
-
-    if scaled:
-        return opts
-    with np.errstate(all="ignore"):
-        size = float(np.sum(np.abs(gradient)))
-    if not (SIZELESS_OBJECTIVE < size < SMALL_OBJECTIVE):
-        return opts
-    return {**opts, "obj_scaling_factor": 1.0 / size}
-
-
-def _bounds_kept(brf: float, x, lower, upper) -> float:
-    """Ipopt's bound_relax_factor so that no bound is relaxed by more than ``brf`` x max(1, the
-    variable's room): its bounds' span, or with one bound the distance of its start from it.
-    x about 1e7 starting 0.11 below x <= 1e7 + 1/9 broke the bound by 1e-4 (9e-4 of that room;
-    J 9e-4 below J*, "optimal, verified", unseen59 F1); a furnace at 1200 K capped 0.07 K above
-    its start, by 1.2e-6 K (J 2.7e-3 below, unseen32)."""
-    import numpy as np
-
-    x, lo, hi = (np.asarray(a, float) for a in (x, lower, upper))
-    has_lo, has_hi = np.abs(lo) < 1e19, np.abs(hi) < 1e19
-    both = has_lo & has_hi
-    need = np.full(len(x), np.inf)
-    with np.errstate(all="ignore"):
-        for has, b in ((has_lo, lo), (has_hi, hi)):
-            room = np.where(both, hi - lo, np.abs(x - b))
-            need = np.where(has, np.minimum(need, brf * np.maximum(1.0, room) / np.maximum(1.0, np.abs(b))), need)
-    tightest = float(np.min(need)) if len(need) else np.inf
-    return tightest if tightest < RELAX_TIGHTER * brf else brf
-
-
-def _adapted(opts: dict, given: frozenset, gradient, x, lower, upper, scaled: bool) -> dict:
-    """``opts`` adapted to the NLP at its start: Ipopt's objective scaling where the caller's
-    options (``given``) set none (``_objective_scaled``), and its bound relaxation, whoever set
-    the factor, lowered where a variable's room needs it (``_bounds_kept``; 0 stays 0)."""
-    if "obj_scaling_factor" not in given:
-        opts = _objective_scaled(opts, gradient, scaled)
-    if float(opts.get("bound_relax_factor", 1e-8)) > 0:
-        brf = _bounds_kept(float(opts.get("bound_relax_factor", 1e-8)), x, lower, upper)
-        if brf != float(opts.get("bound_relax_factor", 1e-8)):
-            opts = {**opts, "bound_relax_factor": brf}
-    return opts
-
-
-def _adaptations(opts: dict, given: frozenset) -> dict:
-    """What ``_adapted`` changed, for the SolveInfo's NLP record."""
-    out = {}
-    if "obj_scaling_factor" in opts and "obj_scaling_factor" not in given:
-        out["objective_scaled_by"] = opts["obj_scaling_factor"]
-    if opts.get("bound_relax_factor") != DEFAULT_OPTIONS["bound_relax_factor"]:
-        out["bound_relax_factor"] = opts.get("bound_relax_factor")
-    return out
-
-
 def direct_nlp(transcription):
     """(the DirectNLP of ``transcription``, "") where the solve evaluates through NumPy, or
     (None, why it takes the PyNumero route)."""
@@ -617,7 +547,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     library = ipopt_c.name()
     model = transcription.model if transcription is not None else None
     sf = getattr(model, "scaling_factor", None)
-    opts = _adapted(opts, given, nlp.gradient(nlp.x0), nlp.x0, nlp.xl, nlp.xu, sf is not None)
+    opts = adapted(opts, given, nlp.gradient(nlp.x0), nlp.x0, nlp.xl, nlp.xu, sf is not None)
     for k, v in opts.items():
         problem.add_option(k, v)
     if sf is not None:     # the model's scaling suffix, in this NLP's variable and row order
@@ -639,7 +569,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     if transcription is not None and STATUS_MAP.get(msg) == "infeasible":
         msg += diagnose.infeasibility_message(transcription, nlp, x)
-    return msg, {**nlp.info(), "ipopt": library, **_adaptations(opts, given)}, info.get("status")
+    return msg, {**nlp.info(), "ipopt": library, **adaptations(opts, given, DEFAULT_OPTIONS["bound_relax_factor"])}, info.get("status")
 
 
 def pynumero_nlp(model):
@@ -670,7 +600,7 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
     status'`` on a solve that ran out of the run's wall-clock time (Ipopt's -5, which
     cyipopt has no message for), so a time limit read as an error and its iterate was lost
     (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code, the
-    adapted options: ``_adapted``). Models with grey-box
+    adapted options: ``start_options.adaptations``). Models with grey-box
     blocks are not handled here."""
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
@@ -683,7 +613,7 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         problem.set_problem_scaling(1.0 if obj is None else obj,
                                     np.ones(len(problem.x_lb())) if xs is None else xs,
                                     np.ones(len(problem.g_lb())) if gs is None else gs)
-    opts = _adapted(opts, given, problem.gradient(problem.x_init()), problem.x_init(), problem.x_lb(), problem.x_ub(),
+    opts = adapted(opts, given, problem.gradient(problem.x_init()), problem.x_init(), problem.x_lb(), problem.x_ub(),
                     any(f is not None for f in (obj, xs, gs)))
     for k, v in opts.items():
         problem.add_option(k, v)
@@ -697,4 +627,4 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))
     finally:
         problem.close()
-    return info["status_msg"], nlp, info["status"], _adaptations(opts, given)
+    return info["status_msg"], nlp, info["status"], adaptations(opts, given, DEFAULT_OPTIONS["bound_relax_factor"])

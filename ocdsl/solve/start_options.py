@@ -1,0 +1,75 @@
+"""Ipopt's options adapted to an NLP at its start: the objective's scaling where it is too
+small for Ipopt's tolerance, and the bounds' relaxation where a variable far from zero has
+little room to its bound. Both routes (the direct NumPy NLP and PyNumero) call ``adapted``
+with the NLP's gradient, start and bounds; ``adaptations`` is what the SolveInfo records."""
+from __future__ import annotations
+
+import numpy as np
+
+# an objective whose gradient at the start, sum |dJ/dx_i| over the NLP's variables (what
+# Ipopt's tolerance is on, entry by entry; the sum keeps a fine mesh's small quadrature
+# weights from counting), is below this is scaled up to 1 for Ipopt (obj_scaling_factor): a J
+# of 1e-9 in size was "optimal" after 0 iterations at its guess, a free t_f 4e-4 off (unseen59
+# F3), and 1e-9 int T of a thrust of 1e4 N "did not determine T" (unseen61 F3); below
+# SIZELESS_OBJECTIVE the gradient is taken for 0 (a start at J's stationary point). Not under
+# `scaling: {mode: auto}`, which scales the objective and the variables itself
+SMALL_OBJECTIVE, SIZELESS_OBJECTIVE = 1e-4, 1e-12
+# Ipopt relaxes a bound b by bound_relax_factor x max(1, |b|): on a variable far from 0 whose
+# room to its bound is small, a large share of that room. Where some variable needs a factor
+# this many times smaller, the factor becomes what every variable's room needs
+# (``_bounds_kept``)
+RELAX_TIGHTER = 1e-2
+
+
+def _objective_scaled(opts: dict, gradient, scaled: bool) -> dict:
+    """``opts`` with Ipopt's obj_scaling_factor where the objective is too small for its
+    tolerance (``SMALL_OBJECTIVE``) and the options set none; ``scaled``: the model carries
+    `scaling: {mode: auto}`'s factors (then nothing is added)."""
+    if scaled:
+        return opts
+    with np.errstate(all="ignore"):
+        size = float(np.sum(np.abs(gradient)))
+    if not (SIZELESS_OBJECTIVE < size < SMALL_OBJECTIVE):
+        return opts
+    return {**opts, "obj_scaling_factor": 1.0 / size}
+
+
+def _bounds_kept(brf: float, x, lower, upper) -> float:
+    """Ipopt's bound_relax_factor so that no bound is relaxed by more than ``brf`` x max(1, the
+    variable's room): its bounds' span, or with one bound the distance of its start from it.
+    x about 1e7 starting 0.11 below x <= 1e7 + 1/9 broke the bound by 1e-4 (9e-4 of that room;
+    J 9e-4 below J*, "optimal, verified", unseen59 F1); a furnace at 1200 K capped 0.07 K above
+    its start, by 1.2e-6 K (J 2.7e-3 below, unseen32)."""
+    x, lo, hi = (np.asarray(a, float) for a in (x, lower, upper))
+    has_lo, has_hi = np.abs(lo) < 1e19, np.abs(hi) < 1e19
+    both = has_lo & has_hi
+    need = np.full(len(x), np.inf)
+    with np.errstate(all="ignore"):
+        for has, b in ((has_lo, lo), (has_hi, hi)):
+            room = np.where(both, hi - lo, np.abs(x - b))
+            need = np.where(has, np.minimum(need, brf * np.maximum(1.0, room) / np.maximum(1.0, np.abs(b))), need)
+    tightest = float(np.min(need)) if len(need) else np.inf
+    return tightest if tightest < RELAX_TIGHTER * brf else brf
+
+
+def adapted(opts: dict, given: frozenset, gradient, x, lower, upper, scaled: bool) -> dict:
+    """``opts`` adapted to the NLP at its start: Ipopt's objective scaling where the caller's
+    options (``given``) set none (``_objective_scaled``), and its bound relaxation, whoever set
+    the factor, lowered where a variable's room needs it (``_bounds_kept``; 0 stays 0)."""
+    if "obj_scaling_factor" not in given:
+        opts = _objective_scaled(opts, gradient, scaled)
+    if float(opts.get("bound_relax_factor", 1e-8)) > 0:
+        brf = _bounds_kept(float(opts.get("bound_relax_factor", 1e-8)), x, lower, upper)
+        if brf != float(opts.get("bound_relax_factor", 1e-8)):
+            opts = {**opts, "bound_relax_factor": brf}
+    return opts
+
+
+def adaptations(opts: dict, given: frozenset, default_relax: float) -> dict:
+    """What ``adapted`` changed, for the SolveInfo's NLP record."""
+    out = {}
+    if "obj_scaling_factor" in opts and "obj_scaling_factor" not in given:
+        out["objective_scaled_by"] = opts["obj_scaling_factor"]
+    if opts.get("bound_relax_factor") != default_relax:
+        out["bound_relax_factor"] = opts.get("bound_relax_factor")
+    return out
