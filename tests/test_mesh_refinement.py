@@ -1411,3 +1411,32 @@ def test_a_stalled_refinement_with_regularise_on_says_how_strong_it_is():
     assert "`regularise:` in mesh:" in plain
     on = _not_converging(growth, (1e-8, 2.1e-9))
     assert "`regularise: 1e-08` is on, its term 2.1e-09 of J" in on and "in J's units" in on
+
+
+def test_an_integral_of_small_size_is_estimated_against_its_own_size(tmp_path):
+    """A cost of 1e-8 (unseen34's corner problem) was estimated against 1 + |I|, absolutely: a
+    coarsened mesh whose quadrature put J 12 % below the optimum (-7.9e-9 for -7.08e-9) had
+    "max error 1.25e-9", within the tolerance 1e-8. Against the integral's own size that mesh
+    is 9e-2 off. A mesh's J below the optimum is its quadrature's error alone."""
+    path = tmp_path / "small.yaml"
+    path.write_text("""name: corner problem in two phases, cost x 1e-8
+model: {states: [x], controls: [u], dynamics: {x: u}}
+phases:
+  early:
+    time: {t0: 0, tf: 1}
+    constraints: [x(t0) == 0, u <= 1]
+    objective: integral(1.0e-8*(u**2/2 - (t - 1)*u))
+  late:
+    time: {t0: 1, tf: 2.5}
+    constraints: [u <= 1]
+    objective: integral(1.0e-8*(u**2/2 - (t - 1)*u))
+links:
+  - continuous(early, late)
+objective: minimize 0
+method: {transcription: LGR, segments: 2, degree: 3, mesh: {tolerance: 1.0e-8}}
+""")
+    res = ocdsl.load(path).solve()
+    exact = -17 / 24 * 1e-8
+    below = [h for h in res.extra["mesh_history"] if h["objective"] is not None and h["objective"] < exact * (1 + 1e-3)]
+    assert below, "no mesh's quadrature went below the optimum: the case is gone"
+    assert all(h["max_error"] > 1e-8 for h in below), [(h["iteration"], h["objective"], h["max_error"]) for h in below]
