@@ -547,7 +547,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     library = ipopt_c.name()
     model = transcription.model if transcription is not None else None
     sf = getattr(model, "scaling_factor", None)
-    opts = adapted(opts, given, nlp.gradient(nlp.x0), nlp.x0, nlp.xl, nlp.xu, sf is not None)
+    opts = adapted(opts, given, nlp.gradient, nlp.x0, nlp.xl, nlp.xu, sf is not None)
     for k, v in opts.items():
         problem.add_option(k, v)
     if sf is not None:     # the model's scaling suffix, in this NLP's variable and row order
@@ -613,7 +613,7 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         problem.set_problem_scaling(1.0 if obj is None else obj,
                                     np.ones(len(problem.x_lb())) if xs is None else xs,
                                     np.ones(len(problem.g_lb())) if gs is None else gs)
-    opts = adapted(opts, given, problem.gradient(problem.x_init()), problem.x_init(), problem.x_lb(), problem.x_ub(),
+    opts = adapted(opts, given, problem.gradient, problem.x_init(), problem.x_lb(), problem.x_ub(),
                     any(f is not None for f in (obj, xs, gs)))
     for k, v in opts.items():
         problem.add_option(k, v)
