@@ -208,9 +208,8 @@ def test_a_tiny_fuel_objective_over_large_thrusts_is_scaled_for_ipopt():
 def test_an_objective_of_any_small_size_is_solved_not_returned_at_its_guess(factor, tmp_path):
     """unseen62 F1: 1e-13 int(...) (and an LQ cost discounted by exp(-0.05 t) on calendar years,
     J of 5e-45) was below the old floor of 1e-12, left unscaled, and Ipopt returned its guess
-    after 0 iterations: `optimal`, verified, certificate pass, exit 0, 30 % above J*. 1e-4 of
-    Bryson-Denham's cost (a gradient sum of 2e-4 at its solution) was solved short on the
-    bisected mesh (F3). x' = u, min factor int(u^2/2 + t x): J* = -factor/15, exact on LG 10 x 3."""
+    after 0 iterations: `optimal`, verified, certificate pass, exit 0, 30 % above J*. x' = u,
+    min factor int(u^2/2 + t x): J* = -factor/15, exact on LG 10 x 3."""
     path = tmp_path / "small.yaml"
     path.write_text(OFFSET.replace("OFFSET", f"{factor!r}*integral(u**2/2 + t*x)")
                     .replace("segments: 3, degree: 2", "segments: 10, degree: 3"))

@@ -15,7 +15,7 @@ import numpy as np
 # of a thrust of 1e4 N "did not determine T" (unseen61 F3), and 1e-13 int(...) "optimal,
 # verified, certificate pass", exit 0, at its guess 30 % above J* (unseen62 F1). Not under
 # `scaling: {mode: auto}`, which scales the objective and the variables itself
-SMALL_OBJECTIVE, PROBE = 1e-2, 1e-3
+SMALL_OBJECTIVE, PROBE = 1e-4, 1e-3
 # Ipopt relaxes a bound b by bound_relax_factor x max(1, |b|): on a variable far from 0 whose
 # room to its bound is small, a large share of that room. Where some variable needs a factor
 # this many times smaller, the factor becomes what every variable's room needs
