@@ -17,7 +17,7 @@ from ocdsl.transcribe.flat_bspline_compare import compare
 C = constants("km")
 
 
-def _check(c, tf_key=None):
+def _check(c, tf_key=None, expect_passes=True):
     """Both converged and verified; the refined flat optimum is the full-state one (t_f and
     final mass to 2e-6, final thrust angles to 0.05 deg); the paper's collocated 15/15 level
     is not verified. A verified flat result with another value would fail here."""
@@ -34,7 +34,8 @@ def _check(c, tf_key=None):
         d = (fb - pb + math.pi) % (2 * math.pi) - math.pi
         assert abs(math.degrees(d)) < 0.05, (ph.name, math.degrees(fb), math.degrees(pb))
     assert f["variables"] < p["variables"] and f["constraints"] < p["constraints"]
-    assert all(ok for _, ok in f["expect"].values()), f["expect"]
+    if expect_passes:
+        assert all(ok for _, ok in f["expect"].values()), f["expect"]
 
 
 @pytest.mark.slow
@@ -66,7 +67,12 @@ def test_table3_flat_vs_pseudospectral_and_lands(h):
 
     pt = next(p for p in load_study(CONFIGS / "seed2_strategy3.yaml").points if p.parameters["h_v"] == h)
     c = compare(CONFIGS / "seed2_strategy3.yaml", pt.parameters, tf_key="descent")
-    _check(c)
+    # the file expects the printed rows, which cannot land (configs/seed2_strategy3.yaml): the
+    # optimum differs from them in mass by +0.97, +0.58, +0.40 and -0.24 kg at 5, 4, 3 and 1 km,
+    # and only the 2 km row is within the expect's 0.1 kg
+    _check(c, expect_passes=h == 2)
+    off, ok = c["flat"]["expect"]["descent.m(tf) - m_ref"]
+    assert ok == (h == 2) and off == pytest.approx({5: 0.97, 4: 0.58, 3: 0.40, 2: 0.0, 1: -0.24}[h], abs=0.06)
     res = c["flat"]["result"]
     de = res.phase("descent")
     v12, m12, td = de.states["v"][0], de.states["m"][0], de.time[-1] - de.time[0]
