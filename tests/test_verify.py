@@ -1022,3 +1022,15 @@ def test_bound_relaxation_kept_within_each_variables_room():
     assert _bounds_kept(1e-9, [1e7, 0.5], [-inf, 0.0], [1e7 + 0.11, 1.0]) == pytest.approx(1e-16)
     # both bounds: their span is the room (a mass from 3e5 down to 1e4 at its bound)
     assert _bounds_kept(1e-9, [1e4], [1e4], [3e5]) == 1e-9
+
+
+def test_a_miss_on_a_nearly_constant_state_does_not_invite_a_looser_tolerance():
+    """unseen62 F4: a state offset by 1e6 reads as nearly constant, and the note told the user
+    that `verify: {tolerance: ...}` accepts the miss, where the trajectory was 6.6e-4 below
+    J*. The note now names the deviation to write instead."""
+    from ocdsl.verify import _constant_state_note
+
+    X = np.column_stack([1e6 + np.linspace(0.0, 0.1, 5)])
+    err = np.array([[0.0], [2e-5], [0.0], [0.0], [0.0]])
+    note = _constant_state_note(err, X, np.array([1e3]), ["z"], 2e-5, 1e-5)["scale_note"]
+    assert "verify: {tolerance" not in note and "z = 1e+06 + dz" in note

@@ -413,7 +413,9 @@ def _constant_state_note(err, X, scale_x, names_x, value: float, tol: float) -> 
     """``{"scale_note": ...}`` when the check fails on a state whose range over the phase is
     below its scale (a nearly constant state, measured against 1e-3 of its size or the NLP's
     resolution): the relative miss then stands for a small absolute one, which the message
-    says (unseen21 FA2: a steady state x = 1/2 missed by 9e-8 read as "1.7e-4")."""
+    says (unseen21 FA2: a steady state x = 1/2 missed by 9e-8 read as "1.7e-4"). It does
+    not invite a looser `verify: {tolerance}`: a state about 1e6 that travels 0.1 reads as nearly
+    constant too, and there the miss was a trajectory 6.6e-4 below J* (unseen62 F4)."""
     if not value > tol or not err.size:
         return {}
     j = int(np.argmax(np.nanmax(np.where(np.isfinite(err), err, np.inf), axis=0)))
@@ -422,7 +424,9 @@ def _constant_state_note(err, X, scale_x, names_x, value: float, tol: float) -> 
         return {}
     return {"scale_note": (f"{names_x[j]} is nearly constant over the phase (range {spread:.2g}), so it is "
                            f"measured against {scale_x[j]:.2g}: the miss is {value * scale_x[j]:.2g} in its "
-                           "units; a tighter solver `tol` lowers it, or `verify: {tolerance: ...}` accepts it")}
+                           "units; a tighter solver `tol` lowers it where the solver is the cause, and a state "
+                           "that travels little from a large value resolves better written as a deviation from "
+                           f"it ({names_x[j]} = {float(np.nanmean(X[:, j])):.6g} + d{names_x[j]})")}
 
 
 def _too_sensitive(funcs, uf, t, X, breaks, settings, scale, glob, v_global: float,
