@@ -10,7 +10,7 @@ import math
 
 from .result import Result
 from .spec.compile import LoadedFile
-from .verify.objective_size import objective_constant, objective_size, own_size
+from .verify.objective_size import objective_size, own_size
 
 
 def tie_jumping_end_controls(file: LoadedFile, info, tr, meshes, timer, *, verbose=False) -> tuple:
@@ -43,7 +43,7 @@ def tie_jumping_end_controls(file: LoadedFile, info, tr, meshes, timer, *, verbo
         again = ipopt.solve(tied.model, file.spec.solver.options, verbose=verbose, transcription=tied)
     shown = "; ".join(f"{'t_f' if e == 'end' else 't0'}" + (f" of phase {k}" if len(file.problem.phases) > 1 else "")
                       for k, v in ends.items() for e in sorted(v))
-    constant = objective_constant(file.problem)
+    constant = file.problem.objective_constant
     size = objective_size(info.objective, own_size(info.objective, constant), constant)  # relative below 1
     if again.status not in ("optimal", "acceptable") or again.objective is None:
         return info, tr, [f"the control at {shown} jumps off its segment's other nodes; tied to its segment's "
@@ -167,7 +167,7 @@ def pinned_switches(file: LoadedFile, result: Result, tr, timer) -> None:
 
     tol = file.spec.verify.tolerance
     J = float(result.objective or 0.0)
-    size = objective_size(J, result.extra.get("objective_scale"), objective_constant(problem))
+    size = objective_size(J, result.extra.get("objective_scale"), problem.objective_constant)
     with timer.measure("post"):
         params = {s: float(pyo.value(tr.scalars[s])) for s in problem.free_parameters}
         suspects: dict[str, list[int]] = {}
@@ -270,7 +270,7 @@ def bisection_check(file: LoadedFile, tr, objective: float, meshes, *, verbose=F
     # Ipopt's own accuracy: its tolerance on the (scaled) objective's optimality, in units of
     # the objective's own size where that is below 1
     floor = 10 * float(options.get("tol", 1e-8)) * (objective_size(0.0, objective_scale))
-    check = Bisection(float(objective), (), file.spec.verify.tolerance, floor, objective_constant(problem))
+    check = Bisection(float(objective), (), file.spec.verify.tolerance, floor, problem.objective_constant)
     while not check.levels or check.needs_second:
         meshes = {name: mesh.bisected() for name, mesh in meshes.items()}
         if build_model is None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from .result import Result
-from .verify.objective_size import objective_constant, objective_size
+from .verify.objective_size import objective_size
 
 # a free duration this many times its guess's (and 1) is checked
 RUNAWAY = 100.0
@@ -47,7 +47,7 @@ def runaway_final_time(file, result: Result, tr, meshes, timer, *, verbose=False
     sense = 1.0 if file.problem.objective.sense == "minimize" else -1.0
     J = float(result.objective)
     threshold = file.spec.verify.tolerance * objective_size(J, result.extra.get("objective_scale"),
-                                                            objective_constant(file.problem))
+                                                            file.problem.objective_constant)
     for pb in candidates:
         t0, tf = float(pyo.value(pb.block.t0)), float(pyo.value(pb.block.tf))
         if tf - t0 <= RUNAWAY * max(guessed.get(pb.phase.name, 1.0), 1.0):

@@ -132,12 +132,11 @@ def test_the_objective_constant_is_what_no_decision_moves(tmp_path):
     import math
 
     import ocdsl
-    from ocdsl.verify.objective_size import objective_constant
 
     def constant(objective, time="{t0: 0, tf: 2}"):
         path = tmp_path / "c.yaml"
         path.write_text(OFFSET.replace("OFFSET", objective).replace("{t0: 0, tf: 1}", time))
-        return objective_constant(ocdsl.load(path).file.problem)
+        return ocdsl.load(path).file.problem.objective_constant
 
     assert constant("5 + x(tf) + integral(u**2)") == 5.0
     assert constant("integral(1 + u**2)") == pytest.approx(2.0)

@@ -19,7 +19,7 @@ from ..symbolic.problem import Problem
 from .certificate import certificate, hamiltonian_arrays
 from .certificate.end_arcs import end_arcs
 from .certificate.flown_control import flown_control
-from ..verify.objective_size import objective_constant, objective_scale, objective_size
+from ..verify.objective_size import objective_scale, objective_size
 
 
 def _at_bound(value, bounds, within: float = 0.0) -> bool:
@@ -118,7 +118,7 @@ def certify_result(problem: Problem, result: Result, tolerance: float = 1e-5,
     # the objective's own size, which the checks that can refute J measure against (and the
     # bisection after them: run.py)
     result.extra["objective_scale"] = objective_scale(problem, result)
-    result.extra["objective_constant"] = objective_constant(problem)
+    result.extra["objective_constant"] = problem.objective_constant
     degenerate = _degenerate_rows(result)
     if degenerate is not None:
         return degenerate

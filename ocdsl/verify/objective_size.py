@@ -9,7 +9,7 @@ objective's terms at the solution (``objective_scale``): unchanged where S >= 1,
 J's own terms below. A J that is 0 at the optimum keeps the size of its terms (a tracking
 cost (x - r)^2 expands to x^2 - 2 r x + r^2, a state's end value its range), not 0.
 
-A constant added to J (``objective_constant``) moves neither the optimum nor any mesh's
+A constant added to J (``Problem.objective_constant``) moves neither the optimum nor any mesh's
 error, so J's own size is ``min(|J|, |J - C|)`` (``own_size``): a J of 1e8 + 0.07 is measured
 against 0.07, and a J whose written terms cancel a constant (an expanded tracking cost) against
 |J| as before, never against more.
@@ -39,38 +39,6 @@ def additive_terms(expr: sp.Expr) -> tuple:
 def _trapezoid(t: np.ndarray, v: np.ndarray) -> float:
     ok = np.isfinite(t) & np.isfinite(v)
     return float(np.trapezoid(v[ok], t[ok])) if ok.sum() >= 2 else math.nan
-
-
-def objective_constant(problem) -> float:
-    """C: what J holds that nothing the solve decides moves, from the terms as written (not
-    expanded): J's terms in numbers and fixed phase times alone, plus, for an integral that J
-    holds with a constant coefficient, that coefficient times its integrand's terms in t alone
-    integrated over its phase where both its times are fixed. ``minimize 1e8 + integral(u**2/2
-    + t*x)`` on a mesh 1.2e-4 off its optimum was "optimal": the bisection moved J by 8e-14 of
-    1e8 (unseen59 F2)."""
-    fixed = {}
-    for ph in problem.phases:
-        if ph.t0 is not None:
-            fixed[ph.t0_symbol] = float(ph.t0)
-        if ph.tf is not None:
-            fixed[ph.tf_symbol] = float(ph.tf)
-    J = sp.sympify(problem.objective.expr)
-    total = 0.0
-    for term in sp.Add.make_args(J):
-        if term.free_symbols <= set(fixed):
-            total += float(term.subs(fixed))
-    for s, (name, L) in problem.integrals.items():
-        ph, coefficient = problem.phase(name), sp.diff(J, s)
-        if ph.t0 is None or ph.tf is None or not coefficient.free_symbols <= set(fixed):
-            continue
-        of_t = [term for term in sp.Add.make_args(ph.substitute(L)) if term.free_symbols <= {TIME}]
-        if of_t:
-            from scipy.integrate import quad
-
-            f = sp.lambdify(TIME, sp.Add(*of_t), "math")
-            total += float(coefficient.subs(fixed)) * quad(lambda t: float(f(t)), float(ph.t0), float(ph.tf),
-                                                           limit=200)[0]
-    return float(total) if math.isfinite(total) else 0.0
 
 
 def own_size(objective: float, constant: float = 0.0) -> float:

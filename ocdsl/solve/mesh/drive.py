@@ -26,7 +26,7 @@ from .regularise import chattering_segments, merge_intervals, regularise
 from .segments import close_mesh, control_polys, dense_trajectory
 from .terminal import TerminalError, terminal_error
 from .budget import Budget
-from ...verify.objective_size import objective_constant, own_size
+from ...verify.objective_size import own_size
 
 # above this amplification of the open-loop flight (``flight_amplification``) the terminal
 # conditions are judged piece by piece (``segment_ends``): the segment errors (1e-6 and more)
@@ -567,7 +567,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
                 rec["coarsening_rejected"] = True
                 coarsening = False
                 if info.iterations > (mcap or 0) and _left_the_optimum(info.objective, converged[-1][3].objective,
-                                                                       spec.tolerance, objective_constant(file.problem)):
+                                                                       spec.tolerance, file.problem.objective_constant):
                     # ... unless its warm start did not take and it solved to another optimum:
                     # refining that one only finds its way back (unseen48 F2, with the
                     # multiplier cap: the reorientation converged on mesh 4 at J 28.6304068;
@@ -667,7 +667,7 @@ def solve_adaptive(file, timer, *, seed=None, warm_start=None, verbose=False, pr
         beaten = beaten_meshes(result, converged, problem.objective.sense, spec.tolerance)
         kept = [c for c in converged if c[1] not in beaten]
         if (beaten and len(kept) >= 2 and any(c is chosen for c in kept)
-                and _objective_disagreement(kept, spec.tolerance, objective_constant(file.problem)) is None):
+                and _objective_disagreement(kept, spec.tolerance, file.problem.objective_constant) is None):
             status = "optimal"
             message = (f"mesh converged: iterations {[c[1] for c in kept]} are within tolerance {spec.tolerance:.1e} "
                        f"and agree in J; iteration(s) {beaten}, also within it, are no optimum: the control the "

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from ...verify.objective_size import objective_constant, own_size
+from ...verify.objective_size import own_size
 
 GOOD = ("optimal", "acceptable")
 
@@ -91,7 +91,7 @@ def outcome(converged: list, best, last, history: list, status: str | None, mess
     loop ran out of iterations or met the tolerance."""
     chosen = None
     disagree = _objective_disagreement(converged, spec.tolerance,
-                                       objective_constant(problem) if problem is not None else 0.0)
+                                       problem.objective_constant if problem is not None else 0.0)
     if status is None and disagree:
         # the finest mesh within the error tolerance, as the message says (not the last mesh
         # solved: harmonic oscillator, iteration 25 with error 2.3e-6 was reported as it; nor

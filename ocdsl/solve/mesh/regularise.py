@@ -149,10 +149,10 @@ def check_unregularised(tr, objective: float, weight: float, build_plain, solve,
     import pyomo.core as pyo
 
     from ...transcribe.guess import solved_guesses
-    from ...verify.objective_size import objective_constant, resolved_size
+    from ...verify.objective_size import resolved_size
 
     term = float(pyo.value(tr.model.mesh_regularisation))
-    constant = objective_constant(tr.problem)
+    constant = tr.problem.objective_constant
     size = resolved_size(objective, objective_scale, constant)
     skipped = Unregularised(weight, float(objective), term, None, SKIPPED, tolerance, size, constant)
     if skipped.relative_term <= tolerance:

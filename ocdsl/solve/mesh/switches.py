@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from ...verify.objective_size import objective_constant, own_size
+from ...verify.objective_size import own_size
 
 DELTA = 1e-7          # normalised-time step of the finite difference
 
@@ -118,7 +118,7 @@ def solve_switch_times(tr, rebuild, solve, features: dict, switches: dict, spec,
     the switch on t = 1.978 for 2, called converged)."""
     out = dict(features)
     tol = spec.corner_tolerance
-    size = 1.0 + own_size(objective, objective_constant(tr.problem))
+    size = 1.0 + own_size(objective, tr.problem.objective_constant)
     free: dict = {}
     plan: dict = {}       # phase -> [(switch located, breakpoint index)]
     for pb in tr.phases:
@@ -278,8 +278,8 @@ def with_switch_costates(tr, rebuild, solve, switches: dict, spec, objective: fl
     if not held:
         return None
     info = solve(model)
-    if info.status != "optimal" or info.objective is None \
-            or abs(info.objective - objective) > spec.tolerance * (1.0 + own_size(objective, objective_constant(tr.problem))):
+    size = 1.0 + own_size(objective, tr.problem.objective_constant)
+    if info.status != "optimal" or info.objective is None or abs(info.objective - objective) > spec.tolerance * size:
         return None
     meshes = solved_meshes(model)
     for pb in model.phases:
