@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .process_state import floating_point_environment_kept, heap_kept
-from .start_options import adaptations, adapted
+from .start_options import adapted
 
 SQUARE = "Feasible point for square problem found."
 STATUS_MAP = {
@@ -547,7 +547,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     library = ipopt_c.name()
     model = transcription.model if transcription is not None else None
     sf = getattr(model, "scaling_factor", None)
-    opts = adapted(opts, given, nlp.gradient, nlp.x0, nlp.xl, nlp.xu, sf is not None)
+    opts, changed = adapted(opts, given, nlp.gradient, nlp.x0, nlp.xl, nlp.xu, sf is not None)
     for k, v in opts.items():
         problem.add_option(k, v)
     if sf is not None:     # the model's scaling suffix, in this NLP's variable and row order
@@ -569,7 +569,7 @@ def _solve_direct_nlp(nlp, opts: dict[str, Any], verbose: bool, callback: Callab
     msg = msg.decode() if isinstance(msg, bytes) else str(msg)
     if transcription is not None and STATUS_MAP.get(msg) == "infeasible":
         msg += diagnose.infeasibility_message(transcription, nlp, x)
-    return msg, {**nlp.info(), "ipopt": library, **adaptations(opts, given, DEFAULT_OPTIONS["bound_relax_factor"])}, info.get("status")
+    return msg, {**nlp.info(), "ipopt": library, **changed}, info.get("status")
 
 
 def pynumero_nlp(model):
@@ -599,9 +599,8 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
     that every Ipopt return code comes back: Pyomo's solver raised ``KeyError: b'Unknown
     status'`` on a solve that ran out of the run's wall-clock time (Ipopt's -5, which
     cyipopt has no message for), so a time limit read as an error and its iterate was lost
-    (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code, the
-    adapted options: ``start_options.adaptations``). Models with grey-box
-    blocks are not handled here."""
+    (unseen19 f4). Returns (Ipopt's status message, the PyomoNLP, Ipopt's return code, what
+    ``start_options.adapted`` changed). Models with grey-box blocks are not handled here."""
     from pyomo.common.tee import capture_output
     from pyomo.contrib.pynumero.interfaces.cyipopt_interface import CyIpoptNLP
     nlp = pynumero_nlp(model)
@@ -613,8 +612,8 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         problem.set_problem_scaling(1.0 if obj is None else obj,
                                     np.ones(len(problem.x_lb())) if xs is None else xs,
                                     np.ones(len(problem.g_lb())) if gs is None else gs)
-    opts = adapted(opts, given, problem.gradient, problem.x_init(), problem.x_lb(), problem.x_ub(),
-                    any(f is not None for f in (obj, xs, gs)))
+    opts, changed = adapted(opts, given, problem.gradient, problem.x_init(), problem.x_lb(), problem.x_ub(),
+                            any(f is not None for f in (obj, xs, gs)))
     for k, v in opts.items():
         problem.add_option(k, v)
     start = {} if multipliers is None else _start_multipliers(
@@ -627,4 +626,4 @@ def _solve_pynumero(model, opts: dict[str, Any], verbose: bool, callback: Callab
         nlp.load_state_into_pyomo(bound_multipliers=(info["mult_x_L"], info["mult_x_U"]))
     finally:
         problem.close()
-    return info["status_msg"], nlp, info["status"], adaptations(opts, given, DEFAULT_OPTIONS["bound_relax_factor"])
+    return info["status_msg"], nlp, info["status"], changed

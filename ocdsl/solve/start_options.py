@@ -1,7 +1,7 @@
 """Ipopt's options adapted to an NLP at its start: the objective's scaling where it is too
 small for Ipopt's tolerance, and the bounds' relaxation where a variable far from zero has
 little room to its bound. Both routes (the direct NumPy NLP and PyNumero) call ``adapted``
-with the NLP's gradient, start and bounds; ``adaptations`` is what the SolveInfo records."""
+with the NLP's gradient, start and bounds; what it changed is what the SolveInfo records."""
 from __future__ import annotations
 
 import numpy as np
@@ -65,24 +65,21 @@ def _bounds_kept(brf: float, x, lower, upper) -> float:
     return tightest if tightest < RELAX_TIGHTER * brf else brf
 
 
-def adapted(opts: dict, given: frozenset, gradient_at, x, lower, upper, scaled: bool) -> dict:
-    """``opts`` adapted to the NLP at its start: Ipopt's objective scaling where the caller's
-    options (``given``) set none (``_objective_scaled``), and its bound relaxation, whoever set
-    the factor, lowered where a variable's room needs it (``_bounds_kept``; 0 stays 0)."""
+def adapted(opts: dict, given: frozenset, gradient_at, x, lower, upper, scaled: bool) -> tuple[dict, dict]:
+    """(``opts`` adapted to the NLP at its start, what changed, for the SolveInfo's NLP record):
+    Ipopt's objective scaling where the caller's options (``given``) set none
+    (``_objective_scaled``, recorded as ``objective_scaled_by``), and its bound relaxation,
+    whoever set the factor, lowered where a variable's room needs it (``_bounds_kept``; 0 stays
+    0)."""
+    changed = {}
     if "obj_scaling_factor" not in given:
         opts = _objective_scaled(opts, gradient_at, x, scaled)
-    if float(opts.get("bound_relax_factor", 1e-8)) > 0:
-        brf = _bounds_kept(float(opts.get("bound_relax_factor", 1e-8)), x, lower, upper)
-        if brf != float(opts.get("bound_relax_factor", 1e-8)):
-            opts = {**opts, "bound_relax_factor": brf}
-    return opts
-
-
-def adaptations(opts: dict, given: frozenset, default_relax: float) -> dict:
-    """What ``adapted`` changed, for the SolveInfo's NLP record."""
-    out = {}
-    if "obj_scaling_factor" in opts and "obj_scaling_factor" not in given:
-        out["objective_scaled_by"] = opts["obj_scaling_factor"]
-    if opts.get("bound_relax_factor") != default_relax:
-        out["bound_relax_factor"] = opts.get("bound_relax_factor")
-    return out
+        if "obj_scaling_factor" in opts:
+            changed["objective_scaled_by"] = opts["obj_scaling_factor"]
+    relax = float(opts.get("bound_relax_factor", 1e-8))
+    if relax > 0:
+        kept = _bounds_kept(relax, x, lower, upper)
+        if kept != relax:
+            opts = {**opts, "bound_relax_factor": kept}
+            changed["bound_relax_factor"] = kept
+    return opts, changed
