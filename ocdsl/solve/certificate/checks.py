@@ -13,7 +13,7 @@ from ocdsl.symbolic.model import Model
 
 from .conditions import symbolic_conditions
 from .minimum import minimum_condition
-from .nodes import _arrays, _hamiltonian_nodes, _Numeric
+from .nodes import _arrays, _hamiltonian_nodes, _Numeric, node_shares
 from .path import (_held_fraction, _path_active, _path_check, _path_item, _path_sizes, _state_arcs,
                    _state_touches)
 from .sides import _bounds, _f, _side, _switches, switch_pairs
@@ -251,9 +251,7 @@ def certificate(model: Model, parameter_values: Mapping | None, trajectory,
     side = _side(U, bounds, tol.saturation)
     dHdu, tied = _reduce_tied(t, dHdu, side, tied_controls)
     # each node's share of time: |dH/du| times it is the NLP's residual in that control
-    share = np.empty(N)
-    share[1:-1] = 0.5 * (t[2:] - t[:-2])
-    share[0], share[-1] = 0.5 * (t[1] - t[0]), 0.5 * (t[-1] - t[-2])
+    share = node_shares(t)
     u_floor = tol.rounding / share                 # |dH/du| below it is rounding
     st_per, sw_per, bb_per = {}, {}, {}
     unresolved: list[str] = []      # controls whose dH/du the NLP does not resolve

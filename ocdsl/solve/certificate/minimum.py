@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ...verify.checks import RESOLUTION
-from .nodes import _hamiltonian_nodes
+from .nodes import _hamiltonian_nodes, node_shares
 
 #: grid points per control (one control); per axis for two; each control alone for more
 SAMPLES_ONE, SAMPLES_TWO = 401, 61
@@ -152,10 +152,7 @@ def _undetermined(num, t, X, U, Lam, bounds, H_terms, names) -> dict | None:
             with np.errstate(all="ignore"):
                 terms = np.maximum(terms, np.nan_to_num(_hamiltonian_nodes(num, t, X, trial, Lam)[2], nan=np.inf))
     faint = terms * duration <= RESOLUTION
-    share = np.empty(len(t))
-    share[1:-1] = 0.5 * (t[2:] - t[:-2])
-    share[0], share[-1] = 0.5 * (t[1] - t[0]), 0.5 * (t[-1] - t[-2])
-    part = float(share[faint].sum() / duration)
+    part = float(node_shares(t)[faint].sum() / duration)
     if part < UNDETERMINED_SHARE or faint.all():
         return None
     first, last = float(t[faint][0]), float(t[faint][-1])

@@ -162,6 +162,15 @@ def hamiltonian_arrays(model: Model, parameter_values: Mapping | None, trajector
     return out
 
 
+def node_shares(t: np.ndarray) -> np.ndarray:
+    """Each node's share of the phase's time: half the distance between its neighbours (half
+    the end interval at the ends); they sum to the duration."""
+    share = np.empty(len(t))
+    share[1:-1] = 0.5 * (t[2:] - t[:-2])
+    share[0], share[-1] = 0.5 * (t[1] - t[0]), 0.5 * (t[-1] - t[-2])
+    return share
+
+
 def _hamiltonian_nodes(num: _Numeric, t, X, U, Lam):
     f = num.f_nodes(t, X, U)
     fu = num.fu_nodes(t, X, U)
