@@ -25,9 +25,10 @@ def failure_hints(file, tr, status: str) -> str:
         # (unseen61 F1: an altitude of 6.5e6 m in a `mesh:` run, tol 1e-10, J right to 8e-15,
         # "acceptable" on every mesh with no word why)
         try:
-            return _scaling(file, tr, " Ipopt met only its acceptable level, not its `tol`: ")
+            spread = "" if file.spec.scaling.mode == "auto" else _spread(tr)
         except Exception:  # a hint must never lose the run
             return ""
+        return f" Ipopt met only its acceptable level, not its `tol`: {spread}" if spread else ""
     if status not in FAILED:
         return ""
     out = ""
@@ -39,15 +40,22 @@ def failure_hints(file, tr, status: str) -> str:
     return out
 
 
-def _scaling(file, tr, lead: str = " ") -> str:
+def _scaling(file, tr) -> str:
     if file.spec.scaling.mode == "auto":
-        return "" if lead.strip() else _sizeless(file, tr)
+        return _sizeless(file, tr)
+    spread = _spread(tr)
+    return f" {spread[0].upper()}{spread[1:]}" if spread else ""
+
+
+def _spread(tr) -> str:
+    """The sentence on the variables' spread of typical magnitudes and its remedy, lower case,
+    where they span ``BADLY_SCALED`` or more at the start; empty otherwise."""
     if tr.start_spread is None:
         return ""
     ratio, hi, lo = tr.start_spread
     if not ratio >= BADLY_SCALED:
         return ""
-    return (f"{lead}{'T' if lead == ' ' else 't'}he variables' typical magnitudes span {ratio:.1e} ({hi} against {lo}, from their bounds "
+    return (f"the variables' typical magnitudes span {ratio:.1e} ({hi} against {lo}, from their bounds "
             "or guesses): try `scaling: {mode: auto}` (docs/problem-language.md, \"Scaling\"), or write the "
             "problem in units where they are of order 1.")
 
