@@ -1049,17 +1049,8 @@ def test_a_switch_whose_narrow_segment_touches_a_bound_once_is_located(tmp_path)
     assert res.verified and res.objective == pytest.approx(7.937411720585, rel=1e-6)
 
 
-def test_a_small_objective_is_not_waived_by_an_absolute_floor(tmp_path):
-    """unseen34 F0: x' = u, u <= 1, cost 1e-8 (u^2/2 - (t - 1) u) over two phases (H's
-    minimiser u = min(1, t - 1), J* = -17/24 x 1e-8). One mesh met the tolerance at J =
-    -6.953e-9, its bisection found the exact -7.0833e-9 (1.8 % away), and the run said
-    `optimal, verified`, exit 0: "|dJ| within Ipopt's accuracy 1e-09", a floor of 10 x tol
-    absolute, as the refinement's bisection was given no size of the objective. Measured
-    against the objective's own size, the difference fails. Ipopt's objective is left
-    unscaled (obj_scaling_factor 1): ocdsl now scales so small an objective for Ipopt, which
-    then finds the exact J on the first mesh, and the floor is what this test is about."""
-    path = tmp_path / "small.yaml"
-    path.write_text("""name: corner problem in two phases, cost x 1e-8
+# unseen34 F0's corner problem, its cost multiplied by 1e-8: u = min(1, t - 1), J* = -17/24 x 1e-8
+SMALL_CORNER = """name: corner problem in two phases, cost x 1e-8
 model: {states: [x], controls: [u], dynamics: {x: u}}
 phases:
   early:
@@ -1074,8 +1065,20 @@ links:
   - continuous(early, late)
 objective: minimize 0
 method: {transcription: LGR, segments: 2, degree: 3, mesh: {tolerance: 1.0e-8}}
-solver: {options: {obj_scaling_factor: 1}}
-""")
+"""
+
+
+def test_a_small_objective_is_not_waived_by_an_absolute_floor(tmp_path):
+    """unseen34 F0: x' = u, u <= 1, cost 1e-8 (u^2/2 - (t - 1) u) over two phases (H's
+    minimiser u = min(1, t - 1), J* = -17/24 x 1e-8). One mesh met the tolerance at J =
+    -6.953e-9, its bisection found the exact -7.0833e-9 (1.8 % away), and the run said
+    `optimal, verified`, exit 0: "|dJ| within Ipopt's accuracy 1e-09", a floor of 10 x tol
+    absolute, as the refinement's bisection was given no size of the objective. Measured
+    against the objective's own size, the difference fails. Ipopt's objective is left
+    unscaled (obj_scaling_factor 1): ocdsl now scales so small an objective for Ipopt, which
+    then finds the exact J on the first mesh, and the floor is what this test is about."""
+    path = tmp_path / "small.yaml"
+    path.write_text(SMALL_CORNER + "solver: {options: {obj_scaling_factor: 1}}\n")
     res = ocdsl.load(path).solve()
     exact = -17 / 24 * 1e-8
     assert abs(res.objective - exact) > 1e-2 * abs(exact)                  # the case: J off
@@ -1419,22 +1422,7 @@ def test_an_integral_of_small_size_is_estimated_against_its_own_size(tmp_path):
     "max error 1.25e-9", within the tolerance 1e-8. Against the integral's own size that mesh
     is 9e-2 off. A mesh's J below the optimum is its quadrature's error alone."""
     path = tmp_path / "small.yaml"
-    path.write_text("""name: corner problem in two phases, cost x 1e-8
-model: {states: [x], controls: [u], dynamics: {x: u}}
-phases:
-  early:
-    time: {t0: 0, tf: 1}
-    constraints: [x(t0) == 0, u <= 1]
-    objective: integral(1.0e-8*(u**2/2 - (t - 1)*u))
-  late:
-    time: {t0: 1, tf: 2.5}
-    constraints: [u <= 1]
-    objective: integral(1.0e-8*(u**2/2 - (t - 1)*u))
-links:
-  - continuous(early, late)
-objective: minimize 0
-method: {transcription: LGR, segments: 2, degree: 3, mesh: {tolerance: 1.0e-8}}
-""")
+    path.write_text(SMALL_CORNER)
     res = ocdsl.load(path).solve()
     exact = -17 / 24 * 1e-8
     below = [h for h in res.extra["mesh_history"] if h["objective"] is not None and h["objective"] < exact * (1 + 1e-3)]
